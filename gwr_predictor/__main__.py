@@ -1,0 +1,5 @@
+"""`python -m gwr_predictor ...` is the same as the `gwr-predictor` command."""
+
+from gwr_predictor.cli import main
+
+raise SystemExit(main())

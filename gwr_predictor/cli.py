@@ -1,0 +1,47 @@
+"""The `gwr-predictor` command line: a thin dispatcher over library functions.
+
+Each sub-command lives in its own module exposing `configure(parser)` and `run(args) -> int`,
+imported only when chosen so that `gwr-predictor angles` does not pay for pybullet or matplotlib.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+
+# name -> (module, one-line help)
+COMMANDS: dict[str, tuple[str, str]] = {
+    "demonstrate": ("gwr_predictor.commands.demonstrate", "write the demonstrator's skeleton sequences to files"),
+    "angles": ("gwr_predictor.commands.angles", "extract the 8 Nao arm angles from a skeleton file"),
+    "bench": ("gwr_predictor.commands.bench", "benchmark learn+predict through the hierarchy"),
+    "soak": ("gwr_predictor.commands.soak", "long offline run: memory and throughput over 1M frames"),
+    "experiment": ("gwr_predictor.commands.experiment", "reproduce one of the paper's experiments"),
+    "evaluate": ("gwr_predictor.commands.evaluate", "online evaluation of recordings against baselines"),
+    "pretrain": ("gwr_predictor.commands.pretrain", "train a hierarchy offline and save a checkpoint"),
+    "report": ("gwr_predictor.commands.report", "summarise a recorded pipeline bag: errors, lag, plot"),
+}
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="gwr-predictor", description=__doc__.splitlines()[0])
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
+    for name, (_, help_text) in COMMANDS.items():
+        sub.add_parser(name, help=help_text, add_help=False)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    argv = list(sys.argv[1:] if argv is None else argv)
+    if not argv or argv[0] in ("-h", "--help") or argv[0] not in COMMANDS:
+        build_parser().parse_args(argv)  # prints usage / the error and exits
+        return 2
+    name, rest = argv[0], argv[1:]
+    module = importlib.import_module(COMMANDS[name][0])
+    parser = argparse.ArgumentParser(prog=f"gwr-predictor {name}", description=COMMANDS[name][1])
+    module.configure(parser)
+    return int(module.run(parser.parse_args(rest)) or 0)
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,51 @@
+"""The package layout that colcon, ament and `ros2 run` rely on."""
+
+import ast
+import xml.etree.ElementTree as ET
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def test_package_xml_is_format_3_ament_python():
+    root = ET.parse(ROOT / "package.xml").getroot()
+    assert root.get("format") == "3"
+    assert root.findtext("name") == "gwr_predictor"
+    assert root.find("export/build_type").text == "ament_python"
+    deps = {e.text for e in root.findall("exec_depend")}
+    assert {"rclpy", "std_msgs", "sensor_msgs"} <= deps
+
+
+def test_setup_cfg_puts_scripts_where_ros2_run_looks():
+    text = (ROOT / "setup.cfg").read_text()
+    assert "script_dir=$base/lib/gwr_predictor" in text
+    assert "install_scripts=$base/lib/gwr_predictor" in text
+    assert (ROOT / "resource" / "gwr_predictor").is_file()
+
+
+def test_every_node_console_script_has_a_module_with_main():
+    tree = ast.parse((ROOT / "setup.py").read_text())
+    nodes = next(n for n in ast.walk(tree) if isinstance(n, ast.Assign) and n.targets[0].id == "NODES")
+    names = [e.value for e in nodes.value.elts]
+    assert len(names) >= 5
+    for name in names:
+        src = ROOT / "nodes" / f"{name}.py"
+        assert src.is_file(), f"console script {name} has no nodes/{name}.py"
+        mod = ast.parse(src.read_text())
+        assert any(isinstance(f, ast.FunctionDef) and f.name == "main" for f in mod.body), name
+
+
+def test_library_never_imports_rclpy():
+    for path in (ROOT / "gwr_predictor").rglob("*.py"):
+        tree = ast.parse(path.read_text())
+        for node in ast.walk(tree):
+            if isinstance(node, ast.Import):
+                mods = [a.name for a in node.names]
+            elif isinstance(node, ast.ImportFrom):
+                mods = [node.module or ""]
+            else:
+                continue
+            for m in mods:
+                top = m.split(".")[0]
+                assert top not in {"rclpy", "sensor_msgs", "std_msgs", "diagnostic_msgs"}, (
+                    f"{path.relative_to(ROOT)} imports {m}: the library must stay ROS-free")
