@@ -1,0 +1,200 @@
+"""rosbag2/MCAP bags: round trips, independent readers, errors naming the path, crash recovery."""
+
+import errno
+import os
+import subprocess
+import sys
+import textwrap
+
+import numpy as np
+import pytest
+from mcap.reader import make_reader
+from mcap_ros2.decoder import DecoderFactory
+from rosbags.rosbag2 import Reader
+
+from gwr_predictor import bags
+from gwr_predictor.conventions import (
+    TOPIC_ANGLES,
+    TOPIC_PREDICTIONS,
+    TOPIC_TYPES,
+    pack_predictions,
+    unpack_predictions,
+)
+from gwr_predictor.nao import ARM_JOINTS
+
+TOPICS = {TOPIC_ANGLES: TOPIC_TYPES[TOPIC_ANGLES], TOPIC_PREDICTIONS: TOPIC_TYPES[TOPIC_PREDICTIONS]}
+T0 = 1_700_000_000_000_000_000
+
+
+def angles(k: int) -> np.ndarray:
+    return np.sin(np.arange(8) + 0.1 * k) * (1.0 + 1e-13 * k)
+
+
+def write_session(path, frames: int = 20) -> None:
+    with bags.BagWriter(path, TOPICS) as writer:
+        for k in range(frames):
+            stamp = 1_700_000_000.0 + 0.1 * k
+            writer.write(TOPIC_ANGLES, T0 + k * 100_000_000, bags.joint_state_msg(ARM_JOINTS, angles(k), stamp))
+            preds = np.outer(np.arange(1, 7), angles(k))
+            writer.write(TOPIC_PREDICTIONS, T0 + k * 100_000_000 + 1,
+                         bags.multiarray_msg(pack_predictions(stamp, preds)))
+
+
+def test_written_bag_has_rosbag2_metadata_and_counts(tmp_path):
+    path = tmp_path / "session"
+    write_session(path)
+    info = bags.bag_info(path)
+    assert info.message_count == 40 and info.storage == "mcap"
+    assert info.topics == {TOPIC_ANGLES: (bags.JOINT_STATE, 20), TOPIC_PREDICTIONS: (bags.FLOAT64_MULTIARRAY, 20)}
+    assert info.start_ns == T0 and info.end_ns == T0 + 19 * 100_000_000 + 1
+    meta = (path / "metadata.yaml").read_text()
+    assert "version: 9" in meta and "storage_identifier: mcap" in meta
+    with Reader(path) as reader:  # rosbags' own reader agrees
+        assert reader.message_count == 40
+
+
+def test_joint_states_round_trip_exactly(tmp_path):
+    path = tmp_path / "session"
+    write_session(path)
+    got = [bags.joint_state_arrays(m.msg) for m in bags.read_bag(path, [TOPIC_ANGLES])]
+    assert len(got) == 20
+    for k, (stamp, names, positions) in enumerate(got):
+        assert names == ARM_JOINTS
+        assert stamp == pytest.approx(1_700_000_000.0 + 0.1 * k, abs=1e-9)
+        np.testing.assert_array_equal(positions, angles(k))
+
+
+def test_prediction_arrays_round_trip_exactly(tmp_path):
+    path = tmp_path / "session"
+    write_session(path)
+    msgs = list(bags.read_bag(path, [TOPIC_PREDICTIONS]))
+    for k, m in enumerate(msgs):
+        assert m.timestamp_ns == T0 + k * 100_000_000 + 1
+        stamp, names, preds = unpack_predictions(bags.packed_array(m.msg))
+        assert names == ARM_JOINTS and stamp == 1_700_000_000.0 + 0.1 * k
+        np.testing.assert_array_equal(preds, np.outer(np.arange(1, 7), angles(k)))
+
+
+def test_mcap_ros2_decoder_reads_the_same_messages(tmp_path):
+    path = tmp_path / "session"
+    write_session(path)
+    (mcap_file,) = path.glob("*.mcap")
+    with mcap_file.open("rb") as f:
+        decoded = [(c.topic, m.log_time, d) for _, c, m, d in
+                   make_reader(f, decoder_factories=[DecoderFactory()]).iter_decoded_messages()]
+    states = [(t, d) for topic, t, d in decoded if topic == TOPIC_ANGLES]
+    assert len(decoded) == 40 and len(states) == 20
+    np.testing.assert_array_equal(np.asarray(states[5][1].position), angles(5))
+    assert list(states[5][1].name) == list(ARM_JOINTS)
+
+
+def test_raw_cdr_is_stored_unchanged(tmp_path):
+    msg = bags.joint_state_msg(ARM_JOINTS, angles(1), 3.25)
+    raw = bags.serialize(msg)
+    with bags.BagWriter(tmp_path / "raw", {TOPIC_ANGLES: bags.JOINT_STATE}) as writer:
+        writer.write_raw(TOPIC_ANGLES, 5, raw)
+    (stored,) = bags.read_bag(tmp_path / "raw")
+    assert stored.raw == raw and stored.timestamp_ns == 5 and stored.msgtype == bags.JOINT_STATE
+    assert writer.messages_written == {TOPIC_ANGLES: 1}
+
+
+def test_an_exception_inside_the_with_block_still_leaves_a_readable_bag(tmp_path):
+    path = tmp_path / "interrupted"
+    with pytest.raises(KeyboardInterrupt), bags.BagWriter(path, TOPICS) as writer:
+        writer.write(TOPIC_ANGLES, 1, bags.joint_state_msg(ARM_JOINTS, angles(0), 0.0))
+        raise KeyboardInterrupt
+    assert [m.topic for m in bags.read_bag(path)] == [TOPIC_ANGLES]
+
+
+def test_existing_path_is_refused_naming_it(tmp_path):
+    path = tmp_path / "taken"
+    path.mkdir()
+    with pytest.raises(bags.BagError, match=r"taken.*exists"), bags.BagWriter(path, TOPICS):
+        pass
+
+
+def test_unwritable_path_is_reported_naming_it(tmp_path):
+    blocker = tmp_path / "a_file"
+    blocker.write_text("not a directory")
+    with pytest.raises(bags.BagError, match="a_file/bag"), bags.BagWriter(blocker / "bag", TOPICS):
+        pass
+
+
+class FullDisk:
+    """A file whose writes fail like a full disk; everything else goes to the real file."""
+
+    def __init__(self, real) -> None:
+        self.real = real
+
+    def write(self, _data) -> int:
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    def __getattr__(self, name):
+        return getattr(self.real, name)
+
+
+def test_full_disk_is_reported_naming_the_bag(tmp_path):
+    path = tmp_path / "full"
+    writer = bags.BagWriter(path, TOPICS, flush_every=1)
+    writer.open()
+    storage = writer._writer.storage
+    storage.bio = FullDisk(storage.bio)
+    with pytest.raises(bags.BagError, match=r"full.*No space left"):
+        writer.write(TOPIC_ANGLES, 1, bags.joint_state_msg(ARM_JOINTS, angles(0), 0.0))
+    with pytest.raises(bags.BagError, match="not open"):
+        writer.write(TOPIC_ANGLES, 2, bags.joint_state_msg(ARM_JOINTS, angles(0), 0.0))
+
+
+def test_undeclared_topics_and_unknown_types_are_refused(tmp_path):
+    with pytest.raises(bags.BagError, match="my_msgs/msg/Thing"):
+        bags.BagWriter(tmp_path / "x", {"thing": "my_msgs/msg/Thing"})
+    with bags.BagWriter(tmp_path / "y", TOPICS) as writer, pytest.raises(bags.BagError, match="'other'"):
+        writer.write_raw("other", 1, b"")
+
+
+def test_reading_something_that_is_not_a_bag_names_it(tmp_path):
+    with pytest.raises(bags.BagError, match="nothing_here"):
+        list(bags.read_bag(tmp_path / "nothing_here"))
+    (tmp_path / "half").mkdir()
+    with pytest.raises(bags.BagError, match=r"half.*metadata.yaml"):
+        bags.bag_info(tmp_path / "half")
+
+
+CRASHING_RECORDER = textwrap.dedent("""
+    import os, sys
+    import numpy as np
+    from gwr_predictor import bags
+    from gwr_predictor.nao import ARM_JOINTS
+    writer = bags.BagWriter(sys.argv[1], {"arm_angles": bags.JOINT_STATE}, flush_every=int(sys.argv[2]))
+    writer.open()
+    for k in range(int(sys.argv[3])):
+        writer.write("arm_angles", 1000 + k, bags.joint_state_msg(ARM_JOINTS, np.full(8, float(k)), k * 0.1))
+    os._exit(9)  # a crash: no close, no atexit, no buffer flush
+""")
+
+
+def crash_recorder(path, flush_every: int, messages: int) -> None:
+    env = {k: v for k, v in os.environ.items() if k != "_ROS_WHEELS_BOOTSTRAP_COMPLETE"}
+    done = subprocess.run([sys.executable, "-c", CRASHING_RECORDER, str(path), str(flush_every), str(messages)],
+                          env=env, capture_output=True, timeout=120, check=False)
+    assert done.returncode == 9, done.stderr.decode()
+
+
+def test_a_crashed_writer_is_recovered_up_to_its_last_flush(tmp_path):
+    path = tmp_path / "crashed"
+    crash_recorder(path, flush_every=10, messages=37)
+    with pytest.raises(bags.BagError, match="recover_bag"):
+        list(bags.read_bag(path))
+    info = bags.recover_bag(path)
+    assert info.message_count == 30
+    positions = [m.msg.position[0] for m in bags.read_bag(path)]
+    assert positions == [float(k) for k in range(30)]
+    assert sorted(p.name for p in path.iterdir()) == ["crashed.mcap", "crashed.mcap.damaged", "metadata.yaml"]
+    assert bags.recover_bag(path) == info  # a sound bag is left alone
+
+
+def test_a_writer_that_never_flushed_is_reported_unrecoverable(tmp_path):
+    path = tmp_path / "lost"
+    crash_recorder(path, flush_every=0, messages=5)
+    with pytest.raises(bags.BagError, match=r"lost.*nothing recoverable"):
+        bags.recover_bag(path)
