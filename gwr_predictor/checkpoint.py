@@ -1,0 +1,109 @@
+"""One-file, versioned, atomically written model checkpoints (npz + JSON header).
+
+Layout: an uncompressed .npz whose member `__header__` holds UTF-8 JSON with `magic`, `kind`
+(the model class), `format_version` and whatever plain values the model adds; every other member
+is a named array. Writing goes to a temporary file in the destination folder, is fsynced and then
+renamed over the target, so a crash leaves either the old or the new file, never half of one.
+Anything wrong on reading (missing, truncated, not a checkpoint, another kind or version, missing
+arrays) raises `CheckpointError` naming the file and the problem.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import os
+import tempfile
+import zipfile
+from collections.abc import Iterable, Mapping
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+MAGIC = "gwr_predictor.checkpoint"
+FORMAT_VERSION = 1
+HEADER_KEY = "__header__"
+
+
+class CheckpointError(Exception):
+    """A checkpoint that cannot be written or read; the message names the file and the cause."""
+
+
+def write_checkpoint(path: str | os.PathLike[str], kind: str, header: Mapping[str, Any],
+                     arrays: Mapping[str, np.ndarray]) -> None:
+    """Atomically write `arrays` and the JSON-able `header` as a checkpoint of `kind`."""
+    path = Path(path)
+    meta = {"magic": MAGIC, "kind": kind, "format_version": FORMAT_VERSION, **header}
+    if HEADER_KEY in arrays:
+        raise CheckpointError(f"{path}: array name {HEADER_KEY!r} is reserved")
+    try:
+        blob = json.dumps(meta, allow_nan=True).encode()
+    except (TypeError, ValueError) as exc:
+        raise CheckpointError(f"{path}: header is not JSON-serialisable: {exc}") from exc
+    members = {HEADER_KEY: np.frombuffer(blob, dtype=np.uint8), **arrays}
+    folder = path.parent if str(path.parent) else Path(".")
+    try:
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=folder)
+    except OSError as exc:
+        raise CheckpointError(f"{path}: cannot create a temporary file in {folder}: {exc}") from exc
+    try:
+        with os.fdopen(fd, "wb") as f:
+            np.savez(f, **members)
+            f.flush()
+            os.fsync(f.fileno())
+        os.replace(tmp, path)
+    except BaseException as exc:
+        with contextlib.suppress(OSError):
+            os.unlink(tmp)
+        if isinstance(exc, OSError):
+            raise CheckpointError(f"{path}: writing failed: {exc}") from exc
+        raise
+    _fsync_dir(folder)
+
+
+def _fsync_dir(folder: Path) -> None:
+    """Make the rename itself durable (best effort: not every platform can open a folder)."""
+    try:
+        fd = os.open(folder, os.O_RDONLY)
+    except OSError:
+        return
+    try:
+        os.fsync(fd)
+    except OSError:
+        pass
+    finally:
+        os.close(fd)
+
+
+def read_checkpoint(path: str | os.PathLike[str], kind: str,
+                    required: Iterable[str] = ()) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
+    """(header, arrays) of a checkpoint of `kind`; every name in `required` must be present."""
+    path = Path(path)
+    if not path.is_file():
+        raise CheckpointError(f"{path}: no such checkpoint file")
+    try:
+        with np.load(path, allow_pickle=False) as npz:
+            arrays = {name: npz[name] for name in npz.files}
+    except (zipfile.BadZipFile, ValueError, EOFError, OSError, KeyError) as exc:
+        raise CheckpointError(f"{path}: not a readable checkpoint (truncated or corrupt?): {exc}") from exc
+    blob = arrays.pop(HEADER_KEY, None)
+    if blob is None or blob.dtype != np.uint8 or blob.ndim != 1:
+        raise CheckpointError(f"{path}: no {HEADER_KEY!r} member: not a gwr_predictor checkpoint")
+    try:
+        header = json.loads(blob.tobytes().decode())
+    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise CheckpointError(f"{path}: header is not valid JSON: {exc}") from exc
+    if not isinstance(header, dict) or header.get("magic") != MAGIC:
+        raise CheckpointError(f"{path}: wrong magic {header.get('magic') if isinstance(header, dict) else None!r}, "
+                              f"expected {MAGIC!r}: not a gwr_predictor checkpoint")
+    version = header.get("format_version")
+    if version != FORMAT_VERSION:
+        raise CheckpointError(f"{path}: format_version {version!r} is not supported (this build reads "
+                              f"{FORMAT_VERSION})")
+    if header.get("kind") != kind:
+        raise CheckpointError(f"{path}: holds a {header.get('kind')!r}, expected a {kind!r}")
+    missing = sorted(set(required) - arrays.keys())
+    if missing:
+        raise CheckpointError(f"{path}: missing arrays {missing}")
+    return header, arrays

@@ -1,0 +1,262 @@
+"""`gwr-predictor bench`: speed of learn+predict through the hierarchy, and what bounds it.
+
+Prints readable lines, then one JSON object as the last line:
+  frames_per_s      learn + predict per frame through the full hierarchy, ~1,000 neurons per layer,
+                    median over 1,000-frame chunks (default mode; `frames_per_s_<mode>` for both)
+  predict_p99_ms    99th percentile of one `predict()` (wall clock) with ~5,000 neurons in the
+                    P-GWR, best of 3 passes (also over all passes, and in CPU time)
+  speedup_vs_loop   vectorised GWR step vs loop_gwr.py (plain per-neuron loops), same data, same
+                    process, ~1,000 neurons
+  peak_rss_mb       peak resident memory with the benchmark models (before the loop/BMU probes)
+  bmu_overhead_us / bmu_ns_per_value  fit of one BMU search time = overhead + n * dim * cost,
+                    to tell call overhead from memory bandwidth
+The data are synthetic smooth periodic multi-joint arm trajectories (no dependency on the
+demonstrator). Networks are pre-grown to the target sizes with `max_neurons`.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import resource
+import sys
+import time
+from typing import Any
+
+import numpy as np
+from tqdm import tqdm
+
+from gwr_predictor.gwr import GWR
+from gwr_predictor.hierarchy import Hierarchy
+from gwr_predictor.loop_gwr import LoopGWR
+from gwr_predictor.nao import ARM_JOINTS, clip_to_limits
+from gwr_predictor.params import GWRParams, HierarchyParams
+
+# Neutral pose (arms hanging, elbows slightly bent) in ARM_JOINTS order.
+_NEUTRAL = np.array([1.4, 0.15, -1.2, -0.4, 1.4, -0.15, 1.2, 0.4])
+_MIRROR = np.array([1.0, -1.0, -1.0, -1.0])  # left -> right sign of pitch, roll, yaw, elbow roll
+
+
+def _arm(pitch: np.ndarray, roll: np.ndarray, yaw: np.ndarray, elbow: np.ndarray) -> np.ndarray:
+    """Left-arm angles (T, 4) as offsets from the neutral pose."""
+    return np.stack([pitch, roll, yaw, elbow], axis=1)
+
+
+def _pattern(kind: int, phase: np.ndarray) -> np.ndarray:
+    """Offsets (T, 8) from the neutral pose of one of 10 arm patterns, phase in [0, 1)."""
+    up = 0.5 - 0.5 * np.cos(2 * np.pi * phase)  # 0 -> 1 -> 0
+    c, s = np.cos(2 * np.pi * phase), np.sin(2 * np.pi * phase)
+    z = np.zeros_like(phase)
+    lateral = _arm(-0.3 * up, 1.1 * up, 0.4 * up, 0.3 * up)
+    front = _arm(-1.5 * up, 0.1 * up, 0.6 * up, 0.2 * up)
+    wave = _arm(-1.6 * up, 0.3 * up, 1.0 * up, 0.25 * up * (1 - np.cos(6 * np.pi * phase)))
+    circle = _arm(-0.9 + 0.5 * c, 0.5 + 0.35 * s, 0.8 + 0.2 * s, 0.2 + 0.1 * c)
+    circle_ccw = _arm(-0.9 + 0.5 * c, 0.5 - 0.35 * s, 0.8 - 0.2 * s, 0.2 + 0.1 * c)
+    rest = _arm(z, z, z, z)
+    left, right = {
+        0: (lateral, lateral), 1: (lateral, rest), 2: (front, front), 3: (rest, front),
+        4: (wave, wave), 5: (rest, wave), 6: (circle, circle), 7: (circle_ccw, circle_ccw),
+        8: (circle, rest), 9: (rest, circle_ccw),
+    }[kind]
+    return np.concatenate([left, right * _MIRROR], axis=1)
+
+
+def synthetic_demonstrations(seed: int = 0, patterns: int = 10, subjects: int = 3,
+                             repeats: int = 10) -> list[tuple[int, np.ndarray]]:
+    """(pattern, frames (T, 8) radians at 10 fps) for every demonstration: each pattern done
+    `repeats` times by each of `subjects` people who differ in amplitude, tempo and posture,
+    plus per-frame tracker noise."""
+    rng = np.random.default_rng(seed)
+    demos = []
+    for kind in range(patterns):
+        for _ in range(subjects):
+            gain, tempo, posture = rng.uniform(0.85, 1.15), rng.uniform(0.8, 1.25), rng.normal(0, 0.05, 8)
+            for _ in range(repeats):
+                frames = max(8, round(30 / tempo * rng.uniform(0.9, 1.1)))
+                phase = np.arange(frames) / frames
+                warp = phase + 0.03 * np.sin(2 * np.pi * phase) * rng.normal()
+                angles = _NEUTRAL + posture + gain * _pattern(kind, warp) + rng.normal(0, 0.02, (frames, 8))
+                demos.append((kind, clip_to_limits(angles, ARM_JOINTS)))
+    return demos
+
+
+def synthetic_arm_stream(n_frames: int, seed: int = 0) -> np.ndarray:
+    """(n_frames, 8) radians: the demonstrations of all patterns, concatenated and repeated."""
+    demos = np.concatenate([d for _, d in synthetic_demonstrations(seed)])
+    reps = math.ceil(n_frames / len(demos))
+    return np.tile(demos, (reps, 1))[:n_frames]
+
+
+def peak_rss_mb() -> float:
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
+
+
+def _log(quiet: bool, text: str) -> None:
+    if not quiet:
+        print(text, flush=True)
+
+
+def grown_hierarchy(params: HierarchyParams, stream: np.ndarray, targets: tuple[int, int, int],
+                    max_frames: int, seed: int = 0, progress: bool = False) -> tuple[Hierarchy, int]:
+    """A hierarchy trained on `stream` (cycled) until every layer has its target size (capped by
+    max_neurons) or `max_frames` frames; returns it and the frames used."""
+    h = Hierarchy(params, seed=seed)
+    used = 0
+    with tqdm(total=max_frames, desc=f"growing to {targets}", unit="frame", file=sys.stderr, leave=False,
+              disable=not progress or not sys.stderr.isatty()) as bar:
+        while used < max_frames and any(n < t for n, t in zip(h.neuron_counts, targets, strict=True)):
+            part = stream[:min(len(stream), max_frames - used)]
+            for x in part:
+                h.step(x)
+            used += len(part)
+            bar.update(len(part))
+    return h, used
+
+
+def bench_params(size: int, pgwr_size: int, mode: str, input_scale: float) -> HierarchyParams:
+    """Parameters that let each layer grow to `size` neurons (P-GWR to `pgwr_size`)."""
+    base = HierarchyParams(mode=mode, input_scale=input_scale)
+    return base.replace(gwr1=base.gwr1.replace(max_neurons=size), gwr2=base.gwr2.replace(max_neurons=size),
+                        pgwr=base.pgwr.replace(max_neurons=pgwr_size))
+
+
+def measure_throughput(h: Hierarchy, stream: np.ndarray, chunk: int = 1000) -> tuple[float, float]:
+    """(median, best) frames per second of step() (learn + predict) over chunks of `stream`.
+    The median of chunks resists other processes stealing the CPU for a while."""
+    rates = []
+    for start in range(0, len(stream), chunk):
+        part = stream[start:start + chunk]
+        t0 = time.perf_counter()
+        for x in part:
+            h.step(x)
+        rates.append(len(part) / (time.perf_counter() - t0))
+    return float(np.median(rates)), float(np.max(rates))
+
+
+def measure_predict(h: Hierarchy, stream: np.ndarray, calls: int) -> tuple[np.ndarray, np.ndarray]:
+    """Wall-clock and CPU durations (ms) of `predict()` after each frame of `stream` (the frames
+    themselves are matched untimed, without learning, so the network size stays fixed)."""
+    wall, cpu = np.empty(calls), np.empty(calls)
+    for i in range(calls):
+        h.step(stream[i % len(stream)], learn=False)
+        c0, t0 = time.process_time(), time.perf_counter()
+        h.predict()
+        wall[i], cpu[i] = time.perf_counter() - t0, time.process_time() - c0
+    return wall * 1e3, cpu * 1e3
+
+
+def measure_speedup(size: int, dim: int, steps: int, seed: int = 0) -> tuple[float, float, float]:
+    """(vectorised us/step, loop us/step, ratio) on the same pre-grown network and data."""
+    rng = np.random.default_rng(seed)
+    weights = rng.uniform(-1, 1, (size, dim))
+    chain = np.stack([np.arange(size - 1), np.arange(1, size), np.zeros(size - 1, int)], axis=1)
+    params = GWRParams(max_neurons=size)
+    data = rng.uniform(-1, 1, (steps, dim))
+    fast = GWR.from_arrays(weights, params, edges=chain)
+    slow = LoopGWR.from_gwr(fast)
+    t0 = time.perf_counter()
+    for x in data:
+        fast.learn(x)
+    t_fast = (time.perf_counter() - t0) / steps
+    t0 = time.perf_counter()
+    for x in data:
+        slow.learn(x)
+    t_slow = (time.perf_counter() - t0) / steps
+    return t_fast * 1e6, t_slow * 1e6, t_slow / t_fast
+
+
+def measure_bmu_cost(dims: tuple[int, ...] = (8, 24, 72), sizes: tuple[int, ...] = (250, 1000, 2500, 5000),
+                     reps: int = 300) -> dict[str, Any]:
+    """Time of one BMU search vs n * dim: intercept = per-call overhead, slope = cost per value."""
+    rng = np.random.default_rng(1)
+    xs, ts = [], []
+    for dim in dims:
+        for n in sizes:
+            net = None  # free the previous network (its n x n edge matrix) first
+            net = GWR.from_arrays(rng.uniform(-1, 1, (n, dim)), GWRParams())
+            x = rng.uniform(-1, 1, dim)
+            best = math.inf
+            for _ in range(3):
+                t0 = time.perf_counter()
+                for _ in range(reps):
+                    net.nearest(x)
+                best = min(best, (time.perf_counter() - t0) / reps)
+            xs.append(n * dim)
+            ts.append(best * 1e6)
+    slope, intercept = np.polyfit(np.array(xs, float), np.array(ts), 1)
+    return {"bmu_overhead_us": float(intercept), "bmu_ns_per_value": float(slope * 1e3),
+            "bmu_points": [[x, round(t, 2)] for x, t in zip(xs, ts, strict=True)]}
+
+
+def configure(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--quick", action="store_true", help="small sizes and few frames (a smoke run)")
+    parser.add_argument("--size", type=int, default=1000, help="neurons per layer for frames_per_s")
+    parser.add_argument("--pgwr-size", type=int, default=5000, help="P-GWR neurons for predict_p99_ms")
+    parser.add_argument("--frames", type=int, default=20000, help="frames timed for frames_per_s")
+    parser.add_argument("--input-scale", type=float, default=1.0,
+                        help="input scale used to grow the networks quickly (fine-grained layers)")
+    parser.add_argument("--quiet", action="store_true", help="only the JSON line")
+
+
+def run(args: argparse.Namespace) -> int:
+    size, pgwr_size, frames = args.size, args.pgwr_size, args.frames
+    if args.quick:
+        size, pgwr_size, frames = min(size, 100), min(pgwr_size, 300), min(frames, 300)
+    stream = synthetic_arm_stream(max(frames, 40000 if not args.quick else 2000))
+    result: dict[str, Any] = {"size_per_layer": size, "pgwr_size": pgwr_size, "frames_timed": frames}
+    chunk = 100 if args.quick else 1000
+    for mode in ("recursive", "vector"):
+        params = bench_params(size, size, mode, args.input_scale)
+        h, used = grown_hierarchy(params, stream, (size, size, size), max_frames=40 * size + 2000,
+                                  progress=not args.quiet)
+        fps, best = measure_throughput(h, stream[:frames], chunk)
+        result[f"frames_per_s_{mode}"] = round(fps, 1)
+        result[f"frames_per_s_{mode}_best"] = round(best, 1)
+        result[f"neurons_{mode}"] = list(h.neuron_counts)
+        _log(args.quiet, f"{mode:9s}: {fps:9.0f} frames/s learn+predict (median of {chunk}-frame chunks; best "
+                         f"{best:.0f}), neurons {h.neuron_counts} (grown on {used} frames)")
+    result["frames_per_s"] = result[f"frames_per_s_{HierarchyParams().mode}"]
+
+    mode = HierarchyParams().mode
+    params = bench_params(size, pgwr_size, mode, args.input_scale)
+    h, used = grown_hierarchy(params, stream, (0, 0, pgwr_size), max_frames=40 * pgwr_size + 2000,
+                              progress=not args.quiet)
+    calls = 300 if args.quick else 3000
+    passes = [measure_predict(h, stream, calls) for _ in range(3)]
+    wall = np.concatenate([w for w, _ in passes])
+    cpu = np.concatenate([c for _, c in passes])
+    result["predict_p50_ms"] = round(float(np.percentile(wall, 50)), 4)
+    result["predict_p99_ms"] = round(float(min(np.percentile(w, 99) for w, _ in passes)), 4)
+    result["predict_p99_ms_all_passes"] = round(float(np.percentile(wall, 99)), 4)
+    result["predict_p99_cpu_ms"] = round(float(np.percentile(cpu, 99)), 4)
+    result["predict_neurons"] = list(h.neuron_counts)
+    result["predict_mode"] = mode
+    _log(args.quiet, f"predict() ({mode}, neurons {h.neuron_counts}): p50 {result['predict_p50_ms']:.3f} ms; p99 "
+                     f"{result['predict_p99_ms']:.3f} ms wall (best of 3 passes of {calls}; "
+                     f"{result['predict_p99_ms_all_passes']:.3f} ms over all), "
+                     f"{result['predict_p99_cpu_ms']:.3f} ms CPU")
+
+    result["peak_rss_mb"] = round(peak_rss_mb(), 1)  # the sized models; the probes below allocate more
+    del h
+
+    fast_us, loop_us, ratio = measure_speedup(size, 8, 100 if args.quick else 400)
+    result.update(vector_step_us=round(fast_us, 2), loop_step_us=round(loop_us, 1), speedup_vs_loop=round(ratio, 1))
+    _log(args.quiet, f"GWR step, {size} neurons, 8-d: vectorised {fast_us:.1f} us, loop {loop_us:.0f} us "
+                     f"-> x{ratio:.0f}")
+
+    cost = measure_bmu_cost(sizes=(100, 400) if args.quick else (250, 1000, 2500, 5000),
+                            reps=50 if args.quick else 300)
+    result.update(bmu_overhead_us=round(cost["bmu_overhead_us"], 2),
+                  bmu_ns_per_value=round(cost["bmu_ns_per_value"], 4))
+    _log(args.quiet, f"BMU search: {cost['bmu_overhead_us']:.1f} us per call + {cost['bmu_ns_per_value']:.3f} ns "
+                     f"per weight value (n * dim); points {cost['bmu_points']}")
+    result["peak_rss_mb_process"] = round(peak_rss_mb(), 1)
+    result["load_average_1min"] = round(os.getloadavg()[0], 2)
+    _log(args.quiet, f"peak RSS {result['peak_rss_mb']:.0f} MB with the benchmark models "
+                     f"({result['peak_rss_mb_process']:.0f} MB after the BMU probes); 1-min load average "
+                     f"{result['load_average_1min']} on {os.cpu_count()} CPUs (other processes inflate "
+                     f"wall-clock figures)")
+    print(json.dumps(result), file=sys.stdout, flush=True)
+    return 0

@@ -1,0 +1,540 @@
+"""The online learner: GWR1 -> GWR2 -> P-GWR (Sec. III-C/D), one frame at a time.
+
+At step t, with frame x(t) observed:
+
+1. GWR1 learns the scaled frame; its representative neuron (the inserted one, else the BMU, after
+   the update) enters window 1 (newest first, Eq. 5). With tau1 entries, their concatenation is
+   GWR2's input; GWR2's representative enters window 2; with tau2 entries, window 2 is the P-GWR
+   regressor r(t) (72 values with the defaults).
+2. Predictions made earlier for frame t are scored: C.P.E. against x(t), P.E. against its GWR1
+   representative (the target "as represented by the hierarchy").
+3. The P-GWR learns only pairs whose target has now been observed: (r(t-1), x(t)) in recursive
+   mode, (r(t-h), x(t-h+1) ... x(t)) in vector mode. It never sees a frame before its step.
+4. r(t) gives the prediction of t+1..t+h: the BMU's output weights (vector mode), or recursively
+   predicted frame -> GWR1 BMU -> shifted copies of the windows -> GWR2 BMU -> P-GWR BMU (no
+   learning on predictions).
+
+A missing sample (None or non-finite values) is a gap: windows and the queue of regressors are
+cleared (a concatenation never bridges unrelated frames) and the gap is counted; predictions made
+before it are still scored against the frames they target. `reset_sequence()` does the same at a
+sequence boundary and also drops those pending predictions. Networks are never cleared by either.
+
+`FlatPredictor` is the ablation without GWR1/GWR2: the regressor is the last p scaled raw frames.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from collections import deque
+from typing import Any, ClassVar
+
+import numpy as np
+
+from gwr_predictor.checkpoint import CheckpointError, read_checkpoint, write_checkpoint
+from gwr_predictor.gwr import GWR, InputError
+from gwr_predictor.params import LAYERS, HierarchyParams
+from gwr_predictor.predictive_gwr import PredictiveGWR
+from gwr_predictor.scaling import InputScaling
+
+
+class ErrorTracker:
+    """P.E./C.P.E. per horizon step (MSE, rad^2) and per-layer quantization errors (rad).
+
+    Predictions are filed under the step they target (a ring of `horizon` slots), so scoring a
+    frame is one vectorised look-up and a prediction is scored exactly when its target arrives.
+    Squared errors are summed over joints here and divided by the joint count in `summary`.
+    """
+
+    def __init__(self, horizon: int, n_joints: int, layers: tuple[str, ...]) -> None:
+        self.horizon = horizon
+        self.n_joints = n_joints
+        self.layers = layers
+        self._k = np.arange(horizon)
+        self._slots = [(t + 1 + self._k) % horizon for t in range(horizon)]  # by t % horizon
+        self._targets = np.empty((2, 1, n_joints))  # [P.E. target, C.P.E. target]
+        self.pending = np.zeros((horizon, horizon, n_joints))  # [target slot, step k-1, joint]
+        self.valid = np.zeros((horizon, horizon), dtype=bool)
+        self.reset()
+
+    def reset(self) -> None:
+        """Zero the accumulated errors (pending predictions stay)."""
+        self.sse = np.zeros((2, self.horizon))  # rows: P.E., C.P.E.; summed over joints
+        self.count = np.zeros(self.horizon, dtype=np.int64)
+        self.q_last = {name: math.nan for name in self.layers}
+        self.q_sum = {name: 0.0 for name in self.layers}
+        self.q_count = {name: 0 for name in self.layers}
+
+    def forget_pending(self) -> None:
+        self.valid[:] = False
+
+    def expect(self, t: int, prediction: np.ndarray) -> None:
+        """File the prediction (horizon, joints) made at step t: row k targets step t + k + 1."""
+        slots = self._slots[t % self.horizon]
+        self.pending[slots, self._k] = prediction
+        self.valid[slots, self._k] = True
+
+    def score(self, t: int, frame: np.ndarray | None, represented: np.ndarray | None) -> None:
+        """Score the predictions targeting step t (None: missing frame, they are dropped)."""
+        valid = self.valid[t % self.horizon]
+        if frame is not None and valid.any():
+            targets = self._targets
+            targets[0, 0] = represented
+            targets[1, 0] = frame
+            diff = self.pending[t % self.horizon] - targets
+            err = np.vecdot(diff, diff)
+            if not valid.all():
+                err *= valid
+            self.sse += err
+            self.count += valid
+        valid[:] = False
+
+    def quantization(self, layer: str, distance_rad: float) -> None:
+        self.q_last[layer] = distance_rad
+        self.q_sum[layer] += distance_rad
+        self.q_count[layer] += 1
+
+    def summary(self) -> dict[str, Any]:
+        with np.errstate(invalid="ignore", divide="ignore"):
+            pe, cpe = self.sse / (self.count * self.n_joints)
+        total = int(self.count.sum()) * self.n_joints
+        return {
+            "pe": pe.tolist(),
+            "cpe": cpe.tolist(),
+            "pe_mean": float(self.sse[0].sum() / total) if total else math.nan,
+            "cpe_mean": float(self.sse[1].sum() / total) if total else math.nan,
+            "scored": self.count.tolist(),
+            "quantization_last": dict(self.q_last),
+            "quantization_mean": {k: (self.q_sum[k] / self.q_count[k] if self.q_count[k] else math.nan)
+                                  for k in self.layers},
+        }
+
+    # persistence
+    ARRAYS = ("err.sse", "err.count", "err.pending", "err.valid")
+
+    def arrays(self) -> dict[str, np.ndarray]:
+        return dict(zip(self.ARRAYS, (self.sse, self.count, self.pending, self.valid), strict=True))
+
+    def header(self) -> dict[str, Any]:
+        return {"q_last": self.q_last, "q_sum": self.q_sum, "q_count": self.q_count}
+
+    def restore(self, header: dict[str, Any], arrays: dict[str, np.ndarray]) -> None:
+        for name, current in zip(self.ARRAYS, (self.sse, self.count, self.pending, self.valid), strict=True):
+            _copy_into(current, arrays[name], name)
+        self.q_last = {k: float(v) for k, v in header["q_last"].items()}
+        self.q_sum = {k: float(v) for k, v in header["q_sum"].items()}
+        self.q_count = {k: int(v) for k, v in header["q_count"].items()}
+
+
+class _OnlinePredictor:
+    """Shared online loop of `Hierarchy` and `FlatPredictor`: gaps, delayed targets, predictions,
+    bookkeeping, persistence. Subclasses encode frames into regressors."""
+
+    kind: ClassVar[str]
+    layer_names: ClassVar[tuple[str, ...]]
+    pgwr: PredictiveGWR
+
+    def __init__(self, params: HierarchyParams | None = None, seed: int | None = 0) -> None:
+        self.params = HierarchyParams() if params is None else params
+        if not isinstance(self.params, HierarchyParams):
+            raise TypeError(f"params must be HierarchyParams, got {type(self.params).__name__}")
+        self._rng = np.random.default_rng(seed)
+        self._configure()
+        for name in self.layer_names:
+            setattr(self, name, self._new_layer(name))
+        self._frozen: frozenset[str] = frozenset()
+        self._t = self._frames = self._missing = self._sequences = self._predictions = 0
+        self._errors = ErrorTracker(self.params.horizon, self.params.n_joints, self.layer_names)
+        self._clear_sequence()
+
+    def _configure(self) -> None:
+        p = self.params
+        self.scaling = InputScaling(p.input_scale, p.n_joints, p.normalise_distance)
+        self._scale = p.input_scale
+        self._target_steps = p.horizon if p.mode == "vector" else 1
+
+    # --- subclass hooks -------------------------------------------------------------------------
+    def _new_layer(self, name: str) -> GWR:
+        raise NotImplementedError
+
+    def _clear_windows(self) -> None:
+        raise NotImplementedError
+
+    def _encode(self, xs: np.ndarray, learn: bool) -> tuple[np.ndarray, np.ndarray | None]:
+        """Feed one scaled frame; returns (its representation, scaled; the regressor or None)."""
+        raise NotImplementedError
+
+    def _rollout(self, first: np.ndarray, out: np.ndarray) -> None:
+        """Recursive mode: fill out[1:] from the first predicted (scaled) frame."""
+        raise NotImplementedError
+
+    # --- the online step ------------------------------------------------------------------------
+    def step(self, x: np.ndarray | None, learn: bool = True) -> np.ndarray | None:
+        """Observe frame x (radians; None/NaN = missing), learn if `learn`, and return the predictions
+        (horizon, n_joints) in radians for t+1..t+h, or None when the windows are not full yet."""
+        t = self._t
+        self._t += 1
+        frame = self._as_frame(x)
+        if frame is None:
+            self._missing += 1
+            self._errors.score(t, None, None)
+            self._clear_sequence()
+            return None
+        self._frames += 1
+        xs = frame * self._scale
+        rep, reg = self._encode(xs, learn)
+        self._errors.score(t, frame, rep / self._scale)
+        self._push_frame(xs)
+        if learn and "pgwr" not in self._frozen:
+            self._train_pgwr()
+        self._regs.append(reg)
+        self._last_reg = reg
+        if reg is None:
+            return None
+        prediction = self._forecast(reg, record=True)
+        self._errors.expect(t, prediction)
+        self._predictions += 1
+        return prediction
+
+    def predict(self) -> np.ndarray | None:
+        """The predictions from the current windows (as the last `step` returned, with the current
+        networks); no learning, no state change."""
+        return None if self._last_reg is None else self._forecast(self._last_reg, record=False)
+
+    def _as_frame(self, x: np.ndarray | None) -> np.ndarray | None:
+        if x is None:
+            return None
+        frame = np.asarray(x, dtype=float)
+        if frame.shape != (self.params.n_joints,):
+            raise InputError(f"a frame must have shape ({self.params.n_joints},), got {frame.shape}")
+        return frame if math.isfinite(frame.sum()) else None
+
+    def _push_frame(self, xs: np.ndarray) -> None:
+        """Keep the last `_target_steps` scaled frames, oldest first (vector targets)."""
+        buf = self._xbuf
+        buf[:-1] = buf[1:]
+        buf[-1] = xs
+        self._xfill = min(self._xfill + 1, len(buf))
+
+    def _train_pgwr(self) -> None:
+        """Learn the newest pair whose target is fully observed (delayed targets, no peeking)."""
+        k = self._target_steps
+        if len(self._regs) < k or self._xfill < k:
+            return
+        reg = self._regs[-k]
+        if reg is not None:
+            self.pgwr.learn_pair_unchecked(reg, self._xbuf.reshape(-1))
+
+    def _forecast(self, reg: np.ndarray, record: bool) -> np.ndarray:
+        p = self.params
+        pg = self.pgwr
+        b = pg.match_unchecked(reg) if record else pg.nearest(reg)
+        if record:
+            self._errors.quantization("pgwr", pg.last_distance / self._scale)
+        if p.mode == "vector":
+            return pg.output_row(b).reshape(p.horizon, p.n_joints) / self._scale
+        out = np.empty((p.horizon, p.n_joints))
+        out[0] = pg.output_row(b)
+        if p.horizon > 1:
+            self._rollout(out[0], out)
+        out /= self._scale
+        return out
+
+    def _match(self, net: GWR, name: str, x: np.ndarray, learn: bool) -> int:
+        """Learn (or only match, if frozen / not learning); returns the representative neuron."""
+        if learn and name not in self._frozen:
+            b = net.learn_unchecked(x)
+            idx = net.last_inserted if net.last_inserted >= 0 else b
+        else:
+            idx = net.match_unchecked(x)
+        self._errors.quantization(name, net.last_distance / self._scale)
+        return idx
+
+    # --- sequences and layers -------------------------------------------------------------------
+    def _clear_sequence(self) -> None:
+        self._clear_windows()
+        self._xbuf = np.zeros((self._target_steps, self.params.n_joints))
+        self._xfill = 0
+        self._regs: deque[np.ndarray | None] = deque(maxlen=self._target_steps)
+        self._last_reg: np.ndarray | None = None
+
+    def reset_sequence(self) -> None:
+        """Sequence boundary: clear windows, queues and pending predictions (not the networks)."""
+        self._clear_sequence()
+        self._errors.forget_pending()
+        self._sequences += 1
+
+    def reset_errors(self) -> None:
+        """Zero P.E., C.P.E. and quantization statistics (counters of frames stay)."""
+        self._errors.reset()
+
+    def freeze_layers(self, which: tuple[str, ...] | list[str]) -> None:
+        """Stop learning in exactly these layers (they still match); () unfreezes all."""
+        unknown = set(which) - set(self.layer_names)
+        if unknown:
+            raise ValueError(f"unknown layers {sorted(unknown)}; layers are {self.layer_names}")
+        self._frozen = frozenset(which)
+
+    @property
+    def frozen_layers(self) -> tuple[str, ...]:
+        return tuple(n for n in self.layer_names if n in self._frozen)
+
+    def reset_layer(self, name: str, params: Any = None) -> None:
+        """Replace one layer by a fresh two-neuron network (optionally with new GWRParams), e.g. to
+        re-learn the P-GWR on frozen lower layers with another a_T. Windows are cleared."""
+        if name not in self.layer_names:
+            raise ValueError(f"unknown layer {name!r}; layers are {self.layer_names}")
+        if params is not None:
+            self.params = self.params.replace(**{name: params})
+        setattr(self, name, self._new_layer(name))
+        self._clear_sequence()
+        self._errors.forget_pending()
+
+    @property
+    def neuron_counts(self) -> tuple[int, ...]:
+        """Neurons per layer, in `layer_names` order."""
+        return tuple(getattr(self, n).n_neurons for n in self.layer_names)
+
+    @property
+    def frames_seen(self) -> int:
+        return self._frames
+
+    def errors(self) -> dict[str, Any]:
+        """Bookkeeping: counts, neurons, quantization errors (rad, Euclidean over a layer's input,
+        last and mean), P.E./C.P.E. (MSE rad^2 per horizon step, their means, how many scored)."""
+        return {
+            "steps": self._t,
+            "frames": self._frames,
+            "missing": self._missing,
+            "sequences": self._sequences,
+            "predictions": self._predictions,
+            "neurons": dict(zip(self.layer_names, self.neuron_counts, strict=True)),
+            **self._errors.summary(),
+        }
+
+    # --- persistence ----------------------------------------------------------------------------
+    def _extra_header(self) -> dict[str, Any]:
+        return {}
+
+    def _window_arrays(self) -> dict[str, np.ndarray]:
+        raise NotImplementedError
+
+    def _restore_windows(self, header: dict[str, Any], arrays: dict[str, np.ndarray]) -> None:
+        raise NotImplementedError
+
+    def save(self, path: str | os.PathLike[str]) -> None:
+        """Write the whole state (networks, windows, queues, errors, random state) atomically."""
+        regs = list(self._regs)
+        reg_dim = self.pgwr.in_dim
+        reg_arr = np.array([np.zeros(reg_dim) if r is None else r for r in regs]).reshape(len(regs), reg_dim)
+        header = {
+            "params": self.params.to_flat(),
+            "rng": self._rng.bit_generator.state,
+            "counters": {"t": self._t, "frames": self._frames, "missing": self._missing,
+                         "sequences": self._sequences, "predictions": self._predictions},
+            "frozen": sorted(self._frozen),
+            "xfill": self._xfill,
+            "reg_present": [r is not None for r in regs],
+            "last_reg": self._last_reg is not None,
+            "errors": self._errors.header(),
+            **self._extra_header(),
+        }
+        arrays: dict[str, np.ndarray] = {"xbuf": self._xbuf, "regs": reg_arr, **self._errors.arrays(),
+                                         **self._window_arrays()}
+        for name in self.layer_names:
+            net = getattr(self, name)
+            arrays[f"{name}.weights"] = net.weights
+            arrays[f"{name}.counters"] = net.counters
+            arrays[f"{name}.edges"] = net.edge_array()
+        write_checkpoint(path, self.kind, header, arrays)
+
+    @classmethod
+    def load(cls, path: str | os.PathLike[str]) -> Any:
+        """A model saved by `save`; continues exactly where it stopped. Raises CheckpointError."""
+        required = ["xbuf", "regs", *ErrorTracker.ARRAYS]
+        required += [f"{n}.{a}" for n in cls.layer_names for a in ("weights", "counters", "edges")]
+        header, arrays = read_checkpoint(path, cls.kind, required)
+        try:
+            return cls._from_saved(header, arrays)
+        except CheckpointError:
+            raise
+        except (KeyError, ValueError, TypeError, IndexError) as exc:
+            raise CheckpointError(f"{path}: inconsistent checkpoint content: {type(exc).__name__}: {exc}") from exc
+
+    @classmethod
+    def _from_saved(cls, header: dict[str, Any], arrays: dict[str, np.ndarray]) -> Any:
+        model = cls.__new__(cls)
+        model.params = HierarchyParams.from_flat(header["params"])
+        model._restore_extra(header)
+        model._rng = np.random.default_rng(0)  # only for the layer templates; replaced below
+        model._configure()
+        for name in cls.layer_names:
+            template = model._new_layer(name)  # sizes and distance factor from the parameters
+            net = type(template).from_arrays(
+                arrays[f"{name}.weights"], template.params, edges=arrays[f"{name}.edges"],
+                counters=arrays[f"{name}.counters"], match_dim=template.match_dim,
+                distance_factor=template.distance_factor)
+            if net.dim != template.dim:
+                raise ValueError(f"layer {name} has {net.dim}-d weights, parameters say {template.dim}")
+            setattr(model, name, net)
+        c = header["counters"]
+        model._t, model._frames, model._missing = int(c["t"]), int(c["frames"]), int(c["missing"])
+        model._sequences, model._predictions = int(c["sequences"]), int(c["predictions"])
+        model.freeze_layers(tuple(header["frozen"]))
+        model._errors = ErrorTracker(model.params.horizon, model.params.n_joints, cls.layer_names)
+        model._errors.restore(header["errors"], arrays)
+        model._clear_sequence()
+        model._restore_windows(header, arrays)
+        _copy_into(model._xbuf, arrays["xbuf"], "xbuf")
+        model._xfill = int(header["xfill"])
+        present = header["reg_present"]
+        regs = arrays["regs"]
+        if len(present) != len(regs) or len(regs) > model._target_steps:
+            raise ValueError(f"regressor queue of {len(regs)} entries does not fit the parameters")
+        for flag, reg in zip(present, regs, strict=True):
+            model._regs.append(reg.copy() if flag else None)
+        model._last_reg = model._regs[-1] if header["last_reg"] else None
+        model._rng = np.random.default_rng()
+        model._rng.bit_generator.state = header["rng"]
+        return model
+
+    def _restore_extra(self, header: dict[str, Any]) -> None:
+        """Hook for subclass constructor arguments stored in the header."""
+
+
+def _copy_into(dest: np.ndarray, src: np.ndarray, name: str) -> None:
+    if src.shape != dest.shape:
+        raise ValueError(f"array {name!r} has shape {src.shape}, expected {dest.shape}")
+    dest[...] = src
+
+
+class Hierarchy(_OnlinePredictor):
+    """GWR1 -> GWR2 -> P-GWR learning online and predicting `horizon` frames at every step."""
+
+    kind = "Hierarchy"
+    layer_names = LAYERS
+    gwr1: GWR
+    gwr2: GWR
+
+    def _new_layer(self, name: str) -> GWR:
+        p, sc, rng = self.params, self.scaling, self._rng
+        if name == "gwr1":
+            lo, hi = sc.window_bounds(1)
+            return GWR(p.n_joints, p.gwr1, rng, init_low=lo, init_high=hi, distance_factor=sc.distance_factor(1))
+        if name == "gwr2":
+            lo, hi = sc.window_bounds(p.tau1)
+            return GWR(p.gwr2_dim, p.gwr2, rng, init_low=lo, init_high=hi,
+                       distance_factor=sc.distance_factor(p.tau1))
+        frames = p.tau1 * p.tau2
+        return _new_pgwr(p, sc, rng, frames, p.regressor_dim)
+
+    def _clear_windows(self) -> None:
+        p = self.params
+        self._win1 = np.zeros((p.tau1, p.n_joints))  # newest first
+        self._win2 = np.zeros((p.tau2, p.gwr2_dim))
+        self._fill1 = self._fill2 = 0
+
+    def _encode(self, xs: np.ndarray, learn: bool) -> tuple[np.ndarray, np.ndarray | None]:
+        p = self.params
+        g1, g2 = self.gwr1, self.gwr2
+        w1 = self._win1
+        i1 = self._match(g1, "gwr1", xs, learn)
+        w1[1:] = w1[:-1]
+        w1[0] = g1.weight_row(i1)
+        rep = w1[0].copy()
+        self._fill1 = min(self._fill1 + 1, p.tau1)
+        if self._fill1 < p.tau1:
+            return rep, None
+        w2 = self._win2
+        i2 = self._match(g2, "gwr2", w1.reshape(-1), learn)
+        w2[1:] = w2[:-1]
+        w2[0] = g2.weight_row(i2)
+        self._fill2 = min(self._fill2 + 1, p.tau2)
+        if self._fill2 < p.tau2:
+            return rep, None
+        return rep, w2.reshape(-1).copy()
+
+    def _rollout(self, first: np.ndarray, out: np.ndarray) -> None:
+        g1, g2, pg = self.gwr1, self.gwr2, self.pgwr
+        w1, w2 = self._win1.copy(), self._win2.copy()
+        flat1, flat2 = w1.reshape(-1), w2.reshape(-1)
+        y = first
+        for k in range(1, len(out)):  # horizon steps, each a chain of three BMU searches
+            w1[1:] = w1[:-1]
+            w1[0] = g1.weight_row(g1.nearest(y))
+            w2[1:] = w2[:-1]
+            w2[0] = g2.weight_row(g2.nearest(flat1))
+            y = pg.output_row(pg.nearest(flat2))
+            out[k] = y
+
+    def _window_arrays(self) -> dict[str, np.ndarray]:
+        return {"win1": self._win1, "win2": self._win2, "fill": np.array([self._fill1, self._fill2])}
+
+    def _restore_windows(self, header: dict[str, Any], arrays: dict[str, np.ndarray]) -> None:
+        _copy_into(self._win1, arrays["win1"], "win1")
+        _copy_into(self._win2, arrays["win2"], "win2")
+        self._fill1, self._fill2 = (int(v) for v in arrays["fill"])
+
+
+class FlatPredictor(_OnlinePredictor):
+    """The P-GWR alone on raw frames (ablation): regressor = last `order` scaled frames, newest
+    first; `order` defaults to the span of the hierarchy's regressor (tau1 + tau2 - 1 frames)."""
+
+    kind = "FlatPredictor"
+    layer_names = ("pgwr",)
+
+    def __init__(self, params: HierarchyParams | None = None, seed: int | None = 0,
+                 order: int | None = None) -> None:
+        p = HierarchyParams() if params is None else params
+        self.order = p.span if order is None else int(order)
+        if not 1 <= self.order <= 64:
+            raise ValueError(f"FlatPredictor order must be in [1, 64], got {order!r}")
+        super().__init__(p, seed)
+
+    def _new_layer(self, name: str) -> GWR:
+        p = self.params
+        return _new_pgwr(p, self.scaling, self._rng, self.order, p.n_joints * self.order)
+
+    def _clear_windows(self) -> None:
+        self._win = np.zeros((self.order, self.params.n_joints))
+        self._fill = 0
+
+    def _encode(self, xs: np.ndarray, learn: bool) -> tuple[np.ndarray, np.ndarray | None]:
+        w = self._win
+        w[1:] = w[:-1]
+        w[0] = xs
+        self._fill = min(self._fill + 1, self.order)
+        return xs, (w.reshape(-1).copy() if self._fill == self.order else None)
+
+    def _rollout(self, first: np.ndarray, out: np.ndarray) -> None:
+        pg = self.pgwr
+        w = self._win.copy()
+        flat = w.reshape(-1)
+        y = first
+        for k in range(1, len(out)):
+            w[1:] = w[:-1]
+            w[0] = y
+            y = pg.output_row(pg.nearest(flat))
+            out[k] = y
+
+    def _extra_header(self) -> dict[str, Any]:
+        return {"order": self.order}
+
+    def _restore_extra(self, header: dict[str, Any]) -> None:
+        self.order = int(header["order"])
+
+    def _window_arrays(self) -> dict[str, np.ndarray]:
+        return {"win": self._win, "fill": np.array([self._fill])}
+
+    def _restore_windows(self, header: dict[str, Any], arrays: dict[str, np.ndarray]) -> None:
+        _copy_into(self._win, arrays["win"], "win")
+        self._fill = int(arrays["fill"][0])
+
+
+def _new_pgwr(p: HierarchyParams, sc: InputScaling, rng: np.random.Generator, frames: int,
+              in_dim: int) -> PredictiveGWR:
+    """A P-GWR whose random neurons lie inside the joint limits, in and out."""
+    lo_in, hi_in = sc.window_bounds(frames)
+    lo_out, hi_out = sc.window_bounds(p.output_dim // p.n_joints)
+    return PredictiveGWR(in_dim, p.output_dim, p.pgwr, rng, init_low=np.concatenate([lo_in, lo_out]),
+                         init_high=np.concatenate([hi_in, hi_out]), distance_factor=sc.distance_factor(frames))
