@@ -151,3 +151,16 @@ def unpack_predictions(packed: PackedArray) -> tuple[float, tuple[str, ...], np.
         raise LayoutError(f"expected data_offset 1 and {1 + h * len(names)} values, got "
                           f"{packed.data_offset} and {data.size}")
     return float(data[0]), names, data[1:].reshape(h, len(names))
+
+
+# --- pipeline timing and QoS (used by the nodes in gwr_predictor.nodes) --------------------------
+#: A stamp gap larger than this ends a sequence: the learner resets its temporal windows.
+MAX_GAP_S = 0.5
+#: Keep-last queue depths: data streams hold about a second at 30 fps; status topics the ROS default.
+QOS_DEPTH_STREAM = 50
+QOS_DEPTH_STATUS = 10
+#: The bag recorder's subscription queue (raw CDR): several seconds of every stream.
+QOS_DEPTH_RECORDER = 500
+#: Key/value names in the learner status (DiagnosticArray on TOPIC_LEARNER_STATUS).
+LEARNER_STATUS_NAME = "learner"  # the status name is "<node>/learner"
+NEURON_KEYS = {"gwr1": "neurons.gwr1", "gwr2": "neurons.gwr2", "pgwr": "neurons.pgwr"}

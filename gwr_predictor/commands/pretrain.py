@@ -1,0 +1,124 @@
+"""`gwr-predictor pretrain`: train a hierarchy offline on the demonstrator's training repetitions.
+
+The live pipeline then starts from this checkpoint (gwr_hierarchy's `checkpoint` parameter) and
+keeps learning: pretraining only front-loads what the paper's online training would learn over
+many demonstrations. The learning parameters come from the node's YAML (`--params-file`), so the
+checkpoint and the node agree. Each epoch presents every sequence once, in a shuffled order, with
+a sequence reset between them; the summary line per epoch is neurons and C.P.E. per horizon step.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from gwr_predictor.datasets import demo_angle_sequences
+from gwr_predictor.demonstrator import PATTERNS, DemonstratorError
+from gwr_predictor.hierarchy import Hierarchy
+from gwr_predictor.params import HierarchyParams, hierarchy_parameter_specs
+
+NODE_NAME = "gwr_hierarchy"
+
+
+def configure(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("-o", "--out", type=Path, required=True, help="checkpoint file to write (.npz)")
+    parser.add_argument("--params-file", type=Path, default=None,
+                        help="ROS params YAML of the gwr_hierarchy node (e.g. config/gwr_hierarchy.yaml): its "
+                             "learning parameters and seed are used")
+    parser.add_argument("--patterns", nargs="*", default=None, help=f"patterns (default all: {', '.join(PATTERNS)})")
+    parser.add_argument("--subjects", type=int, default=3, help="simulated people (default 3)")
+    parser.add_argument("--repetitions", type=int, default=3,
+                        help="training repetitions 1..N per pattern and subject (default 3); the live demo "
+                             "performs later repetitions")
+    parser.add_argument("--epochs", type=int, default=5, help="passes over all sequences (default 5)")
+    parser.add_argument("--max-seconds", type=float, default=120.0, help="stop after the epoch that exceeds this")
+    parser.add_argument("--seed", type=int, default=None, help="model seed (default: the params file's, else 0)")
+    parser.add_argument("--data-seed", type=int, default=0, help="demonstrator seed (default 0, as the live source)")
+    parser.add_argument("--quiet", action="store_true", help="no progress bar")
+
+
+def node_parameters(path: Path, node: str = NODE_NAME) -> dict[str, Any]:
+    """The flat (dotted) ros__parameters of `node` in a ROS params YAML (keys '/**', 'node', '/node', '/**/node')."""
+    import yaml
+
+    try:
+        doc = yaml.safe_load(path.read_text()) or {}
+    except (OSError, yaml.YAMLError) as exc:
+        raise ValueError(f"{path}: cannot read the params file: {exc}") from None
+    flat: dict[str, Any] = {}
+    for key in ("/**", node, "/" + node, "/**/" + node):
+        section = doc.get(key, {}) if isinstance(doc, dict) else {}
+        params = section.get("ros__parameters", {}) if isinstance(section, dict) else {}
+        flat.update(_flatten(params))
+    return flat
+
+
+def _flatten(tree: dict[str, Any], prefix: str = "") -> dict[str, Any]:
+    out: dict[str, Any] = {}
+    for key, value in tree.items():
+        name = f"{prefix}{key}"
+        if isinstance(value, dict):
+            out.update(_flatten(value, name + "."))
+        else:
+            out[name] = value
+    return out
+
+
+def hierarchy_params(flat: dict[str, Any]) -> HierarchyParams:
+    names = {spec.name for spec in hierarchy_parameter_specs()}
+    return HierarchyParams.from_flat({k: v for k, v in flat.items() if k in names})
+
+
+def run(args: argparse.Namespace) -> int:
+    try:
+        flat = node_parameters(args.params_file) if args.params_file else {}
+        params = hierarchy_params(flat)
+        seed = args.seed if args.seed is not None else int(flat.get("seed", 0))
+        seqs = demo_angle_sequences(args.patterns or None, args.subjects, args.repetitions, args.data_seed)
+    except (ValueError, DemonstratorError) as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    if args.epochs < 1:
+        print("error: --epochs must be >= 1", file=sys.stderr)
+        return 2
+    model = Hierarchy(params, seed=seed)
+    rng = np.random.default_rng(seed)
+    frames = sum(len(s) for s in seqs)
+    print(f"pretraining on {len(seqs)} sequences ({frames} frames at 10 fps) x {args.epochs} epochs", flush=True)
+    start = time.monotonic()
+    summary: list[dict[str, Any]] = []
+    for epoch in range(1, args.epochs + 1):
+        model.reset_errors()
+        _epoch(model, [seqs[i] for i in rng.permutation(len(seqs))], f"epoch {epoch}/{args.epochs}", args.quiet)
+        err = model.errors()
+        summary.append({"epoch": epoch, "neurons": err["neurons"], "cpe": err["cpe"]})
+        cpe = " ".join(f"{v:.4f}" for v in err["cpe"])
+        print(f"epoch {epoch}: neurons {err['neurons']}, C.P.E. (MSE rad^2) per step {cpe}", flush=True)
+        if time.monotonic() - start > args.max_seconds and epoch < args.epochs:
+            print(f"time budget of {args.max_seconds:.0f} s used up after epoch {epoch}", flush=True)
+            break
+    args.out.parent.mkdir(parents=True, exist_ok=True)
+    model.reset_sequence()
+    model.save(args.out)
+    elapsed = time.monotonic() - start
+    print(f"checkpoint written to {args.out} ({args.out.stat().st_size / 1e6:.1f} MB, {elapsed:.1f} s)")
+    print(json.dumps({"checkpoint": str(args.out), "seconds": round(elapsed, 1), "epochs": summary}))
+    return 0
+
+
+def _epoch(model: Hierarchy, seqs: list[Any], label: str, quiet: bool) -> None:
+    from tqdm import tqdm
+
+    with tqdm(total=sum(len(s) for s in seqs), desc=label, unit="frame", disable=quiet, leave=False,
+              mininterval=0.5) as bar:
+        for seq in seqs:
+            model.reset_sequence()
+            for x in seq.angles:
+                model.step(x)
+            bar.update(len(seq))

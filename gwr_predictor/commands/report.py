@@ -1,0 +1,41 @@
+"""`gwr-predictor report RUN_DIR`: summarise a recorded pipeline run (see gwr_predictor.pipeline_report).
+
+Prints the prediction error at the horizon, how far each simulated robot lags the person (with and
+without compensation), neurons per layer and message counts; writes report.json and report.png
+(person, prediction and robots over the last seconds) next to the bag.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from gwr_predictor.bags import BagError
+from gwr_predictor.pipeline_report import ReportError, compute_report, plot_run, read_run
+
+
+def configure(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("run", type=Path, help="run folder holding bag/ (or a bag directory itself)")
+    parser.add_argument("--out", type=Path, default=None, help="where report.json/png go (default: the run folder)")
+    parser.add_argument("--plot-seconds", type=float, default=12.0, help="time span of the plot (default 12 s)")
+    parser.add_argument("--max-lag", type=float, default=1.5, help="largest lag searched (s, default 1.5)")
+
+
+def run(args: argparse.Namespace) -> int:
+    bag = args.run / "bag" if (args.run / "bag").is_dir() else args.run
+    out = args.out or (args.run if bag != args.run else args.run.parent)
+    try:
+        data = read_run(bag)
+        report = compute_report(data, max_lag_s=args.max_lag)
+    except (BagError, ReportError) as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 1
+    out.mkdir(parents=True, exist_ok=True)
+    json_path = out / "report.json"
+    json_path.write_text(report.to_json() + "\n")
+    png_path = plot_run(data, out / "report.png", seconds=args.plot_seconds)
+    for line in report.summary_lines():
+        print(line)
+    print(f"written: {json_path} and {png_path}")
+    return 0

@@ -1,0 +1,101 @@
+"""bag_recorder: records pipeline topics as received (raw CDR) into a rosbag2 MCAP bag.
+
+No rosbag2_py on PyPI, so recording is the package's own job: raw subscriptions hand over the CDR
+bytes from the wire, which `gwr_predictor.bags.BagWriter` stores unchanged. The bag is flushed
+periodically (a crash loses at most one flush period; `bags.recover_bag` repairs it) and closed
+properly on Ctrl-C and SIGTERM. An unwritable path or a full disk stops the node with exit code 1.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+from gwr_predictor import bags, conventions
+
+from . import messages
+from .node_base import NodeFatalError, Param, ParameterError, PipelineNode, run_node, stream_qos
+
+PARAMS = (
+    Param("path", "", "bag directory to create (must not exist); empty: recording_<date-time> in the working dir"),
+    Param("topics", list(conventions.TOPIC_TYPES),
+          "topics to record; relative names resolve in the node's namespace; the type comes from the last name "
+          "segment (conventions.TOPIC_TYPES) or an explicit 'name@pkg/msg/Type'"),
+    Param("flush_period_s", 1.0, "put everything received on disk this often (s)", 0.05, 3600.0),
+    Param("queue_depth", conventions.QOS_DEPTH_RECORDER, "reliable keep-last depth per subscription", 1, 100000),
+)
+
+
+def topic_types(resolve: Callable[[str], str], names: list[str]) -> dict[str, str]:
+    """{resolved topic: type} for the `topics` parameter; ValueError naming a bad entry."""
+    resolved: dict[str, str] = {}
+    for entry in names:
+        name, _, msgtype = entry.partition("@")
+        if not msgtype:
+            msgtype = conventions.TOPIC_TYPES.get(name.rstrip("/").rsplit("/", 1)[-1], "")
+        if not msgtype:
+            raise ValueError(f"topic {entry!r}: unknown type; give it as 'name@pkg/msg/Type'")
+        try:
+            messages.message_class(msgtype)
+        except ValueError as exc:
+            raise ValueError(f"topic {entry!r}: {exc}") from None
+        resolved[resolve(name)] = msgtype
+    return resolved
+
+
+class BagRecorderNode(PipelineNode):
+    NODE_NAME = "bag_recorder"
+
+    def __init__(self) -> None:
+        super().__init__(self.NODE_NAME, PARAMS)
+        p = self.params
+        path = Path(p["path"] or time.strftime("recording_%Y%m%d_%H%M%S"))
+        try:
+            topics = topic_types(self.resolve_topic_name, p["topics"])
+        except ValueError as exc:
+            raise ParameterError(f"parameter 'topics': {exc}") from None
+        if not topics:
+            raise ParameterError("parameter 'topics' is empty: nothing to record")
+        self.writer = bags.BagWriter(path, topics)
+        try:
+            self.writer.open()
+        except bags.BagError as exc:
+            raise NodeFatalError(str(exc)) from None
+        qos = stream_qos(p["queue_depth"])
+        for topic, msgtype in topics.items():
+            self.create_subscription(messages.message_class(msgtype), topic,
+                                     lambda raw, topic=topic: self.on_message(topic, raw), qos, raw=True)
+        self.create_timer(p["flush_period_s"], self.flush)
+        self.get_logger().info(f"recording {len(topics)} topics into {path}: {', '.join(topics)}")
+
+    def on_message(self, topic: str, raw: bytes) -> None:
+        """Store the bytes as received, stamped with the receive time."""
+        try:
+            self.writer.write_raw(topic, self.get_clock().now().nanoseconds, raw)
+        except bags.BagError as exc:
+            raise NodeFatalError(f"recording stopped: {exc}") from None
+        self.counters.count(f"recorded.{topic}")
+
+    def flush(self) -> None:
+        try:
+            self.writer.flush()
+        except bags.BagError as exc:
+            raise NodeFatalError(f"recording stopped: {exc}") from None
+
+    def on_shutdown(self) -> None:
+        """Write the MCAP summary and metadata.yaml so that the bag is complete."""
+        try:
+            self.writer.close()
+        except bags.BagError as exc:
+            raise NodeFatalError(str(exc)) from None
+        total = self.writer.total_written
+        self.get_logger().info(f"bag closed: {self.writer.path} ({total} messages)")
+
+
+def main(args: list[str] | None = None) -> int:
+    return run_node(BagRecorderNode, args)
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

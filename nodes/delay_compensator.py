@@ -1,0 +1,131 @@
+"""delay_compensator: predictions -> the robot command that cancels the robot's delay.
+
+Subscribes to the observed angles, the predictions and the robot's reported joint states; on every
+prediction (and on an observation when no usable prediction exists) asks
+`gwr_predictor.compensator.DelayCompensator` which pose to execute and publishes it as a
+JointState on `joint_commands`. Mode "none" forwards each observation (the uncompensated baseline).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from gwr_predictor import compensator, conventions
+from gwr_predictor.conventions import LayoutError
+from gwr_predictor.nao import ARM_JOINTS
+
+from . import messages
+from .node_base import ArmAnglesGate, Param, PipelineNode, run_node, stream_qos
+
+PARAMS = (
+    Param("mode", "fixed", "none: forward observations; fixed: the prediction delay_s ahead; "
+          "variable: Eq. 11 against the robot's reported state", choices=compensator.MODES),
+    Param("delay_s", 0.6, "robot delay to compensate (s); sets the step in fixed mode", 0.0, 60.0),
+    Param("frame_period_s", 0.1, "spacing of the predicted frames (s)", 0.001, 10.0),
+    Param("stale_after_s", 0.5, "predictions older than this (now - their stamp) are not used", 0.0, 3600.0),
+    Param("robot_state_timeout_s", 0.5, "a robot state older than this is ignored (variable mode)", 0.0, 3600.0),
+)
+
+
+class DelayCompensatorNode(PipelineNode):
+    NODE_NAME = "delay_compensator"
+
+    def __init__(self) -> None:
+        super().__init__(self.NODE_NAME, PARAMS)
+        p = self.params
+        self.compensator = compensator.DelayCompensator(p["mode"], p["delay_s"], p["frame_period_s"],
+                                                        p["stale_after_s"])
+        self.observations = ArmAnglesGate(self.counters, "arm_angles")
+        self.robot_states = ArmAnglesGate(self.counters, "joint_states", check_stamps=False)
+        self.observation: np.ndarray | None = None
+        self.predictions: np.ndarray | None = None
+        self.pred_stamp: float | None = None
+        self.robot_state: np.ndarray | None = None
+        self.robot_state_time = -np.inf
+        self.obs_stamp: float | None = None
+        self.fallback_sent_for: float | None = None  # the observation last commanded as a fallback
+        self.command_pub = self.create_publisher(messages.JointState, conventions.TOPIC_COMMAND, stream_qos())
+        self.create_subscription(messages.JointState, conventions.TOPIC_ANGLES, self.on_observation, stream_qos())
+        self.create_subscription(messages.Float64MultiArray, conventions.TOPIC_PREDICTIONS, self.on_predictions,
+                                 stream_qos())
+        self.create_subscription(messages.JointState, conventions.TOPIC_ROBOT_STATE, self.on_robot_state,
+                                 stream_qos())
+        if p["mode"] != "none":
+            self.create_timer(p["frame_period_s"], self.fallback_if_stale)
+        self.get_logger().info(f"mode {p['mode']}, compensating {p['delay_s']} s")
+
+    def on_observation(self, msg: messages.JointState) -> None:
+        """Store the newest pose; command it directly in mode none or when no usable prediction exists."""
+        accepted = self.observations.accept(msg)
+        if accepted is None:
+            return
+        self.obs_stamp, self.observation = accepted
+        self.counters.count("arm_angles.received")
+        if self.params["mode"] == "none":
+            self.publish_command()
+        else:
+            self.fallback_if_stale()
+
+    def on_predictions(self, msg: messages.Float64MultiArray) -> None:
+        """A new P(t+1..t+h): command the pose it gives for now (fixed or Eq. 11)."""
+        try:
+            stamp, names, preds = messages.read_predictions(msg)
+            if names != ARM_JOINTS:
+                preds = preds[:, [names.index(n) for n in ARM_JOINTS]]
+        except (LayoutError, ValueError) as exc:
+            self.counters.reject("predictions.layout", str(exc))
+            return
+        if not np.all(np.isfinite(preds)):
+            self.counters.reject("predictions.non_finite", "NaN or inf in the predictions")
+            return
+        if self.pred_stamp is not None and stamp <= self.pred_stamp:
+            self.counters.reject("predictions.stamp", f"stamp {stamp:.3f} not after {self.pred_stamp:.3f}")
+            return
+        self.predictions, self.pred_stamp = preds, stamp
+        self.counters.count("predictions.received")
+        if self.params["mode"] != "none":
+            self.fallback_sent_for = None
+            self.publish_command()
+
+    def fallback_if_stale(self) -> None:
+        """Without a usable prediction (none yet, or the sequence ended), command the newest observation,
+        once per observation, so that the robot does not hold a pose that was only predicted."""
+        if self.observation is None or self.fallback_sent_for == self.obs_stamp:
+            return
+        if self.pred_stamp is not None and self.now_s() - self.pred_stamp <= self.params["stale_after_s"]:
+            return
+        self.fallback_sent_for = self.obs_stamp
+        self.publish_command()
+
+    def on_robot_state(self, msg: messages.JointState) -> None:
+        accepted = self.robot_states.accept(msg)
+        if accepted is not None:
+            self.robot_state, self.robot_state_time = accepted[1], self.now_s()
+
+    def diagnostic_values(self) -> dict[str, object]:
+        """Counters plus the mode, so that a report can tell compensated from baseline robots."""
+        return {**super().diagnostic_values(), "mode": self.params["mode"], "delay_s": self.params["delay_s"]}
+
+    def publish_command(self) -> None:
+        if self.observation is None:
+            self.counters.count("commands.skipped_no_observation")
+            return
+        now = self.now_s()
+        state = self.robot_state if now - self.robot_state_time <= self.params["robot_state_timeout_s"] else None
+        out = self.compensator.command(now, self.observation, self.predictions, self.pred_stamp, state)
+        if out.fallback_reason is not None:
+            self.counters.count(f"fallback.{out.fallback_reason}")
+            # normal at every sequence start (the learner needs a few frames), hence info, not warning
+            self.counters.warn_throttled(f"fallback.{out.fallback_reason}",
+                                         f"commanding the latest observation: {out.fallback_reason}", "info")
+        self.counters.count(f"step_used.{out.step_used}")
+        self.counters.count("commands.published")
+        self.command_pub.publish(messages.joint_state(now, ARM_JOINTS, out.angles))
+
+
+def main(args: list[str] | None = None) -> int:
+    return run_node(DelayCompensatorNode, args)
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

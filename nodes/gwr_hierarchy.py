@@ -1,0 +1,180 @@
+"""gwr_hierarchy: learns the person's arm movements online and predicts the next `horizon` frames.
+
+Every accepted JointState of the arm angles is one `Hierarchy.step` (learn, then predict, as in
+the paper: training never stops). Each step publishes P(t+1..t+h) on `predictions` (stamped t)
+and the h-step prediction as a JointState on `predicted_angles` (stamped t + h * frame period).
+Missing frames inside a sequence are fed as missing samples, a gap longer than `max_gap_s` ends
+the sequence. The model is loaded from `checkpoint` at start and saved there atomically every
+`checkpoint_interval_s` and at shutdown; an unreadable checkpoint is moved aside, never overwritten.
+"""
+
+from __future__ import annotations
+
+import os
+import time
+from pathlib import Path
+
+import numpy as np
+
+from gwr_predictor import conventions
+from gwr_predictor.checkpoint import CheckpointError
+from gwr_predictor.hierarchy import Hierarchy
+from gwr_predictor.nao import ARM_JOINTS
+from gwr_predictor.params import HierarchyParams, hierarchy_parameter_specs
+
+from . import messages
+from .node_base import (
+    ArmAnglesGate,
+    NodeFatalError,
+    Param,
+    ParameterError,
+    PipelineNode,
+    run_node,
+    status_qos,
+    stream_qos,
+)
+
+PARAMS = (
+    Param("seed", 0, "seed of the networks' initial random neurons", 0, 2**31 - 1),
+    Param("learn", True, "learn from every frame (false: predict with the networks as they are)"),
+    Param("frame_period_s", 1.0 / conventions.ANGLE_FPS, "spacing of the angle frames (s)", 0.001, 10.0),
+    Param("max_gap_s", conventions.MAX_GAP_S, "a stamp gap larger than this ends the sequence", 0.0, 3600.0),
+    Param("checkpoint", "", "model file: loaded at start if it exists, saved periodically and at shutdown; "
+          "empty: none"),
+    Param("checkpoint_interval_s", 60.0, "save the checkpoint this often (s); 0: only at shutdown", 0.0, 86400.0),
+    Param("status_period_s", 1.0, "period of the learner status (neurons, errors) (s)", 0.05, 3600.0),
+)
+
+
+class GwrHierarchyNode(PipelineNode):
+    NODE_NAME = "gwr_hierarchy"
+
+    def __init__(self) -> None:
+        super().__init__(self.NODE_NAME, (*PARAMS, *hierarchy_parameter_specs()))
+        p = self.params
+        flat = {spec.name: p[spec.name] for spec in hierarchy_parameter_specs()}
+        try:
+            params = HierarchyParams.from_flat(flat)
+        except ValueError as exc:
+            raise ParameterError(str(exc)) from None
+        self.checkpoint = Path(p["checkpoint"]) if p["checkpoint"] else None
+        if self.checkpoint is not None:
+            try:
+                self.checkpoint.parent.mkdir(parents=True, exist_ok=True)
+            except OSError as exc:
+                raise NodeFatalError(f"parameter 'checkpoint': cannot create {self.checkpoint.parent}: {exc}") from None
+        self.model = self.load_or_create(params)
+        self.horizon = self.model.params.horizon
+        self.gate = ArmAnglesGate(self.counters, "arm_angles")
+        self.step_times: list[float] = []
+        self.step_max = 0.0
+        self.pred_pub = self.create_publisher(messages.Float64MultiArray, conventions.TOPIC_PREDICTIONS, stream_qos())
+        self.pred_angles_pub = self.create_publisher(messages.JointState, conventions.TOPIC_PREDICTED_ANGLES,
+                                                     stream_qos())
+        self.status_pub = self.create_publisher(messages.DiagnosticArray, conventions.TOPIC_LEARNER_STATUS,
+                                                status_qos())
+        self.create_subscription(messages.JointState, conventions.TOPIC_ANGLES, self.on_angles, stream_qos())
+        self.create_timer(p["status_period_s"], self.publish_status)
+        if self.checkpoint is not None and p["checkpoint_interval_s"] > 0:
+            self.create_timer(p["checkpoint_interval_s"], self.save_checkpoint)
+
+    def load_or_create(self, params: HierarchyParams) -> Hierarchy:
+        """The checkpoint's model if there is a readable one, else a fresh one with `params`."""
+        path = self.checkpoint
+        if path is None or not path.exists():
+            return Hierarchy(params, seed=self.params["seed"])
+        try:
+            model = Hierarchy.load(path)
+        except CheckpointError as exc:
+            aside = path.with_name(f"{path.name}.corrupt-{time.strftime('%Y%m%d-%H%M%S')}")
+            try:
+                os.replace(path, aside)
+            except OSError as move_exc:
+                raise NodeFatalError(f"unreadable checkpoint {path} ({exc}) could not be moved aside: {move_exc}; "
+                                     "not starting, to avoid overwriting it") from None
+            self.get_logger().error(f"unreadable checkpoint moved to {aside}; starting a fresh model: {exc}")
+            self.counters.count("checkpoint.corrupt_moved_aside")
+            return Hierarchy(params, seed=self.params["seed"])
+        differ = {k: (v, model.params.to_flat()[k]) for k, v in params.to_flat().items()
+                  if model.params.to_flat()[k] != v}
+        if differ:
+            self.get_logger().warning("the checkpoint's learning parameters are used, not these node parameters: "
+                                      + ", ".join(f"{k}={a} (checkpoint {b})" for k, (a, b) in differ.items()))
+        self.get_logger().info(f"loaded {path}: {model.frames_seen} frames seen, neurons {model.neuron_counts}")
+        return model
+
+    def on_angles(self, msg: messages.JointState) -> None:
+        """One frame: bridge a short gap with missing samples or end the sequence, learn, predict, publish."""
+        last = self.gate.last_stamp
+        accepted = self.gate.accept(msg)
+        if accepted is None:
+            return
+        stamp, angles = accepted
+        if last is not None:
+            self.handle_gap(stamp - last)
+        start = time.perf_counter()
+        predictions = self.model.step(angles, learn=self.params["learn"])
+        elapsed = time.perf_counter() - start
+        self.step_times.append(elapsed)
+        self.step_max = max(self.step_max, elapsed)
+        self.counters.count("frames.learned" if self.params["learn"] else "frames.seen")
+        if predictions is None:
+            return
+        self.pred_pub.publish(messages.predictions_msg(stamp, predictions))
+        self.pred_angles_pub.publish(messages.joint_state(stamp + self.horizon * self.params["frame_period_s"],
+                                                          ARM_JOINTS, predictions[-1]))
+        self.counters.count("predictions.published")
+
+    def handle_gap(self, dt: float) -> None:
+        """Missing frames (dt of several periods) keep the learner's step count in time; a long gap resets."""
+        if dt > self.params["max_gap_s"]:
+            self.model.reset_sequence()
+            self.counters.count("sequences.reset_on_gap")
+            return
+        missing = round(dt / self.params["frame_period_s"]) - 1
+        for _ in range(max(0, missing)):
+            self.model.step(None)
+        if missing > 0:
+            self.counters.count("frames.missing", missing)
+
+    def publish_status(self) -> None:
+        """Neurons per layer, errors and step times as a DiagnosticArray (about 1 Hz)."""
+        errors = self.model.errors()
+        values: dict[str, object] = {conventions.NEURON_KEYS[k]: v for k, v in errors["neurons"].items()}
+        for key in ("frames", "missing", "sequences", "predictions"):
+            values[key] = errors[key]
+        values["pe_mean_mse"] = float(errors["pe_mean"])
+        values["cpe_mean_mse"] = float(errors["cpe_mean"])
+        values[f"cpe_h{self.horizon}_mse"] = float(errors["cpe"][-1])
+        times = self.step_times or [0.0]
+        values["step_ms_mean"] = 1e3 * float(np.mean(times))
+        values["step_ms_max"] = 1e3 * self.step_max  # both since the last status
+        self.step_times, self.step_max = [], 0.0
+        status = messages.diagnostic_status(f"{self.get_fully_qualified_name()}/{conventions.LEARNER_STATUS_NAME}",
+                                            values, "learning" if self.params["learn"] else "predicting only")
+        self.status_pub.publish(messages.diagnostic_array(self.now_s(), [status]))
+
+    def save_checkpoint(self) -> bool:
+        try:
+            self.model.save(self.checkpoint)
+        except (CheckpointError, OSError) as exc:
+            self.counters.count("checkpoint.save_failed")
+            self.counters.warn_throttled("checkpoint", f"could not save the checkpoint: {exc}")
+            return False
+        self.counters.count("checkpoint.saved")
+        return True
+
+    def on_shutdown(self) -> None:
+        if self.checkpoint is None:
+            return
+        if not self.save_checkpoint():
+            raise NodeFatalError(f"the final checkpoint could not be written to {self.checkpoint}")
+        self.get_logger().info(f"checkpoint saved to {self.checkpoint} (neurons {self.model.neuron_counts})")
+
+
+def main(args: list[str] | None = None) -> int:
+    return run_node(GwrHierarchyNode, args)
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

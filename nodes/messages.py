@@ -1,0 +1,160 @@
+"""The only place that builds or reads ROS messages: msg <-> conventions / numpy.
+
+Nodes convert a message here, hand plain numpy to the library and convert the answer back, so
+the layouts defined in `gwr_predictor.conventions` are applied in exactly one spot.
+"""
+
+from __future__ import annotations
+
+import importlib
+import math
+from collections.abc import Mapping, Sequence
+
+import numpy as np
+from builtin_interfaces.msg import Time
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from sensor_msgs.msg import JointState
+from std_msgs.msg import Float64MultiArray, MultiArrayDimension
+
+from gwr_predictor import conventions
+from gwr_predictor.conventions import ArrayDim, LayoutError, PackedArray
+
+# --- time ------------------------------------------------------------------------------------
+
+
+def to_time(seconds: float) -> Time:
+    """Seconds (float) -> builtin_interfaces/Time; negative or non-finite stamps are a caller bug."""
+    if not math.isfinite(seconds) or seconds < 0.0:
+        raise ValueError(f"stamp must be finite and >= 0, got {seconds}")
+    sec = math.floor(seconds)
+    nanosec = round((seconds - sec) * 1e9)
+    if nanosec >= 1_000_000_000:
+        sec, nanosec = sec + 1, nanosec - 1_000_000_000
+    return Time(sec=sec, nanosec=nanosec)
+
+
+def from_time(stamp: Time) -> float:
+    """builtin_interfaces/Time -> seconds (float)."""
+    return stamp.sec + stamp.nanosec * 1e-9
+
+
+# --- labelled Float64MultiArray ----------------------------------------------------------------
+
+
+def to_multiarray(packed: PackedArray) -> Float64MultiArray:
+    """conventions.PackedArray -> Float64MultiArray (the layout's dims, offset and data)."""
+    msg = Float64MultiArray()
+    msg.layout.dim = [MultiArrayDimension(label=d.label, size=d.size, stride=d.stride) for d in packed.dims]
+    msg.layout.data_offset = int(packed.data_offset)
+    msg.data = np.ascontiguousarray(packed.data, dtype=np.float64)
+    return msg
+
+
+def from_multiarray(msg: Float64MultiArray) -> PackedArray:
+    """Float64MultiArray -> conventions.PackedArray (no checks: the unpack functions check)."""
+    dims = tuple(ArrayDim(d.label, int(d.size), int(d.stride)) for d in msg.layout.dim)
+    return PackedArray(dims, int(msg.layout.data_offset), np.asarray(msg.data, dtype=np.float64))
+
+
+def skeleton_msg(stamp: float, positions: np.ndarray,
+                 names: tuple[str, ...] = conventions.SKELETON_JOINTS) -> Float64MultiArray:
+    """One skeleton frame (joints x 3) -> the labelled skeleton array."""
+    return to_multiarray(conventions.pack_skeleton(stamp, positions, names))
+
+
+def read_skeleton(msg: Float64MultiArray) -> tuple[float, tuple[str, ...], np.ndarray]:
+    """Skeleton array -> (stamp, joint names, positions joints x 3). Raises LayoutError."""
+    return conventions.unpack_skeleton(from_multiarray(msg))
+
+
+def predictions_msg(stamp: float, predictions: np.ndarray,
+                    names: tuple[str, ...] = conventions.ARM_JOINTS) -> Float64MultiArray:
+    """Predictions (horizon x joints) made at frame `stamp` -> the labelled prediction array."""
+    return to_multiarray(conventions.pack_predictions(stamp, predictions, names))
+
+
+def read_predictions(msg: Float64MultiArray) -> tuple[float, tuple[str, ...], np.ndarray]:
+    """Prediction array -> (stamp, joint names, predictions horizon x joints). Raises LayoutError."""
+    return conventions.unpack_predictions(from_multiarray(msg))
+
+
+# --- JointState --------------------------------------------------------------------------------
+
+
+def joint_state(stamp: float, names: Sequence[str], positions: np.ndarray, frame_id: str = "") -> JointState:
+    """Names + positions (rad) -> JointState stamped `stamp` (seconds)."""
+    positions = np.asarray(positions, dtype=np.float64).ravel()
+    if positions.size != len(names):
+        raise LayoutError(f"{len(names)} joint names but {positions.size} positions")
+    msg = JointState()
+    msg.header.stamp = to_time(stamp)
+    msg.header.frame_id = frame_id
+    msg.name = list(names)
+    msg.position = positions
+    return msg
+
+
+def read_joint_state(msg: JointState) -> tuple[float, tuple[str, ...], np.ndarray]:
+    """JointState -> (stamp s, names, positions). Raises LayoutError if names and positions differ in length."""
+    names = tuple(msg.name)
+    positions = np.asarray(msg.position, dtype=np.float64)
+    if positions.size != len(names):
+        raise LayoutError(f"{len(names)} joint names but {positions.size} positions")
+    return from_time(msg.header.stamp), names, positions
+
+
+def select_joints(names: Sequence[str], positions: np.ndarray, wanted: Sequence[str]) -> np.ndarray:
+    """Positions of `wanted` in that order, from a message with `names` in any order.
+
+    Raises LayoutError naming the missing joints or a duplicated name; extra joints are ignored
+    (a full-body JointState carries more than the arms).
+    """
+    index: dict[str, int] = {}
+    for i, name in enumerate(names):
+        if name in index:
+            raise LayoutError(f"joint name {name!r} appears twice")
+        index[name] = i
+    missing = [n for n in wanted if n not in index]
+    if missing:
+        raise LayoutError(f"missing joints {missing}")
+    return np.asarray([positions[index[n]] for n in wanted], dtype=np.float64)
+
+
+# --- diagnostics -------------------------------------------------------------------------------
+
+OK = DiagnosticStatus.OK
+WARN = DiagnosticStatus.WARN
+ERROR = DiagnosticStatus.ERROR
+
+
+def diagnostic_status(name: str, values: Mapping[str, object], message: str = "",
+                      level: bytes = DiagnosticStatus.OK, hardware_id: str = "") -> DiagnosticStatus:
+    """One status with its key/values (values are stringified; floats with 6 significant digits)."""
+    def text(v: object) -> str:
+        return f"{v:.6g}" if isinstance(v, float) else str(v)
+
+    return DiagnosticStatus(level=level, name=name, message=message, hardware_id=hardware_id,
+                            values=[KeyValue(key=str(k), value=text(v)) for k, v in values.items()])
+
+
+def diagnostic_array(stamp: float, statuses: Sequence[DiagnosticStatus]) -> DiagnosticArray:
+    msg = DiagnosticArray()
+    msg.header.stamp = to_time(stamp)
+    msg.status = list(statuses)
+    return msg
+
+
+def read_diagnostics(msg: DiagnosticArray) -> dict[str, dict[str, str]]:
+    """DiagnosticArray -> {status name: {key: value}} (later statuses of the same name win)."""
+    return {s.name: {kv.key: kv.value for kv in s.values} for s in msg.status}
+
+
+def message_class(type_name: str) -> type:
+    """'sensor_msgs/msg/JointState' -> the message class (for typed or raw publishers/subscriptions)."""
+    package, _, name = type_name.partition("/msg/")
+    if not package or not name:
+        raise ValueError(f"message type must look like 'pkg/msg/Type', got {type_name!r}")
+    try:
+        return getattr(importlib.import_module(f"{package}.msg"), name)
+    except (ImportError, AttributeError) as exc:
+        raise ValueError(f"unknown message type {type_name!r}: {exc}") from None

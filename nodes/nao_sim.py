@@ -1,0 +1,123 @@
+"""nao_sim: a simulated Nao whose arms execute commands after a transport delay and a motor latency.
+
+The robot is `gwr_predictor.robot.SimulatedRobot` (PyBullet by default, DIRECT mode, or the
+kinematic model): commands reach its motors `delay_s` later (the paper's 600 ms of sensing and
+transport) plus `latency_s` of motor response. A timer advances it to the node clock in control
+periods (the physics runs at 240 Hz inside) and publishes what the robot reports on `joint_states`.
+`delay_amplitude_s` makes the delay vary as a sine (the variable-delay scenario of Sec. VI-D).
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+from gwr_predictor import conventions
+from gwr_predictor.nao import ARM_JOINTS
+from gwr_predictor.robot import RobotError, SimulatedRobot
+
+from . import messages
+from .node_base import ArmAnglesGate, NodeFatalError, Param, ParameterError, PipelineNode, run_node, stream_qos
+
+PARAMS = (
+    Param("backend", "pybullet", "robot model", choices=("pybullet", "kinematic")),
+    Param("gui", False, "open the PyBullet window (needs a display); default DIRECT, headless"),
+    Param("delay_s", 0.6, "transport + sensing delay of every command (s)", 0.0, 60.0),
+    Param("delay_amplitude_s", 0.0, "variable delay: delay_s + amplitude * sin(2 pi t / delay_period_s)", 0.0, 30.0),
+    Param("delay_period_s", 20.0, "period of the delay variation (s)", 0.1, 3600.0),
+    Param("latency_s", 0.035, "motor response latency (s); the real Nao: 30-40 ms", 0.0, 10.0),
+    Param("control_period_s", 0.01, "robot control period; physics steps at 240 Hz within it (s)", 0.001, 0.1),
+    Param("state_rate_hz", 50.0, "rate of joint_states", 1.0, 1000.0),
+    Param("render_dir", "", "write offscreen PNG pictures of the robot here (pybullet backend); empty: none"),
+    Param("render_period_s", 1.0, "one picture every this many seconds", 0.05, 3600.0),
+    Param("render_width", 320, "picture width (px)", 16, 4096),
+    Param("render_height", 240, "picture height (px)", 16, 4096),
+)
+
+
+class NaoSimNode(PipelineNode):
+    NODE_NAME = "nao_sim"
+
+    def __init__(self) -> None:
+        super().__init__(self.NODE_NAME, PARAMS)
+        p = self.params
+        if p["render_dir"] and p["backend"] != "pybullet":
+            raise ParameterError("parameter 'render_dir' needs backend 'pybullet'")
+        self.sim = None
+        if p["backend"] == "pybullet":
+            from gwr_predictor.nao_sim import NaoSimulator, SimulatorError
+
+            try:
+                self.sim = NaoSimulator(gui=p["gui"], time_step=min(p["control_period_s"], 1.0 / 240.0))
+            except SimulatorError as exc:
+                raise NodeFatalError(f"cannot start the PyBullet simulator: {exc}") from None
+        try:
+            self.robot = SimulatedRobot(p["delay_s"], p["latency_s"], p["control_period_s"], p["backend"],
+                                        simulator=self.sim)
+        except RobotError as exc:
+            raise ParameterError(str(exc)) from None
+        self.t0 = self.now_s()
+        self.gate = ArmAnglesGate(self.counters, "joint_commands")
+        self.state_pub = self.create_publisher(messages.JointState, conventions.TOPIC_ROBOT_STATE, stream_qos())
+        self.create_subscription(messages.JointState, conventions.TOPIC_COMMAND, self.on_command, stream_qos())
+        self.create_timer(1.0 / p["state_rate_hz"], self.on_tick)
+        self.render_dir = Path(p["render_dir"]) if p["render_dir"] else None
+        if self.render_dir is not None:
+            try:
+                self.render_dir.mkdir(parents=True, exist_ok=True)
+            except OSError as exc:
+                raise NodeFatalError(f"parameter 'render_dir': cannot create {self.render_dir}: {exc}") from None
+            self.create_timer(p["render_period_s"], self.render)
+        self.get_logger().info(f"{p['backend']} Nao, delay {p['delay_s']} s (+/- {p['delay_amplitude_s']}), "
+                               f"motor latency {p['latency_s']} s")
+
+    def advance(self) -> None:
+        """Step the robot up to the node clock (whole control periods), with the delay in force."""
+        p = self.params
+        t = self.now_s() - self.t0
+        if p["delay_amplitude_s"] > 0.0:
+            self.robot.delay_s = max(0.0, p["delay_s"] + p["delay_amplitude_s"]
+                                     * math.sin(2.0 * math.pi * t / p["delay_period_s"]))
+        if t > self.robot.t:
+            self.robot.advance(t - self.robot.t)
+
+    def on_command(self, msg: messages.JointState) -> None:
+        accepted = self.gate.accept(msg)
+        if accepted is None:
+            return
+        self.advance()
+        self.robot.command(accepted[1])
+        self.counters.count("commands.accepted")
+
+    def on_tick(self) -> None:
+        """Advance and report the joint angles."""
+        self.advance()
+        self.state_pub.publish(messages.joint_state(self.now_s(), ARM_JOINTS, self.robot.state()))
+        self.counters.count("states.published")
+
+    def render(self) -> None:
+        from gwr_predictor.nao_sim import save_png
+
+        index = self.counters.get("frames.rendered")
+        path = self.render_dir / f"nao_{index:05d}.png"
+        try:
+            save_png(self.sim.render(self.params["render_width"], self.params["render_height"]), path)
+        except OSError as exc:
+            raise NodeFatalError(f"cannot write {path}: {exc}") from None
+        self.counters.count("frames.rendered")
+
+    def diagnostic_values(self) -> dict[str, object]:
+        return {**super().diagnostic_values(), "delay_s": self.robot.delay_s}
+
+    def on_shutdown(self) -> None:
+        self.robot.close()
+        if self.sim is not None:
+            self.sim.close()
+
+
+def main(args: list[str] | None = None) -> int:
+    return run_node(NaoSimNode, args)
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

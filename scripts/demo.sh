@@ -1,0 +1,48 @@
+#!/usr/bin/env bash
+# THE DEMO: pretrain offline, run the live ROS 2 pipeline with and without delay compensation,
+# and report. Works on a fresh machine (env.sh builds the venv on first use). A few minutes.
+#
+#   1. gwr-predictor pretrain   the hierarchy learns the demonstrator's repetitions 1-3 (~20-40 s)
+#   2. scripts/run_pipeline.sh  live pipeline on new repetitions (4-5) for --seconds (default 60),
+#                               learning on, from the pretrained model, a compensated robot and an
+#                               uncompensated one (namespace /uncompensated), everything recorded
+#   3. gwr-predictor report     prediction error at 600 ms, robot lags, neurons, counts, plot
+#
+# usage: scripts/demo.sh [--seconds N] [--out DIR] [--epochs N] [--scenario YAML] [--render]
+set -euo pipefail
+HERE="$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)"
+# shellcheck source=env.sh
+source "$HERE/env.sh"
+# shellcheck source=lib.sh
+source "$HERE/lib.sh"
+
+seconds=60
+out=""
+epochs=5
+extra=()
+while [ $# -gt 0 ]; do
+    case "$1" in
+        --seconds) seconds="$2"; shift 2 ;;
+        --out) out="$2"; shift 2 ;;
+        --epochs) epochs="$2"; shift 2 ;;
+        --scenario) extra+=(--scenario "$2"); shift 2 ;;
+        --render) extra+=(--render); shift ;;
+        -h|--help) sed -n '2,12p' "$0"; exit 0 ;;
+        *) gwr_die "unknown argument $1 (see --help)" ;;
+    esac
+done
+out="${out:-$GWR_ROOT/results/demo_$(date +%Y%m%d_%H%M%S)}"
+mkdir -p "$out"
+out="$(cd "$out" && pwd)"
+start=$SECONDS
+
+gwr_log "step 1/3: pretraining the hierarchy offline"
+gwr-predictor pretrain --out "$out/pretrained.npz" --params-file "$GWR_ROOT/config/gwr_hierarchy.yaml" \
+    --epochs "$epochs" | tee "$out/pretrain.log"
+
+gwr_log "step 2/3: live pipeline for $seconds s (compensated + uncompensated robot)"
+"$HERE/run_pipeline.sh" --seconds "$seconds" --out "$out" --checkpoint "$out/pretrained.npz" "${extra[@]}"
+
+gwr_log "step 3/3: report"
+gwr-predictor report "$out"
+gwr_log "demo finished in $((SECONDS - start)) s; everything is in $out"

@@ -1,0 +1,94 @@
+#!/usr/bin/env bash
+# Replay a recorded bag's person input through the pipeline again and record the new outputs.
+#   /skeleton   -> angle_extractor -> gwr_hierarchy -> delay_compensator -> nao_sim
+#   /arm_angles ->                    gwr_hierarchy -> delay_compensator -> nao_sim
+# The player restamps the messages to the replay time, so the nodes see a live stream.
+#
+# usage: scripts/replay.sh BAG [--out DIR] [--topic /skeleton|/arm_angles] [--rate R]
+#                          [--checkpoint FILE] [--params-dir DIR] [--no-baseline]
+#   BAG                a bag directory (e.g. bags/demo_sample or results/<run>/bag)
+#   --out DIR          run folder for the new bag, model and logs (default results/replay_<time>)
+#   --topic T          what to replay (default /skeleton)
+#   --rate R           replay speed (default 1.0; the robot's delay is in real time, so keep 1.0
+#                      when the robot's lag matters)
+#   --checkpoint FILE  learner start model (default: a fresh one)
+#   --no-baseline      no uncompensated robot
+# Then: gwr-predictor report DIR
+set -euo pipefail
+HERE="$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)"
+# shellcheck source=env.sh
+source "$HERE/env.sh"
+# shellcheck source=lib.sh
+source "$HERE/lib.sh"
+
+[ $# -ge 1 ] || { sed -n '2,16p' "$0"; exit 2; }
+case "$1" in -h|--help) sed -n '2,16p' "$0"; exit 0 ;; esac
+bag="$1"
+shift
+out=""
+topic="/skeleton"
+rate="1.0"
+checkpoint=""
+params_dir="$GWR_ROOT/config"
+baseline=1
+while [ $# -gt 0 ]; do
+    case "$1" in
+        --out) out="$2"; shift 2 ;;
+        --topic) topic="$2"; shift 2 ;;
+        --rate) rate="$2"; shift 2 ;;
+        --checkpoint) checkpoint="$2"; shift 2 ;;
+        --params-dir) params_dir="$2"; shift 2 ;;
+        --no-baseline) baseline=0; shift ;;
+        *) gwr_die "unknown argument $1 (see --help)" ;;
+    esac
+done
+[ -f "$bag/metadata.yaml" ] || gwr_die "$bag is not a bag directory (no metadata.yaml)"
+bag="$(cd "$bag" && pwd)"
+case "$topic" in /skeleton|/arm_angles) ;; *) gwr_die "--topic must be /skeleton or /arm_angles" ;; esac
+[ -z "$checkpoint" ] || [ -f "$checkpoint" ] || gwr_die "--checkpoint $checkpoint not found"
+out="${out:-$GWR_ROOT/results/replay_$(date +%Y%m%d_%H%M%S)}"
+mkdir -p "$out"
+out="$(cd "$out" && pwd)"
+[ ! -e "$out/bag" ] || gwr_die "$out/bag exists already: choose another --out"
+export ROS_LOG_DIR="$out/ros_log"
+if [ -n "$checkpoint" ]; then cp "$checkpoint" "$out/model.npz"; fi
+
+trap 'gwr_stop_all' EXIT
+trap 'gwr_log "interrupted"; exit 130' INT TERM
+start_node() {  # start_node LABEL NODE [extra ROS args...]
+    local label="$1" node="$2"
+    shift 2
+    local a
+    mapfile -t a < <(gwr_node_args "$node" "$params_dir")
+    gwr_start "$label" "$out" "$node" "${a[@]}" "$@"
+}
+
+gwr_log "replaying $topic of $bag into $out (ROS_DOMAIN_ID=$ROS_DOMAIN_ID)"
+start_node bag_recorder bag_recorder -p "path:=$out/bag"
+gwr_wait_ready bag_recorder 60
+start_node nao_sim nao_sim
+start_node delay_compensator delay_compensator
+waiting=(nao_sim delay_compensator gwr_hierarchy)
+if [ "$baseline" = 1 ]; then
+    ns=(-r "__ns:=/uncompensated" -r "arm_angles:=/arm_angles" -r "predictions:=/predictions")
+    start_node nao_sim_uncompensated nao_sim "${ns[@]}"
+    start_node delay_compensator_uncompensated delay_compensator "${ns[@]}" -p mode:=none
+    waiting+=(nao_sim_uncompensated delay_compensator_uncompensated)
+fi
+start_node gwr_hierarchy gwr_hierarchy -p "checkpoint:=$out/model.npz"
+if [ "$topic" = /skeleton ]; then
+    start_node angle_extractor angle_extractor
+    waiting+=(angle_extractor)
+fi
+for n in "${waiting[@]}"; do gwr_wait_ready "$n" 60; done
+# start once every consumer of the replayed topic (and the recorder) is matched, so nothing is lost
+if [ "$topic" = /skeleton ]; then subscribers=2; else subscribers=$((3 + baseline)); fi
+start_node bag_player bag_player -p "bag:=$bag" -p "topics:=[$topic]" -p "rate:=$rate" -p restamp:=true \
+    -p "wait_for_subscribers:=$subscribers" -p start_delay_s:=1.0
+status=0
+gwr_wait_exit bag_player || status=$?
+sleep 1.5  # the robots finish the last commands (their delay)
+gwr_stop_all
+trap - EXIT
+gwr_log "results in $out (bag/, model.npz, *.log); summary: gwr-predictor report $out"
+exit "$status"

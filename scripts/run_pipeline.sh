@@ -1,0 +1,99 @@
+#!/usr/bin/env bash
+# Run the live pipeline for a while and record it:
+#   skeleton_source -> angle_extractor -> gwr_hierarchy -> delay_compensator -> nao_sim
+# plus, unless --no-baseline, an uncompensated delay_compensator (mode none) + nao_sim pair in the
+# /uncompensated namespace fed by the same angles, and a bag_recorder started first.
+#
+# usage: scripts/run_pipeline.sh [--seconds N] [--out DIR] [--params-dir DIR] [--scenario YAML]
+#                                [--checkpoint FILE] [--no-baseline] [--render]
+#   --seconds N        how long the source runs (default 60)
+#   --out DIR          run folder: bag/, model.npz, one log per node, ros_log/ (default results/run_<time>)
+#   --params-dir DIR   folder with <node>.yaml (default config/)
+#   --scenario YAML    extra params file applied to every node after its own (e.g. config/scenario_*.yaml)
+#   --checkpoint FILE  start the learner from this model (copied to DIR/model.npz, which it then updates)
+#   --no-baseline      no uncompensated robot
+#   --render           the compensated robot writes PNG pictures to DIR/frames/
+set -euo pipefail
+HERE="$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)"
+# shellcheck source=env.sh
+source "$HERE/env.sh"
+# shellcheck source=lib.sh
+source "$HERE/lib.sh"
+
+seconds=60
+out=""
+params_dir="$GWR_ROOT/config"
+scenario=""
+checkpoint=""
+baseline=1
+render=0
+while [ $# -gt 0 ]; do
+    case "$1" in
+        --seconds) seconds="$2"; shift 2 ;;
+        --out) out="$2"; shift 2 ;;
+        --params-dir) params_dir="$2"; shift 2 ;;
+        --scenario) scenario="$2"; shift 2 ;;
+        --checkpoint) checkpoint="$2"; shift 2 ;;
+        --no-baseline) baseline=0; shift ;;
+        --render) render=1; shift ;;
+        -h|--help) sed -n '2,17p' "$0"; exit 0 ;;
+        *) gwr_die "unknown argument $1 (see --help)" ;;
+    esac
+done
+[[ "$seconds" =~ ^[0-9]+$ ]] || gwr_die "--seconds must be a whole number, got $seconds"
+[ -d "$params_dir" ] || gwr_die "--params-dir $params_dir is not a folder"
+[ -z "$scenario" ] || [ -f "$scenario" ] || gwr_die "--scenario $scenario not found"
+[ -z "$checkpoint" ] || [ -f "$checkpoint" ] || gwr_die "--checkpoint $checkpoint not found"
+out="${out:-$GWR_ROOT/results/run_$(date +%Y%m%d_%H%M%S)}"
+mkdir -p "$out"
+out="$(cd "$out" && pwd)"
+[ ! -e "$out/bag" ] || gwr_die "$out/bag exists already: choose another --out"
+export ROS_LOG_DIR="$out/ros_log"
+if [ -n "$checkpoint" ]; then
+    cp "$checkpoint" "$out/model.npz"
+fi
+
+trap 'gwr_stop_all' EXIT
+trap 'gwr_log "interrupted"; exit 130' INT TERM
+
+args() { gwr_node_args "$1" "$params_dir" "$scenario"; }
+start_node() {  # start_node LABEL NODE [extra ROS args...]
+    local label="$1" node="$2"
+    shift 2
+    local a
+    mapfile -t a < <(args "$node")
+    gwr_start "$label" "$out" "$node" "${a[@]}" "$@"
+}
+
+gwr_log "run folder $out (ROS_DOMAIN_ID=$ROS_DOMAIN_ID)"
+start_node bag_recorder bag_recorder -p "path:=$out/bag"
+gwr_wait_ready bag_recorder 60
+frames=()
+if [ "$render" = 1 ]; then frames=(-p "render_dir:=$out/frames"); fi
+start_node nao_sim nao_sim "${frames[@]}"
+start_node delay_compensator delay_compensator
+if [ "$baseline" = 1 ]; then
+    ns=(-r "__ns:=/uncompensated" -r "arm_angles:=/arm_angles" -r "predictions:=/predictions")
+    start_node nao_sim_uncompensated nao_sim "${ns[@]}"
+    start_node delay_compensator_uncompensated delay_compensator "${ns[@]}" -p mode:=none
+fi
+start_node gwr_hierarchy gwr_hierarchy -p "checkpoint:=$out/model.npz"
+start_node angle_extractor angle_extractor
+for n in nao_sim delay_compensator gwr_hierarchy angle_extractor; do gwr_wait_ready "$n" 60; done
+if [ "$baseline" = 1 ]; then
+    gwr_wait_ready nao_sim_uncompensated 60
+    gwr_wait_ready delay_compensator_uncompensated 60
+fi
+# the first frame goes out once angle_extractor and the recorder are matched
+start_node skeleton_source skeleton_source -p wait_for_subscribers:=2
+gwr_wait_ready skeleton_source 60
+gwr_log "pipeline running for $seconds s"
+status=0
+gwr_wait_seconds "$seconds" || status=1
+gwr_stop_all
+trap - EXIT
+gwr_log "results in $out: bag/ (recording), model.npz (learner), *.log (one per node)"
+if [ "$status" != 0 ]; then
+    gwr_log "a node stopped early: see the logs above"
+fi
+exit "$status"

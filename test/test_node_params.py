@@ -1,0 +1,98 @@
+"""Node parameters: the YAMLs in config/ match what the nodes declare, and a bad value stops a node
+with exit code 2 and a message naming the parameter and the allowed values."""
+
+import importlib
+from pathlib import Path
+
+import pytest
+import yaml
+from ros_harness import ROOT
+
+from gwr_predictor.commands.pretrain import _flatten
+from gwr_predictor.nodes.node_base import COMMON_PARAMS, ParameterError, check_value, param_kind
+from gwr_predictor.params import hierarchy_parameter_specs
+
+NODES = ["skeleton_source", "angle_extractor", "gwr_hierarchy", "delay_compensator", "nao_sim", "bag_recorder",
+         "bag_player"]
+
+
+def declared_specs(node: str) -> dict:
+    module = importlib.import_module(f"gwr_predictor.nodes.{node}")
+    specs = [*COMMON_PARAMS, *module.PARAMS]
+    if node == "gwr_hierarchy":
+        specs += hierarchy_parameter_specs()
+    return {s.name: s for s in specs}
+
+
+def yaml_parameters(path: Path, node: str) -> dict:
+    doc = yaml.safe_load(path.read_text())
+    key = f"/**/{node}"
+    assert key in doc, f"{path.name}: parameters must be under '{key}'"
+    return _flatten(doc[key]["ros__parameters"])
+
+
+@pytest.mark.parametrize("node", NODES)
+def test_config_yaml_names_only_declared_parameters_with_allowed_values(node):
+    specs = declared_specs(node)
+    values = yaml_parameters(ROOT / "config" / f"{node}.yaml", node)
+    unknown = sorted(set(values) - set(specs))
+    assert not unknown, f"config/{node}.yaml sets undeclared parameters {unknown} (ROS would ignore them)"
+    for name, value in values.items():
+        check_value(specs[name], param_kind(specs[name].default), value)  # raises ParameterError if not allowed
+
+
+@pytest.mark.parametrize("path", sorted((ROOT / "config").glob("scenario_*.yaml")), ids=lambda p: p.name)
+def test_scenario_yamls_name_only_declared_parameters(path):
+    doc = yaml.safe_load(path.read_text())
+    for key, section in doc.items():
+        node = key.rsplit("/", 1)[-1]
+        specs = declared_specs(node)
+        values = _flatten(section["ros__parameters"])
+        assert set(values) <= set(specs), f"{path.name}: {node} has no parameters {sorted(set(values) - set(specs))}"
+        for name, value in values.items():
+            check_value(specs[name], param_kind(specs[name].default), value)
+
+
+def test_out_of_range_value_is_refused_by_the_shared_check():
+    spec = declared_specs("nao_sim")["delay_s"]
+    with pytest.raises(ParameterError, match=r"'delay_s' = -1.0 is outside the allowed range \[0.0, 60.0\]"):
+        check_value(spec, "double", -1)
+
+
+BAD_VALUES = [
+    ("nao_sim", {"delay_s": -0.5}, "'delay_s' = -0.5 is outside the allowed range [0.0, 60.0]"),
+    ("delay_compensator", {"mode": "sideways"}, "'mode' = 'sideways' is not allowed: must be one of 'none', 'fixed'"),
+    ("gwr_hierarchy", {"gwr1.activation_threshold": 1.5}, "'gwr1.activation_threshold' = 1.5 is outside"),
+    ("skeleton_source", {"rate_hz": 0.0}, "'rate_hz' = 0.0 is outside the allowed range [1.0, 1000.0]"),
+    ("angle_extractor", {"max_gap_s": "soon"}, "'max_gap_s' must be a number"),
+    ("bag_player", {"bag": ""}, "'bag' is empty"),
+    ("bag_recorder", {"topics": ["mystery_topic"]}, "'topics': topic 'mystery_topic': unknown type"),
+]
+
+
+@pytest.mark.ros
+@pytest.mark.parametrize(("node", "params", "message"), BAD_VALUES, ids=[b[0] for b in BAD_VALUES])
+def test_bad_parameter_stops_the_node_with_exit_code_2_naming_it(ros, node, params, message):
+    code, output = ros.run(node, params=params, timeout=60)
+    assert code == 2, output
+    assert message in output
+    assert "ready" not in output
+
+
+def test_pretrain_uses_the_nodes_yaml_and_writes_a_checkpoint_the_node_can_load(tmp_path):
+    from gwr_predictor.cli import main
+    from gwr_predictor.commands.pretrain import hierarchy_params, node_parameters
+    from gwr_predictor.hierarchy import Hierarchy
+
+    yaml_path = ROOT / "config" / "gwr_hierarchy.yaml"
+    params = hierarchy_params(node_parameters(yaml_path))
+    assert params.to_flat() == {k: v for k, v in yaml_parameters(yaml_path, "gwr_hierarchy").items()
+                                if k in params.to_flat()}
+    custom = tmp_path / "custom.yaml"
+    custom.write_text("/**/gwr_hierarchy:\n  ros__parameters:\n    horizon: 4\n    pgwr:\n      max_edge_age: 50\n")
+    out = tmp_path / "model.npz"
+    assert main(["pretrain", "-o", str(out), "--params-file", str(custom), "--patterns", "wave_one",
+                 "--subjects", "1", "--repetitions", "1", "--epochs", "1", "--quiet"]) == 0
+    model = Hierarchy.load(out)
+    assert model.params.horizon == 4 and model.params.pgwr.max_edge_age == 50
+    assert model.frames_seen > 30
