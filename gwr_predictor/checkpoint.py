@@ -22,7 +22,9 @@ from typing import Any
 import numpy as np
 
 MAGIC = "gwr_predictor.checkpoint"
-FORMAT_VERSION = 1
+#: 2: HierarchyParams gained `target` and `readout_k`, and the frame buffer `xbuf` keeps one frame
+#: more (the base of delta targets). Version 1 files are refused: their parameters lack the new keys.
+FORMAT_VERSION = 2
 HEADER_KEY = "__header__"
 
 
@@ -99,8 +101,10 @@ def read_checkpoint(path: str | os.PathLike[str], kind: str,
                               f"expected {MAGIC!r}: not a gwr_predictor checkpoint")
     version = header.get("format_version")
     if version != FORMAT_VERSION:
+        hint = (" (written by an older build, before the P-GWR target/read-out options: retrain or "
+                "re-run `gwr-predictor pretrain`)") if isinstance(version, int) and version < FORMAT_VERSION else ""
         raise CheckpointError(f"{path}: format_version {version!r} is not supported (this build reads "
-                              f"{FORMAT_VERSION})")
+                              f"{FORMAT_VERSION}){hint}")
     if header.get("kind") != kind:
         raise CheckpointError(f"{path}: holds a {header.get('kind')!r}, expected a {kind!r}")
     missing = sorted(set(required) - arrays.keys())

@@ -235,6 +235,13 @@ class GWR:
         self.last_distance = dist
         return b, dist
 
+    def search_views(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """(A, xa, buf, w) for inlined read-only BMU searches in hot loops: write the query into
+        xa[:-1], `np.dot(A, xa, out=buf)`, and buf.argmax() is the BMU, w its matched weights.
+        Valid only until the network next changes (learning may reallocate or resize)."""
+        n = self._n
+        return self._wa[:n], self._xa, self._buf[:n], self._w
+
     def match_unchecked(self, xm: np.ndarray) -> int:
         """BMU index of a trusted matched-part vector; records `last_distance`. No learning."""
         b = int(self._affinity(xm).argmax())

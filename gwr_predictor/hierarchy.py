@@ -152,6 +152,9 @@ class _OnlinePredictor:
         self.scaling = InputScaling(p.input_scale, p.n_joints, p.normalise_distance)
         self._scale = p.input_scale
         self._target_steps = p.horizon if p.mode == "vector" else 1
+        self._delta = p.target == "delta"
+        self._readout_k = p.readout_k
+        self._target = np.empty(self._target_steps * p.n_joints)
 
     # --- subclass hooks -------------------------------------------------------------------------
     def _new_layer(self, name: str) -> GWR:
@@ -210,7 +213,8 @@ class _OnlinePredictor:
         return frame if math.isfinite(frame.sum()) else None
 
     def _push_frame(self, xs: np.ndarray) -> None:
-        """Keep the last `_target_steps` scaled frames, oldest first (vector targets)."""
+        """Keep the last `_target_steps` + 1 scaled frames, oldest first: the targets of the pair
+        learned now and, for delta targets, the frame they are measured from."""
         buf = self._xbuf
         buf[:-1] = buf[1:]
         buf[-1] = xs
@@ -219,26 +223,52 @@ class _OnlinePredictor:
     def _train_pgwr(self) -> None:
         """Learn the newest pair whose target is fully observed (delayed targets, no peeking)."""
         k = self._target_steps
-        if len(self._regs) < k or self._xfill < k:
+        if len(self._regs) < k or self._xfill < k + self._delta:
             return
         reg = self._regs[-k]
-        if reg is not None:
-            self.pgwr.learn_pair_unchecked(reg, self._xbuf.reshape(-1))
+        if reg is None:
+            return
+        buf = self._xbuf
+        if self._delta:  # displacement of each target frame from the regressor's newest frame
+            target = self._target.reshape(k, -1)
+            np.subtract(buf[1:], buf[0], out=target)
+            self.pgwr.learn_pair_unchecked(reg, self._target)
+        else:
+            self.pgwr.learn_pair_unchecked(reg, buf[1:].reshape(-1))
 
     def _forecast(self, reg: np.ndarray, record: bool) -> np.ndarray:
         p = self.params
         pg = self.pgwr
-        b = pg.match_unchecked(reg) if record else pg.nearest(reg)
+        if self._readout_k == 1:
+            b = pg.match_unchecked(reg) if record else pg.nearest(reg)
+            y = pg.output_row(b)
+        else:
+            y = pg.blended_output(reg, self._readout_k, record)
         if record:
             self._errors.quantization("pgwr", pg.last_distance / self._scale)
-        if p.mode == "vector":
-            return pg.output_row(b).reshape(p.horizon, p.n_joints) / self._scale
         out = np.empty((p.horizon, p.n_joints))
-        out[0] = pg.output_row(b)
-        if p.horizon > 1:
-            self._rollout(out[0], out)
+        if p.mode == "vector":
+            out.reshape(-1)[:] = y
+            if self._delta:  # offsets from the newest observed frame
+                out += self._xbuf[-1]
+        else:
+            out[0] = y
+            if self._delta:
+                out[0] += self._xbuf[-1]
+            if p.horizon > 1:
+                self._rollout(out[0], out)
         out /= self._scale
         return out
+
+    def _readout(self, reg: np.ndarray, prev: np.ndarray, out: np.ndarray) -> None:
+        """Roll-out step: the P-GWR's next frame for regressor `reg` into `out` (scaled); with delta
+        targets the output is added to the previous (predicted) frame `prev`."""
+        pg = self.pgwr
+        y = pg.output_row(pg.nearest(reg)) if self._readout_k == 1 else pg.blended_output(reg, self._readout_k)
+        if self._delta:
+            np.add(prev, y, out=out)
+        else:
+            out[:] = y
 
     def _match(self, net: GWR, name: str, x: np.ndarray, learn: bool) -> int:
         """Learn (or only match, if frozen / not learning); returns the representative neuron."""
@@ -253,7 +283,7 @@ class _OnlinePredictor:
     # --- sequences and layers -------------------------------------------------------------------
     def _clear_sequence(self) -> None:
         self._clear_windows()
-        self._xbuf = np.zeros((self._target_steps, self.params.n_joints))
+        self._xbuf = np.zeros((self._target_steps + 1, self.params.n_joints))
         self._xfill = 0
         self._regs: deque[np.ndarray | None] = deque(maxlen=self._target_steps)
         self._last_reg: np.ndarray | None = None
@@ -433,6 +463,8 @@ class Hierarchy(_OnlinePredictor):
         self._win1 = np.zeros((p.tau1, p.n_joints))  # newest first
         self._win2 = np.zeros((p.tau2, p.gwr2_dim))
         self._fill1 = self._fill2 = 0
+        self._roll1 = np.empty((p.horizon - 1 + p.tau1, p.n_joints))  # roll-out scratch (see _rollout)
+        self._roll2 = np.empty((p.horizon - 1 + p.tau2, p.gwr2_dim))
 
     def _encode(self, xs: np.ndarray, learn: bool) -> tuple[np.ndarray, np.ndarray | None]:
         p = self.params
@@ -455,17 +487,44 @@ class Hierarchy(_OnlinePredictor):
         return rep, w2.reshape(-1).copy()
 
     def _rollout(self, first: np.ndarray, out: np.ndarray) -> None:
-        g1, g2, pg = self.gwr1, self.gwr2, self.pgwr
-        w1, w2 = self._win1.copy(), self._win2.copy()
-        flat1, flat2 = w1.reshape(-1), w2.reshape(-1)
-        y = first
-        for k in range(1, len(out)):  # horizon steps, each a chain of three BMU searches
-            w1[1:] = w1[:-1]
-            w1[0] = g1.weight_row(g1.nearest(y))
-            w2[1:] = w2[:-1]
-            w2[0] = g2.weight_row(g2.nearest(flat1))
-            y = pg.output_row(pg.nearest(flat2))
-            out[k] = y
+        """Each roll-out step is a chain of three BMU searches. The windows slide over two buffers
+        holding the current windows at their end, newest first: the window after k steps is the
+        contiguous slice starting k rows before it, so no step copies or shifts a window."""
+        p = self.params
+        g1, g2 = self.gwr1, self.gwr2
+        h, nj, d2 = len(out), p.n_joints, p.gwr2_dim
+        n1, n2 = p.tau1 * nj, p.tau2 * d2
+        b1, b2 = self._roll1, self._roll2
+        s = h - 1
+        b1[s:] = self._win1
+        b2[s:] = self._win2
+        f1, f2 = b1.reshape(-1), b2.reshape(-1)
+        # the two lower searches inlined (nothing learns during a roll-out): one product + argmax each
+        a1, x1, o1, w1 = g1.search_views()
+        a2, x2, o2, w2 = g2.search_views()
+        dot = np.dot
+        if self._readout_k == 1:  # the BMU read-out (Eq. 10), inlined as well
+            a3, x3, o3, _ = self.pgwr.search_views()
+            wo, delta = self.pgwr.weights_out, self._delta
+            for k in range(1, h):
+                s -= 1
+                x1[:-1] = out[k - 1]
+                b1[s] = w1[dot(a1, x1, out=o1).argmax()]
+                x2[:-1] = f1[s * nj:s * nj + n1]
+                b2[s] = w2[dot(a2, x2, out=o2).argmax()]
+                x3[:-1] = f2[s * d2:s * d2 + n2]
+                out[k] = wo[dot(a3, x3, out=o3).argmax()]
+                if delta:
+                    out[k] += out[k - 1]
+            return
+        readout = self._readout
+        for k in range(1, h):
+            s -= 1
+            x1[:-1] = out[k - 1]
+            b1[s] = w1[dot(a1, x1, out=o1).argmax()]
+            x2[:-1] = f1[s * nj:s * nj + n1]
+            b2[s] = w2[dot(a2, x2, out=o2).argmax()]
+            readout(f2[s * d2:s * d2 + n2], out[k - 1], out[k])
 
     def _window_arrays(self) -> dict[str, np.ndarray]:
         return {"win1": self._win1, "win2": self._win2, "fill": np.array([self._fill1, self._fill2])}
@@ -507,15 +566,12 @@ class FlatPredictor(_OnlinePredictor):
         return xs, (w.reshape(-1).copy() if self._fill == self.order else None)
 
     def _rollout(self, first: np.ndarray, out: np.ndarray) -> None:
-        pg = self.pgwr
         w = self._win.copy()
         flat = w.reshape(-1)
-        y = first
         for k in range(1, len(out)):
             w[1:] = w[:-1]
-            w[0] = y
-            y = pg.output_row(pg.nearest(flat))
-            out[k] = y
+            w[0] = out[k - 1]
+            self._readout(flat, out[k - 1], out[k])
 
     def _extra_header(self) -> dict[str, Any]:
         return {"order": self.order}
@@ -536,5 +592,7 @@ def _new_pgwr(p: HierarchyParams, sc: InputScaling, rng: np.random.Generator, fr
     """A P-GWR whose random neurons lie inside the joint limits, in and out."""
     lo_in, hi_in = sc.window_bounds(frames)
     lo_out, hi_out = sc.window_bounds(p.output_dim // p.n_joints)
+    if p.target == "delta":  # displacements: initial neurons predict "no movement"
+        lo_out = hi_out = np.zeros_like(lo_out)
     return PredictiveGWR(in_dim, p.output_dim, p.pgwr, rng, init_low=np.concatenate([lo_in, lo_out]),
                          init_high=np.concatenate([hi_in, hi_out]), distance_factor=sc.distance_factor(frames))

@@ -18,6 +18,9 @@ from typing import Any, NamedTuple
 #: Edge ages are stored as int16, so the age limit stays well inside its range.
 MAX_EDGE_AGE_LIMIT = 30000
 MODES = ("recursive", "vector")
+#: What the P-GWR's output weights learn: the future frames themselves (the paper) or their
+#: displacement from the newest observed frame, added back to that frame when predicting.
+TARGETS = ("absolute", "delta")
 LAYERS = ("gwr1", "gwr2", "pgwr")
 
 #: Default radians -> model-units factor (see docs/learning.md, "Input scaling").
@@ -128,6 +131,7 @@ _HIER_RANGES: dict[str, _Range] = {
     "tau2": _Range(int, 1, 32),
     "horizon": _Range(int, 1, 100),
     "input_scale": _Range(float, 0.0, 1000.0, True, False),
+    "readout_k": _Range(int, 1, 16),
 }
 
 _HIER_DOC: dict[str, str] = {
@@ -138,7 +142,12 @@ _HIER_DOC: dict[str, str] = {
     "mode": "multi-step prediction: 'recursive' (feed predictions back) or 'vector' (x_out spans t+1..t+h)",
     "input_scale": "model units per radian; -ln(a_T)/input_scale is the insertion distance in radians",
     "normalise_distance": "divide each layer's distance by sqrt(frames in its input) (RMS per frame)",
+    "readout_k": "P-GWR read-out: blend the outputs of the k nearest neurons by inverse distance (1 = the paper's BMU)",
+    "target": "P-GWR output: 'absolute' future frames (the paper) or 'delta', their offset from the newest frame",
 }
+
+
+_HIER_CHOICES: dict[str, tuple[str, ...]] = {"mode": MODES, "target": TARGETS}
 
 
 def _default_gwr(max_edge_age: int) -> GWRParams:
@@ -156,6 +165,8 @@ class HierarchyParams:
     mode: str = "recursive"
     input_scale: float = DEFAULT_INPUT_SCALE
     normalise_distance: bool = True
+    readout_k: int = 1
+    target: str = "absolute"
     gwr1: GWRParams = field(default_factory=lambda: _default_gwr(100))
     gwr2: GWRParams = field(default_factory=lambda: _default_gwr(200))
     pgwr: GWRParams = field(default_factory=lambda: _default_gwr(300))
@@ -166,6 +177,8 @@ class HierarchyParams:
             _check(owner, name, getattr(self, name), rng)
         if self.mode not in MODES:
             raise ValueError(f"{owner}.mode must be one of {MODES}, got {self.mode!r}")
+        if self.target not in TARGETS:
+            raise ValueError(f"{owner}.target must be one of {TARGETS}, got {self.target!r}")
         if not isinstance(self.normalise_distance, bool):
             raise ValueError(f"{owner}.normalise_distance must be true or false, got {self.normalise_distance!r}")
         for layer in LAYERS:
@@ -196,11 +209,20 @@ class HierarchyParams:
         """A validated copy with some fields changed (layers as GWRParams)."""
         return dataclasses.replace(self, **changes)
 
+    @classmethod
+    def paper(cls, **changes: Any) -> HierarchyParams:
+        """The paper's learner exactly (Sec. III, Table I): recursive roll-out, the BMU's output
+        weights are the predicted frame itself, plus this package's input scaling (see
+        docs/learning.md). `changes` override fields, as in `replace`."""
+        base = cls(mode="recursive", readout_k=1, target="absolute", input_scale=DEFAULT_INPUT_SCALE,
+                   normalise_distance=True)
+        return base.replace(**changes) if changes else base
+
     # --- flat form ---------------------------------------------------------------------------
     def to_flat(self) -> dict[str, float | int | str | bool]:
         """Dotted flat dict; `max_neurons=None` is written as 0 (ROS parameters have no None)."""
         flat: dict[str, float | int | str | bool] = {}
-        for name in (*_HIER_RANGES, "mode", "normalise_distance"):
+        for name in (*_HIER_RANGES, *_HIER_CHOICES, "normalise_distance"):
             flat[name] = getattr(self, name)
         for layer in LAYERS:
             gp = getattr(self, layer)
@@ -226,9 +248,9 @@ class HierarchyParams:
                 layers[layer][name] = _coerce(key, value, _GWR_RANGES[name].kind, name == "max_neurons")
             elif key in _HIER_RANGES:
                 top[key] = _coerce(key, value, _HIER_RANGES[key].kind, False)
-            elif key == "mode":
-                if not isinstance(value, str):
-                    raise ValueError(f"parameter 'mode' must be one of {MODES}, got {value!r}")
+            elif key in _HIER_CHOICES:
+                if not isinstance(value, str) or value not in _HIER_CHOICES[key]:
+                    raise ValueError(f"parameter {key!r} must be one of {_HIER_CHOICES[key]}, got {value!r}")
                 top[key] = value
             elif key == "normalise_distance":
                 if not isinstance(value, bool):
@@ -268,7 +290,8 @@ def hierarchy_parameter_specs() -> list[ParamSpec]:
     specs: list[ParamSpec] = []
     for name, rng in _HIER_RANGES.items():
         specs.append(ParamSpec(name, defaults[name], _HIER_DOC[name], rng.low, rng.high))
-    specs.append(ParamSpec("mode", defaults["mode"], _HIER_DOC["mode"], choices=MODES))
+    for name, choices in _HIER_CHOICES.items():
+        specs.append(ParamSpec(name, defaults[name], _HIER_DOC[name], choices=choices))
     specs.append(ParamSpec("normalise_distance", defaults["normalise_distance"], _HIER_DOC["normalise_distance"]))
     for layer in LAYERS:
         for name, rng in _GWR_RANGES.items():

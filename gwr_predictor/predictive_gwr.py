@@ -85,5 +85,27 @@ class PredictiveGWR(GWR):
         """View of neuron i's output weights (valid until the network changes)."""
         return self._wo[i]
 
+    def blended_output(self, xm: np.ndarray, k: int, record: bool = False) -> np.ndarray:
+        """Soft read-out (beyond the paper): the output weights of the k nearest neurons of the trusted
+        regressor xm, averaged with weights 1/distance (a neuron at distance 0 takes all). k = 1 is
+        Eq. 10 (a view of the BMU's output row). With `record`, `last_distance` is the BMU's distance."""
+        aff = self._affinity(xm)
+        k = min(k, self._n)
+        if k == 1:
+            b = int(aff.argmax())
+            if record:
+                self.last_distance = self._distance(b, xm)
+            return self._wo[b]
+        idx = np.argpartition(aff, self._n - k)[self._n - k:]
+        diff = self._w[idx] - xm
+        dist = np.sqrt(np.vecdot(diff, diff))
+        if record:
+            self.last_distance = float(dist.min())
+        if dist.min() <= 1e-12:
+            return self._wo[idx[int(dist.argmin())]]
+        wts = 1.0 / dist
+        wts /= wts.sum()
+        return wts @ self._wo[idx]
+
 
 __all__ = ["InputError", "PredictiveGWR"]

@@ -174,3 +174,24 @@ def test_bad_parameters_in_header(saved):
     _rewrite(saved, {"params": {**HierarchyParams().to_flat(), "gwr1.eps_b": 7.0}})
     with pytest.raises(CheckpointError, match=r"inconsistent checkpoint content.*eps_b"):
         Hierarchy.load(saved)
+
+
+@pytest.mark.parametrize("mode", ["recursive", "vector"])
+def test_beyond_the_paper_options_are_saved_and_continue_bit_for_bit(tmp_path, mode):
+    params = HierarchyParams.paper(mode=mode, target="delta", readout_k=2)
+    model = Hierarchy(params, seed=4)
+    for t, x in enumerate(movement(200)):
+        model.step(None if t == 90 else x)
+    model.save(tmp_path / "m.npz")
+    twin = Hierarchy.load(tmp_path / "m.npz")
+    assert twin.params == params
+    same_state(model, twin)
+    np.testing.assert_array_equal(model.predict(), twin.predict())
+    for x in movement(60, offset=200):
+        np.testing.assert_array_equal(model.step(x), twin.step(x))
+
+
+def test_version_1_files_are_refused_with_a_hint(saved):
+    _rewrite(saved, {"format_version": 1})
+    with pytest.raises(CheckpointError, match=r"format_version 1 is not supported .*older build.*retrain"):
+        Hierarchy.load(saved)

@@ -293,3 +293,117 @@ def test_soak_short_run_reports_memory_and_throughput(capsys):
     assert result["frames"] == 300 and result["frames_per_s"] > 0
     assert 0 < result["rss_start_mb"] <= result["peak_rss_mb"] and result["rss_end_mb"] > 0
     assert all(0 < n <= m for n, m in zip(result["neurons"], result["max_neurons"], strict=True))
+
+
+# --- beyond the paper: options ------------------------------------------------------------------
+def test_paper_preset_is_the_papers_learner_and_options_round_trip():
+    p = HierarchyParams.paper()
+    assert (p.mode, p.target, p.readout_k, p.tau1, p.tau2, p.horizon) == ("recursive", "absolute", 1, 3, 3, 6)
+    assert (p.input_scale, p.normalise_distance) == (0.1, True)
+    assert p.gwr1 == GWRParams(max_edge_age=100) and p.pgwr == GWRParams(max_edge_age=300)
+    assert HierarchyParams.paper(mode="vector").mode == "vector"
+    q = HierarchyParams(target="delta", readout_k=3, mode="vector")
+    assert HierarchyParams.from_flat(q.to_flat()) == q
+    specs = {s.name: s for s in hierarchy_parameter_specs()}
+    assert specs["target"].choices == ("absolute", "delta")
+    assert (specs["readout_k"].minimum, specs["readout_k"].maximum) == (1, 16)
+
+
+@pytest.mark.parametrize("flat, needle", [({"target": "relative"}, "target"), ({"target": 1}, "target"),
+                                          ({"readout_k": 0}, "readout_k"), ({"readout_k": 1.5}, "readout_k")])
+def test_bad_option_values_are_rejected_by_name(flat, needle):
+    with pytest.raises(ValueError, match=needle):
+        HierarchyParams.from_flat(flat)
+    with pytest.raises(ValueError, match=needle):
+        HierarchyParams(**flat)
+
+
+@pytest.mark.parametrize("mode, lag", [("recursive", 1), ("vector", H)])
+def test_delta_targets_are_displacements_from_the_regressors_newest_frame(mode, lag):
+    params = HierarchyParams.paper(mode=mode, target="delta")
+    model = Hierarchy(params, seed=0)
+    spy = Spy(model)
+    frames = movement(60)
+    run(model, frames)
+    assert [c[0] for c in spy.calls] == list(range(params.span - 1 + lag, 60))  # still no peeking
+    for t, _, x_out in spy.calls:
+        base = frames[t - lag]  # the newest frame when the regressor was made
+        np.testing.assert_allclose(x_out, (frames[t - lag + 1:t + 1] - base).ravel() * params.input_scale,
+                                   atol=1e-15)
+
+
+@pytest.mark.parametrize("mode", ["recursive", "vector"])
+def test_delta_targets_predict_a_shifted_trajectory_without_the_offset(mode):
+    # A movement learned at one posture, replayed 0.04 rad higher on every joint (well inside the
+    # 0.2 rad quantization, so the hierarchy matches the same prototypes): absolute targets predict
+    # the learned posture (off by the shift), delta targets add the shift back.
+    frames, shift = movement(1200), 0.04
+    gap = {}
+    for target in ("absolute", "delta"):
+        model = Hierarchy(HierarchyParams.paper(mode=mode, target=target), seed=0)
+        run(model, frames[:1000])
+        test = frames[1000:]
+        plain = np.array(run(model, test, learn=False)[10:])
+        model.reset_sequence()
+        moved = np.array(run(model, test + shift, learn=False)[10:])
+        gap[target] = np.abs(moved - plain - shift).mean()  # 0 = prediction moved with the input
+    assert gap["absolute"] > 0.8 * shift
+    assert gap["delta"] < 0.25 * shift
+
+
+def test_delta_targets_start_from_neurons_that_predict_no_movement():
+    model = Hierarchy(HierarchyParams(target="delta"), seed=0)
+    np.testing.assert_array_equal(model.pgwr.weights_out, 0.0)
+    x = movement(1)[0]
+    pred = run(model, [x] * 5)[-1]
+    np.testing.assert_allclose(pred, np.tile(x, (H, 1)), atol=1e-12)  # learned zero displacement
+
+
+@pytest.mark.parametrize("options", [dict(target="delta"), dict(readout_k=2), dict(target="delta", readout_k=3),
+                                     dict(target="delta", mode="vector"), dict(readout_k=2, mode="vector")])
+def test_each_option_learns_a_periodic_movement_and_predict_repeats_step(options):
+    params = HierarchyParams.paper(**options)
+    model = Hierarchy(params, seed=0)
+    frames = movement(1700)
+    run(model, frames[:1400])
+    model.reset_errors()
+    out = run(model, frames[1400:])
+    np.testing.assert_array_equal(model.predict(), out[-1])
+    err = model.errors()
+    hold = [np.mean((frames[k:] - frames[:-k]) ** 2) for k in range(1, H + 1)]
+    assert all(c < 0.3 * hk for c, hk in zip(err["cpe"], hold, strict=True))
+    assert err["cpe"][-1] < 0.05 * hold[-1]
+
+
+@pytest.mark.parametrize("options", [dict(target="delta"), dict(readout_k=2)])
+def test_flat_predictor_supports_the_options(options):
+    model = FlatPredictor(HierarchyParams.paper(**options), seed=0)
+    frames = movement(900)
+    run(model, frames[:700])
+    model.reset_errors()
+    run(model, frames[700:])
+    hold = np.mean((frames[H:] - frames[:-H]) ** 2)
+    assert model.errors()["cpe"][-1] < 0.1 * hold
+
+
+@pytest.mark.parametrize("options", [{}, dict(target="delta", readout_k=2)])
+def test_fast_rollout_matches_a_plain_chain_of_searches(options):
+    model = Hierarchy(HierarchyParams.paper(**options), seed=2)
+    frames = movement(400)
+    run(model, frames[:-1])
+    pred = model.step(frames[-1])
+    p, g1, g2, pg = model.params, model.gwr1, model.gwr2, model.pgwr
+    w1, w2 = model._win1.copy(), model._win2.copy()
+    y = pred[0] * p.input_scale
+    for k in range(1, H):  # the roll-out of the docs, written out naively
+        w1 = np.vstack([g1.weights[g1.bmu(y)[0]], w1[:-1]])
+        w2 = np.vstack([g2.weights[g2.bmu(w1.ravel())[0]], w2[:-1]])
+        reg = w2.ravel()
+        if p.readout_k == 1:
+            step = pg.weights_out[pg.bmu(reg)[0]]
+        else:
+            d = np.linalg.norm(pg.weights_in - reg, axis=1)
+            near = np.argsort(d)[:p.readout_k]
+            step = (pg.weights_out[near] / d[near, None]).sum(0) / (1 / d[near]).sum()
+        y = y + step if p.target == "delta" else step
+        np.testing.assert_allclose(pred[k] * p.input_scale, y, rtol=0, atol=1e-12)

@@ -80,3 +80,14 @@ def test_learns_periodic_trajectory_online_and_predicts_six_ahead(mode):
         errors.append(np.mean((np.array(pred)[-1] - frames[t + h]) ** 2))
         hold.append(np.mean((frames[t] - frames[t + h]) ** 2))
     assert np.mean(errors) < 0.02 * np.mean(hold)
+
+
+def test_blended_output_weights_the_k_nearest_by_inverse_distance():
+    g = pnet([[0.0, 0.0], [1.0, 0.0], [5.0, 0.0]], [[2.0], [8.0], [100.0]])
+    np.testing.assert_array_equal(g.blended_output(np.array([0.25, 0.0]), 1), [2.0])  # k = 1: Eq. 10
+    # distances 0.25 and 0.75: weights 4 and 4/3, i.e. 3/4 and 1/4
+    np.testing.assert_allclose(g.blended_output(np.array([0.25, 0.0]), 2, record=True), [0.75 * 2 + 0.25 * 8])
+    assert g.last_distance == pytest.approx(0.25)
+    np.testing.assert_array_equal(g.blended_output(np.array([1.0, 0.0]), 3), [8.0])  # exact hit takes all
+    k_capped_at_n = (2 * 2 + 2 * 8 + 100 / 4.5) / (4 + 1 / 4.5)
+    assert g.blended_output(np.array([0.5, 0.0]), 10) == pytest.approx(k_capped_at_n)
