@@ -20,6 +20,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "evaluate": ("gwr_predictor.commands.evaluate", "online evaluation of recordings against baselines"),
     "pretrain": ("gwr_predictor.commands.pretrain", "train a hierarchy offline and save a checkpoint"),
     "report": ("gwr_predictor.commands.report", "summarise a recorded pipeline bag: errors, lag, plot"),
+    "latency": ("gwr_predictor.commands.latency", "latency percentiles per hop and message loss of a recorded run"),
 }
 
 

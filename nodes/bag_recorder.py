@@ -58,6 +58,8 @@ class BagRecorderNode(PipelineNode):
         if not topics:
             raise ParameterError("parameter 'topics' is empty: nothing to record")
         self.writer = bags.BagWriter(path, topics)
+        self.on_disk = 0  # messages written as of the last flush: what survives a SIGKILL
+        self.failure: str | None = None
         try:
             self.writer.open()
         except bags.BagError as exc:
@@ -74,17 +76,34 @@ class BagRecorderNode(PipelineNode):
         try:
             self.writer.write_raw(topic, self.get_clock().now().nanoseconds, raw)
         except bags.BagError as exc:
-            raise NodeFatalError(f"recording stopped: {exc}") from None
+            self.stop_recording(exc)
         self.counters.count(f"recorded.{topic}")
 
     def flush(self) -> None:
+        """Put everything received on disk (a SIGKILL then loses at most one flush period)."""
         try:
             self.writer.flush()
         except bags.BagError as exc:
-            raise NodeFatalError(f"recording stopped: {exc}") from None
+            self.stop_recording(exc)
+        self.on_disk = self.writer.total_written
+
+    def stop_recording(self, exc: bags.BagError) -> None:
+        """A failed write or flush (full disk, I/O error): stop the node, exit code 1, never a
+        bag reported as complete (the shutdown hook says it is not)."""
+        self.failure = str(exc)
+        raise NodeFatalError(f"recording stopped: {exc}") from None
+
+    def diagnostic_values(self) -> dict[str, object]:
+        """Counters plus how many messages are written and how many of them are safely on disk."""
+        return {**super().diagnostic_values(), "messages.written": self.writer.total_written,
+                "messages.on_disk": self.on_disk}
 
     def on_shutdown(self) -> None:
         """Write the MCAP summary and metadata.yaml so that the bag is complete."""
+        if self.failure is not None:
+            raise NodeFatalError(f"bag {self.writer.path} is INCOMPLETE ({self.failure}); {self.on_disk} messages "
+                                 "were flushed before the failure: recover them with "
+                                 f"gwr_predictor.bags.recover_bag({str(self.writer.path)!r})")
         try:
             self.writer.close()
         except bags.BagError as exc:

@@ -21,6 +21,7 @@ from typing import Any
 import numpy as np
 import rclpy
 from rcl_interfaces.msg import ParameterDescriptor
+from rclpy.duration import Duration
 from rclpy.exceptions import InvalidParameterTypeException, InvalidParameterValueException
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
@@ -257,6 +258,13 @@ class PipelineNode(Node):
                                             f"{rejected} inputs rejected" if rejected else "ok", level)
         self._diag_pub.publish(messages.diagnostic_array(self.now_s(), [status]))
 
+    def publish_final_diagnostics(self, timeout_s: float = 1.0) -> None:
+        """The counters once more as the node stops, so that a recording holds each node's final
+        counts (what `gwr_predictor.latency` compares with the messages recorded); waits until the
+        reliable subscribers acknowledged them."""
+        self.publish_diagnostics()
+        self._diag_pub.wait_for_all_acked(Duration(seconds=timeout_s))
+
     def finish(self, exit_code: int = EXIT_OK) -> None:
         """Stop spinning (for nodes that end on their own, e.g. a player at the end of its bag)."""
         if not self.done.done():
@@ -314,6 +322,11 @@ def run_node(node_cls: type[PipelineNode], args: list[str] | None = None) -> int
             except NodeFatalError as exc:
                 logger.error(f"shutdown: {exc}")
                 code = code or EXIT_FATAL
+            if node.context.ok():
+                try:
+                    node.publish_final_diagnostics()
+                except Exception as exc:  # the counters are a courtesy: stopping must go on
+                    logger.warning(f"final diagnostics not published: {exc}")
             node.destroy_node()
         rclpy.try_shutdown()
     return code

@@ -211,6 +211,7 @@ class RosSession:
         self.env = ros_env(self.domain_id, self.log_dir)
         self.processes: list[NodeProcess] = []
         self._probe: Probe | None = None
+        self._killed = False  # a SIGKILL leaves Fast DDS segments in /dev/shm: clean them at the end
 
     @property
     def probe(self) -> Probe:
@@ -235,6 +236,23 @@ class RosSession:
         self.processes.append(proc)
         return proc
 
+    def restart(self, proc: NodeProcess, label: str) -> NodeProcess:
+        """Start the same command line again (after `kill`), logging to tmp_path/<label>.log."""
+        new = NodeProcess(label, proc.argv, self.env, self.tmp_path / f"{label}.log")
+        self.processes.append(new)
+        return new
+
+    def kill(self, proc: NodeProcess, timeout: float = 10.0) -> None:
+        """SIGKILL (a crash: no handler, no final hook) and wait until it is gone."""
+        proc.popen.kill()
+        proc.popen.wait(timeout=timeout)
+        self._killed = True
+
+    def wait_for_log(self, proc: NodeProcess, text: str, timeout: float = 60.0) -> None:
+        """Spin the probe until `text` appears in the process's output (e.g. its 'ready' line)."""
+        self.probe.spin_until(lambda: text in proc.output(), timeout, f"{text!r} in the log of {proc.name}",
+                              [proc])
+
     def run(self, name: str, timeout: float = 30.0, **kwargs: Any) -> tuple[int, str]:
         """Start a node and wait for it to exit on its own: (exit code, output)."""
         proc = self.start(name, **kwargs)
@@ -251,7 +269,7 @@ class RosSession:
             if proc.popen.returncode is None or not proc._log.closed:
                 _, killed = proc.stop()
                 needed_kill |= killed
-        if needed_kill:
+        if needed_kill or self._killed:
             fastdds = shutil.which("fastdds", path=str(BIN))
             if fastdds:
                 subprocess.run([fastdds, "shm", "clean"], env=self.env, capture_output=True, timeout=30)

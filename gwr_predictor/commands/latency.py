@@ -1,0 +1,43 @@
+"""`gwr-predictor latency RUN_DIR`: latency percentiles per hop and message loss of a recorded run.
+
+Reads the bag only (see gwr_predictor.latency for the definitions): the recorder's receive time
+against the frame's source stamp, and each node's final /diagnostics counters against the messages
+recorded. Prints a table, writes latency.json next to the bag; exit code 1 if the bag is unreadable,
+3 if `--max-lost` is exceeded (for benchmark scripts).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from gwr_predictor.bags import BagError
+from gwr_predictor.latency import latency_report
+
+
+def configure(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("run", type=Path, help="run folder holding bag/ (or a bag directory itself)")
+    parser.add_argument("--out", type=Path, default=None, help="where latency.json goes (default: the run folder)")
+    parser.add_argument("--max-lost", type=int, default=None,
+                        help="fail (exit code 3) if more messages than this were lost")
+
+
+def run(args: argparse.Namespace) -> int:
+    bag = args.run / "bag" if (args.run / "bag").is_dir() else args.run
+    out = args.out or (args.run if bag != args.run else args.run.parent)
+    try:
+        report = latency_report(bag)
+    except BagError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 1
+    out.mkdir(parents=True, exist_ok=True)
+    path = out / "latency.json"
+    path.write_text(report.to_json() + "\n")
+    for line in report.summary_lines():
+        print(line)
+    print(f"written: {path}")
+    if args.max_lost is not None and report.total_lost > args.max_lost:
+        print(f"error: {report.total_lost} messages lost, more than --max-lost {args.max_lost}", file=sys.stderr)
+        return 3
+    return 0

@@ -1,0 +1,121 @@
+"""The recorder loses nothing it has flushed: Ctrl-C / SIGTERM close the bag whole; after a SIGKILL
+every message up to the last periodic flush is recovered by `bags.recover_bag`; a failing write
+(full disk) stops it and it says the bag is incomplete instead of reporting it closed."""
+
+import errno
+import signal
+
+import numpy as np
+import pytest
+import rclpy
+from ros_harness import allocate_domain_id
+
+from gwr_predictor import bags
+from gwr_predictor.nao import ARM_JOINTS
+from gwr_predictor.nodes import messages
+from gwr_predictor.nodes.messages import JointState
+from gwr_predictor.nodes.node_base import NodeFatalError
+
+RECORDER = {"diagnostics_period_s": 0.2, "topics": ["arm_angles"], "flush_period_s": 0.3}
+
+
+def frame(k: int) -> JointState:
+    """Frame k: stamp 100 + k/10 s, first joint = k / 100 (inside its limits), so order and content are checkable."""
+    return messages.joint_state(100.0 + 0.1 * k, ARM_JOINTS, np.r_[k / 100.0, np.zeros(7)])
+
+
+def start_recorder(ros, path):
+    diagnostics = ros.probe.subscribe_diagnostics()
+    recorder = ros.start("bag_recorder", params={**RECORDER, "path": str(path)})
+    ros.wait_for_node(diagnostics, "/bag_recorder", timeout=60)
+    pub = ros.probe.publisher("/arm_angles", JointState)
+    ros.probe.wait_for_subscribers(pub)
+    return recorder, diagnostics, pub
+
+
+def recorded_frames(path) -> list[int]:
+    return [round(100 * m.msg.position[0]) for m in bags.read_bag(path)]
+
+
+def stat(diagnostics, key: str) -> int:
+    return int(diagnostics.get("/bag_recorder", {}).get(key, "0"))
+
+
+@pytest.mark.ros
+def test_sigkill_loses_only_what_was_not_flushed_and_recover_bag_restores_the_rest(ros, tmp_path):
+    path = tmp_path / "bag"
+    recorder, diagnostics, pub = start_recorder(ros, path)
+    for k in range(40):
+        pub.publish(frame(k))
+    ros.probe.spin_until(lambda: stat(diagnostics, "messages.on_disk") >= 40, 20, "40 messages flushed to disk",
+                         [recorder])
+    for k in range(40, 60):  # written to the writer's memory at most: lost with the process
+        pub.publish(frame(k))
+    ros.probe.spin_until(lambda: stat(diagnostics, "messages.written") >= 60, 20, "60 messages received",
+                         [recorder])
+    on_disk = stat(diagnostics, "messages.on_disk")
+    ros.kill(recorder)
+    assert recorder.popen.returncode == -signal.SIGKILL
+
+    with pytest.raises(bags.BagError, match="recover_bag"):
+        list(bags.read_bag(path))
+    info = bags.recover_bag(path)
+    # everything up to the last flush survives; at most one flush period after it is lost
+    assert on_disk <= info.message_count <= 60
+    assert recorded_frames(path) == list(range(info.message_count))
+    assert (path / "bag.mcap.damaged").is_file()
+
+
+@pytest.mark.ros
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM], ids=["ctrl-c", "sigterm"])
+def test_ctrl_c_and_sigterm_close_the_bag_whole(ros, tmp_path, sig):
+    path = tmp_path / "bag"
+    recorder, diagnostics, pub = start_recorder(ros, path)
+    for k in range(25):
+        pub.publish(frame(k))
+    ros.probe.spin_until(lambda: stat(diagnostics, "messages.written") >= 25, 20, "25 messages received",
+                         [recorder])
+    code, killed = recorder.stop(sig)
+    assert code == 0 and not killed, recorder.output()
+    assert "bag closed" in recorder.output() and "(25 messages)" in recorder.output()
+    assert bags.bag_info(path).message_count == 25  # metadata written: no recovery needed
+    assert recorded_frames(path) == list(range(25))
+
+
+class FullDisk:
+    """A file whose writes fail like a full disk; everything else goes to the real file."""
+
+    def __init__(self, real) -> None:
+        self.real = real
+
+    def write(self, _data) -> int:
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    def __getattr__(self, name):
+        return getattr(self.real, name)
+
+
+def test_a_full_disk_stops_the_recorder_and_the_bag_is_reported_incomplete(tmp_path):
+    """In-process (a real full disk needs a small file system): the node's own write path and shutdown hook."""
+    from gwr_predictor.nodes.bag_recorder import BagRecorderNode
+
+    path = tmp_path / "bag"
+    context_args = ["--ros-args", "-p", f"path:={path}", "-p", "topics:=[arm_angles]"]
+    rclpy.init(args=context_args, domain_id=allocate_domain_id())
+    try:
+        node = BagRecorderNode()
+        raw = bags.serialize(bags.joint_state_msg(ARM_JOINTS, np.zeros(8), 1.0))
+        node.on_message("/arm_angles", raw)
+        node.flush()
+        assert node.diagnostic_values()["messages.on_disk"] == 1
+        node.writer._writer.storage.bio = FullDisk(node.writer._writer.storage.bio)
+        node.on_message("/arm_angles", raw)  # buffered in the chunk
+        with pytest.raises(NodeFatalError, match=r"recording stopped: .*bag.*No space left on device"):
+            node.flush()
+        with pytest.raises(NodeFatalError, match=r"INCOMPLETE.*No space left.*1 messages were flushed.*recover_bag"):
+            node.on_shutdown()
+        node.destroy_node()
+    finally:
+        rclpy.try_shutdown()
+    assert not (path / "metadata.yaml").exists()  # never passed off as a complete bag
+    assert bags.recover_bag(path).message_count == 1
