@@ -1,0 +1,107 @@
+"""`gwr-predictor evaluate FILE...`: online evaluation of recordings, hierarchy against baselines.
+
+Files are skeleton recordings (NPZ/CSV, 30 fps: median of 3 -> 10 fps -> angles) or angle CSVs
+(10 fps). All methods learn online on the recordings in the given order (optionally several
+passes) and are scored on the same frames; the table goes to stdout and its numbers again as one
+JSON object on the last line (keys horizon, mae_rad, frames, neurons, ...), for scripts.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from gwr_predictor.commands.experiment import parse_overrides
+from gwr_predictor.evaluation import EvaluationError, compare_online
+from gwr_predictor.experiments import common
+from gwr_predictor.experiments.report import markdown_table, to_jsonable
+from gwr_predictor.nao import ARM_JOINTS
+
+DEFAULT_METHODS = ("hold", "const_velocity", "rls_ar", common.HIERARCHY)
+
+
+class RecordingError(ValueError):
+    """A file that is neither an angle CSV nor a skeleton recording; the message says why."""
+
+
+def configure(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("files", nargs="+", type=Path, help="skeleton (.npz/.csv) or angle (.csv) recordings")
+    parser.add_argument("--passes", type=int, default=1, help="times the recordings are presented (default 1)")
+    parser.add_argument("--horizon", type=int, default=None, help="frames ahead (default: the model's, 6)")
+    parser.add_argument("--methods", default=",".join(DEFAULT_METHODS),
+                        help=f"comma-separated subset of {','.join(common.ALL_METHODS)}")
+    parser.add_argument("--checkpoint", type=Path, default=None, help="start the hierarchy from this checkpoint")
+    parser.add_argument("--param", action="append", default=[], metavar="KEY=VALUE",
+                        help="hierarchy parameter override in flat form (repeatable)")
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--no-progress", action="store_true")
+
+
+def load_recording(path: Path) -> np.ndarray:
+    """Angles (T, 8) at 10 fps in ARM_JOINTS order from an angle CSV or a skeleton file."""
+    from gwr_predictor.angles_io import AngleFileError, load_angles_csv
+    from gwr_predictor.skeleton_io import SkeletonFileError, load_skeleton
+
+    angle_error = None
+    if path.suffix.lower() == ".csv":
+        try:
+            _, angles, names = load_angles_csv(path)
+        except AngleFileError as exc:
+            angle_error = exc
+        else:
+            missing = [n for n in ARM_JOINTS if n not in names]
+            if missing:
+                raise RecordingError(f"{path}: angle file lacks the arm joints {missing}")
+            return angles[:, [names.index(n) for n in ARM_JOINTS]]
+    try:
+        seq = load_skeleton(path)
+    except SkeletonFileError as exc:
+        raise RecordingError(f"{path}: not an angle CSV ({angle_error}) nor a skeleton file ({exc})"
+                             if angle_error else str(exc)) from exc
+    from gwr_predictor.angles import skeleton_to_angles
+    from gwr_predictor.smoothing import median_of_3
+
+    positions, _ = median_of_3(seq.positions, seq.timestamps)
+    return skeleton_to_angles(positions, seq.joint_names)
+
+
+def run(args: argparse.Namespace) -> int:
+    try:
+        methods = tuple(m.strip() for m in args.methods.split(",") if m.strip())
+        if unknown := [m for m in methods if m not in common.ALL_METHODS]:
+            raise ValueError(f"unknown methods {unknown}; choose from {', '.join(common.ALL_METHODS)}")
+        if args.passes < 1:
+            raise ValueError(f"--passes must be >= 1, got {args.passes}")
+        recordings = [load_recording(p) for p in args.files]
+        params = common.make_params(tuple(parse_overrides(args.param).items()))
+        models = {}
+        for m in methods:
+            if m == common.HIERARCHY and args.checkpoint is not None:
+                from gwr_predictor.hierarchy import Hierarchy
+
+                models[m] = Hierarchy.load(args.checkpoint)
+            else:
+                models[m] = common.make_model(m, params, args.seed)
+        horizon = args.horizon or params.horizon
+        results = compare_online(models, recordings, horizon=horizon, passes=args.passes,
+                                 progress=not args.no_progress, desc="evaluate")
+    except (ValueError, OSError) as exc:  # RecordingError, EvaluationError, CheckpointError, bad params
+        kind = "evaluation" if isinstance(exc, EvaluationError) else "input"
+        print(f"error ({kind}): {exc}", file=sys.stderr)
+        return 2
+    steps = sorted({1, *range(2, horizon + 1, max(1, horizon // 6)), horizon})
+    rows = [[common.LABELS[m], *[r.stats.mae[k - 1] for k in steps], r.coverage] for m, r in results.items()]
+    first = next(iter(results.values()))
+    print(f"{len(recordings)} recording(s), {first.frames} frames fed ({args.passes} pass(es)), "
+          f"{first.scored_frames} scored on the same frames by every method. MAE (rad) per horizon step:")
+    print(markdown_table(["method", *[f"h={k}" for k in steps], "coverage"], rows))
+    summary = {"horizon": horizon, "mae_rad": {m: r.stats.mae for m, r in results.items()},
+               "mse_rad2": {m: r.stats.mse for m, r in results.items()},
+               "frames": first.frames, "scored_frames": first.scored_frames, "passes": args.passes,
+               "neurons": {m: common.neuron_counts(models[m]) for m in methods if common.neuron_counts(models[m])}}
+    print(json.dumps(to_jsonable(summary)))
+    return 0

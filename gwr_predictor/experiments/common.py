@@ -1,0 +1,83 @@
+"""What the experiments share: parameters with overrides, model factories, data, orders.
+
+Every model is built here, so that all experiments compare the same methods under the same names:
+"hierarchy" (GWR1 -> GWR2 -> P-GWR), "pgwr_flat" (the P-GWR alone on raw frames, the ablation),
+and the baselines of `gwr_predictor.baselines`.
+"""
+
+from __future__ import annotations
+
+import copy
+from collections.abc import Iterable, Mapping, Sequence
+from typing import Any
+
+import numpy as np
+
+from gwr_predictor.baselines import make_baselines
+from gwr_predictor.evaluation import Predictor
+from gwr_predictor.params import HierarchyParams
+
+HIERARCHY = "hierarchy"
+FLAT = "pgwr_flat"
+BASELINES = ("hold", "const_velocity", "rls_ar")
+ALL_METHODS = (*BASELINES, FLAT, HIERARCHY)
+LABELS = {"hold": "hold last", "const_velocity": "constant velocity", "rls_ar": "RLS-AR",
+          FLAT: "P-GWR alone", HIERARCHY: "GWR hierarchy"}
+
+
+def make_params(overrides: Iterable[tuple[str, object]] = (), **changes: Any) -> HierarchyParams:
+    """Defaults, then flat `overrides` (from the command line), then `changes` the experiment needs."""
+    params = HierarchyParams.from_flat(dict(overrides))
+    return params.replace(**changes) if changes else params
+
+
+def make_model(name: str, params: HierarchyParams, seed: int) -> Predictor:
+    """A fresh predictor called `name` (one of ALL_METHODS) for `params`."""
+    if name == HIERARCHY:
+        from gwr_predictor.hierarchy import Hierarchy
+
+        return Hierarchy(params, seed=seed)
+    if name == FLAT:
+        from gwr_predictor.hierarchy import FlatPredictor
+
+        return FlatPredictor(params, seed=seed)
+    baselines = make_baselines(params.horizon, params.span)
+    if name not in baselines:
+        raise KeyError(f"unknown method {name!r}; choose from {', '.join(ALL_METHODS)}")
+    return baselines[name]  # type: ignore[return-value]
+
+
+def make_models(names: Sequence[str], params: HierarchyParams, seed: int) -> dict[str, Predictor]:
+    return {name: make_model(name, params, seed) for name in names}
+
+
+def clone(models: Mapping[str, Predictor]) -> dict[str, Predictor]:
+    """Independent copies, so that one evaluation condition cannot change another's model."""
+    return {name: copy.deepcopy(m) for name, m in models.items()}
+
+
+def neuron_counts(model: Any) -> list[int] | None:
+    counts = getattr(model, "neuron_counts", None)
+    return None if counts is None else [int(c) for c in counts]
+
+
+def demo_data(patterns: Sequence[str] | None, subjects: int, repetitions: int, seed: int) -> tuple[Any, ...]:
+    """The demonstrator's angle sequences (10 fps), pattern-major."""
+    from gwr_predictor.datasets import demo_angle_sequences
+
+    return tuple(demo_angle_sequences(patterns=patterns, subjects=subjects, repetitions=repetitions, seed=seed))
+
+
+def by_pattern(sequences: Sequence[Any]) -> dict[str, list[Any]]:
+    out: dict[str, list[Any]] = {}
+    for s in sequences:
+        out.setdefault(s.pattern, []).append(s)
+    return out
+
+
+def shuffled(items: Sequence[Any], rng: np.random.Generator) -> list[Any]:
+    return [items[i] for i in rng.permutation(len(items))]
+
+
+def frames_in(sequences: Sequence[Any]) -> int:
+    return int(sum(np.asarray(getattr(s, "angles", s)).shape[0] for s in sequences))

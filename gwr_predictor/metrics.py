@@ -1,0 +1,188 @@
+"""Error statistics of multi-step predictions: per-horizon MAE/MSE/std, trends and settling time.
+
+Errors are in radians, per joint component: the MAE at horizon k is the mean of |y_hat - y| over
+every scored frame and every joint, the MSE the mean of the squared differences, and the std is the
+spread of the absolute errors. Accumulators are plain sums so that runs, passes and sequences can be
+merged exactly (`HorizonStats.merge`) without keeping every error in memory.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+
+class MetricsError(ValueError):
+    """Arrays whose shapes or contents cannot be scored; the message names what differs."""
+
+
+@dataclass(frozen=True)
+class HorizonStats:
+    """Sums of absolute and squared errors per (horizon step, joint), and how many were scored."""
+
+    count: np.ndarray  # (h, J) int: scored components
+    sum_abs: np.ndarray  # (h, J)
+    sum_sq: np.ndarray  # (h, J)
+
+    @classmethod
+    def empty(cls, horizon: int, joints: int = 8) -> HorizonStats:
+        if horizon < 1 or joints < 1:
+            raise MetricsError(f"horizon and joints must be >= 1, got {horizon}, {joints}")
+        z = np.zeros((horizon, joints))
+        return cls(np.zeros((horizon, joints), dtype=np.int64), z, z.copy())
+
+    @property
+    def horizon(self) -> int:
+        return int(self.count.shape[0])
+
+    def merge(self, other: HorizonStats) -> HorizonStats:
+        if other.count.shape != self.count.shape:
+            raise MetricsError(f"cannot merge stats of shapes {self.count.shape} and {other.count.shape}")
+        return HorizonStats(self.count + other.count, self.sum_abs + other.sum_abs, self.sum_sq + other.sum_sq)
+
+    @property
+    def n(self) -> np.ndarray:
+        """Scored components per horizon step (h,)."""
+        return self.count.sum(axis=1)
+
+    @property
+    def mae(self) -> np.ndarray:
+        """Mean absolute error per horizon step (h,), NaN where nothing was scored."""
+        return _ratio(self.sum_abs.sum(axis=1), self.n)
+
+    @property
+    def mse(self) -> np.ndarray:
+        """Mean squared error per horizon step (h,)."""
+        return _ratio(self.sum_sq.sum(axis=1), self.n)
+
+    @property
+    def std(self) -> np.ndarray:
+        """Standard deviation of the absolute error per horizon step (h,)."""
+        return np.sqrt(np.maximum(self.mse - self.mae**2, 0.0))
+
+    @property
+    def joint_mae(self) -> np.ndarray:
+        """Mean absolute error per (horizon step, joint)."""
+        return _ratio(self.sum_abs, self.count)
+
+    def overall_mse(self) -> float:
+        """MSE over every horizon step and joint together."""
+        return float(_ratio(self.sum_sq.sum(), self.count.sum()))
+
+    def to_dict(self) -> dict[str, list[float]]:
+        return {"mae": _floats(self.mae), "mse": _floats(self.mse), "std": _floats(self.std),
+                "n": [int(v) for v in self.n]}
+
+
+def _ratio(num: np.ndarray, den: np.ndarray) -> np.ndarray:
+    num, den = np.asarray(num, float), np.asarray(den, float)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(den > 0, num / np.where(den > 0, den, 1.0), np.nan)
+
+
+def _floats(values: np.ndarray) -> list[float | None]:
+    """JSON-friendly list: NaN becomes None."""
+    return [None if not np.isfinite(v) else float(v) for v in np.asarray(values, float).ravel()]
+
+
+def horizon_stats(predictions: np.ndarray, truth: np.ndarray) -> HorizonStats:
+    """Stats of predictions (N, h, J) against truth (N, h, J); NaN in either is not scored."""
+    predictions, truth = np.asarray(predictions, float), np.asarray(truth, float)
+    if predictions.shape != truth.shape or predictions.ndim != 3:
+        raise MetricsError(f"predictions {predictions.shape} and truth {truth.shape} must both be (N, h, J)")
+    err = predictions - truth
+    ok = np.isfinite(err)
+    err = np.where(ok, err, 0.0)
+    return HorizonStats(ok.sum(axis=0).astype(np.int64), np.abs(err).sum(axis=0), (err**2).sum(axis=0))
+
+
+def future_windows(values: np.ndarray, horizon: int) -> np.ndarray:
+    """(T, J) -> (T, horizon, J) with out[t, k] = values[t + 1 + k], NaN past the end."""
+    values = np.asarray(values, float)
+    if values.ndim != 2:
+        raise MetricsError(f"expected a (T, J) array, got {values.shape}")
+    t, j = values.shape
+    padded = np.concatenate([values, np.full((horizon + 1, j), np.nan)])
+    idx = np.arange(t)[:, None] + 1 + np.arange(horizon)[None, :]
+    return padded[idx]
+
+
+def moving_average(values: np.ndarray, window: int, centered: bool = False) -> np.ndarray:
+    """Mean over `window` samples that ignores NaN (NaN only where the window is empty).
+
+    Trailing (causal) by default; `centered` puts the window around each sample, which does not lag
+    and so suits after-the-fact analysis such as settling times.
+    """
+    values = np.asarray(values, float)
+    if window < 1:
+        raise MetricsError(f"window must be >= 1, got {window}")
+    ok = np.isfinite(values)
+    csum = np.concatenate([[0.0], np.cumsum(np.where(ok, values, 0.0))])
+    ccnt = np.concatenate([[0], np.cumsum(ok)])
+    idx = np.arange(values.size)
+    hi = np.minimum(idx + 1 + (window // 2 if centered else 0), values.size)
+    lo = np.maximum(hi - window, 0)
+    return _ratio(csum[hi] - csum[lo], ccnt[hi] - ccnt[lo])
+
+
+@dataclass(frozen=True)
+class Trend:
+    """Least-squares line through an error series: value ~ intercept + slope * frame."""
+
+    slope: float
+    intercept: float
+
+    def __call__(self, frames: np.ndarray) -> np.ndarray:
+        return self.intercept + self.slope * np.asarray(frames, float)
+
+
+def linear_trend(values: np.ndarray, frames: np.ndarray | None = None) -> Trend:
+    """Straight-line fit of the finite entries of `values` (the 'statistical trend' of the paper)."""
+    values = np.asarray(values, float)
+    frames = np.arange(values.size, dtype=float) if frames is None else np.asarray(frames, float)
+    ok = np.isfinite(values) & np.isfinite(frames)
+    if ok.sum() < 2:
+        raise MetricsError(f"a trend needs at least 2 finite values, got {int(ok.sum())}")
+    x, y = frames[ok], values[ok]
+    xm = x.mean()
+    var = ((x - xm) ** 2).sum()
+    slope = float(((x - xm) * (y - y.mean())).sum() / var) if var > 0 else 0.0
+    return Trend(slope, float(y.mean() - slope * xm))
+
+
+def settling_frame(values: np.ndarray, window: int = 20, tolerance: float = 0.2,
+                   final_fraction: float = 0.3, floor: float = 0.0,
+                   reference: np.ndarray | None = None) -> int | None:
+    """First frame after which the smoothed error stays within `tolerance` of its settled level.
+
+    The settled level is, by default, the median of the smoothed error over the last
+    `final_fraction` of the series. When the same data are presented repeatedly, pass the error of
+    the last presentation as `reference` (tiled over the series): the level is then compared frame
+    by frame, which removes the rise and fall of the error with the movement itself. The band is
+    level * (1 + tolerance) + floor (the floor keeps a near-zero level from making it vanish).
+    Returns None when the error never settles (the last frame is outside the band).
+    """
+    values = np.asarray(values, float)
+    if not 0.0 < final_fraction <= 1.0:
+        raise MetricsError(f"final_fraction must be in (0, 1], got {final_fraction}")
+    smooth = moving_average(values, window, centered=True)
+    ok = np.isfinite(smooth)
+    if not ok.any():
+        return None
+    if reference is None:
+        tail = smooth[int(np.floor(values.size * (1.0 - final_fraction))):]
+        tail = tail[np.isfinite(tail)]
+        level: np.ndarray | float = float(np.median(tail if tail.size else smooth[ok]))
+    else:
+        reference = np.asarray(reference, float)
+        if reference.size == 0 or values.size % reference.size:
+            raise MetricsError(f"reference of {reference.size} frames does not tile {values.size} frames")
+        level = moving_average(np.tile(reference, values.size // reference.size), window, centered=True)
+        ok &= np.isfinite(level)
+    band = level * (1.0 + tolerance) + floor
+    outside = np.flatnonzero(ok & (smooth > band))
+    if outside.size == 0:
+        return int(np.flatnonzero(ok)[0])
+    last = int(outside[-1])
+    return None if last >= values.size - 1 else last + 1

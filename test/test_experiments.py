@@ -1,0 +1,170 @@
+"""Every experiment runs at --quick size through the command line and writes what it promises;
+splits are disjoint; `evaluate` ends with a JSON line."""
+
+import json
+from pathlib import Path
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from gwr_predictor.cli import main
+from gwr_predictor.experiments import EXPERIMENTS, UnknownExperiment, load
+from gwr_predictor.experiments.report import ReportError, markdown_table, to_jsonable
+from gwr_predictor.experiments.splits import SplitError, key, make_splits
+
+
+def _seqs(patterns=("a", "b"), subjects=("s1", "s2", "s3"), reps=4):
+    return [SimpleNamespace(pattern=p, subject=s, repetition=r, angles=np.zeros((5, 8)))
+            for p in patterns for s in subjects for r in range(1, reps + 1)]
+
+
+def test_splits_are_disjoint_and_cover_everything():
+    seqs = _seqs()
+    sp = make_splits(seqs, heldout_subjects=1, heldout_repetitions=1)
+    sets = [set(map(key, part)) for _, part in sp.items()]
+    assert all(a.isdisjoint(b) for i, a in enumerate(sets) for b in sets[i + 1:])
+    assert set.union(*sets) == set(map(key, seqs))
+    assert {s.subject for s in sp.heldout_subjects} == {"s3"}
+    assert {s.subject for s in sp.train} == {"s1", "s2"}
+    assert {s.repetition for s in sp.heldout_repetitions} == {4}
+    assert sp.sizes() == {"train": 12, "heldout_repetitions": 4, "heldout_subjects": 8}
+    named = make_splits(seqs, heldout_subjects=["s1"], heldout_repetitions=0)
+    assert {s.subject for s in named.heldout_subjects} == {"s1"} and not named.heldout_repetitions
+
+
+@pytest.mark.parametrize("kwargs", [{"heldout_subjects": 3}, {"heldout_repetitions": 4},
+                                    {"heldout_subjects": ["s9"]}, {"heldout_subjects": ["s1", "s2", "s3"]}])
+def test_impossible_splits_are_refused(kwargs):
+    with pytest.raises(SplitError):
+        make_splits(_seqs(), **kwargs)
+
+
+def test_duplicate_demonstrations_are_refused():
+    with pytest.raises(SplitError, match="share"):
+        make_splits(_seqs() + _seqs()[:1])
+
+
+def test_report_helpers():
+    assert to_jsonable({"a": np.array([1.0, np.nan]), "b": (np.int64(2),)}) == {"a": [1.0, None], "b": [2]}
+    with pytest.raises(ReportError):
+        to_jsonable(object())
+    assert markdown_table(["x", "y"], [[1, 0.12345]]).splitlines()[-1] == "| 1 | 0.123 |"
+    with pytest.raises(UnknownExperiment):
+        load("nope")
+
+
+def _run(name, tmp_path):
+    out = tmp_path / name
+    assert main(["experiment", name, "--quick", "--out", str(out), "--no-progress"]) == 0
+    data = json.loads((out / "results.json").read_text())
+    md = (out / "results.md").read_text()
+    assert data["experiment"] == name and data["quick"] is True
+    assert data["figures"] and all((out / f).stat().st_size > 1000 for f in data["figures"])
+    assert all(f in md for f in data["figures"]) and "|---" in md
+    return data["results"], data["config"]
+
+
+def test_every_experiment_has_a_quick_test():
+    tested = {n[len("test_experiment_"):] for n in globals() if n.startswith("test_experiment_")}
+    assert tested == set(EXPERIMENTS)
+
+
+def test_experiment_compare(tmp_path):
+    r, cfg = _run("compare", tmp_path)
+    assert set(r["conditions"]) == {f"{s}/{m}" for s in ("train", "heldout_repetitions", "heldout_subjects")
+                                    for m in ("frozen", "online")}
+    for cond in r["conditions"].values():
+        assert set(cond) == set(cfg["methods"])
+        assert all(len(v["mae"]) == 6 and v["scored_frames"] > 0 for v in cond.values())
+        # every method is scored on the same frames
+        assert len({v["scored_frames"] for v in cond.values()}) == 1
+    assert len(r["neurons"]["hierarchy"]) == 3
+
+
+def test_experiment_horizon(tmp_path):
+    r, cfg = _run("horizon", tmp_path)
+    ev = r["evaluation"]["heldout_repetitions"]
+    assert {"hierarchy_recursive", "hierarchy_vector", "hold"} <= set(ev)
+    assert all(len(ev[m]["mae"]) == cfg["max_horizon"] for m in ev)
+    hold = np.array(ev["hold"]["mae"])
+    assert hold[-1] > hold[0]  # holding still gets worse further ahead
+
+
+def test_experiment_unseen(tmp_path):
+    r, cfg = _run("unseen", tmp_path)
+    run = r["runs"][0]
+    for m in cfg["methods"]:
+        v = run["methods"][m]
+        assert len(v["error"]) == cfg["presentations"] * run["frames_per_presentation"]
+        assert {"slope", "intercept"} == set(v["trend"])
+        assert len(v["mae_per_presentation"]) == cfg["presentations"]
+    assert run["methods"]["hold"]["settling_frame"] == 0  # a method that does not learn has nothing to settle
+
+
+def test_experiment_dataloss(tmp_path):
+    r, cfg = _run("dataloss", tmp_path)
+    levels = r["levels"]
+    assert [lv["loss"] for lv in levels] == cfg["losses"]
+    for lv in levels:
+        assert abs(lv["kept_fraction"] - (1 - lv["loss"])) < 0.15
+        assert {"online", "clean", "heldout", "coverage"} <= set(lv)
+    assert levels[0]["coverage"]["hierarchy"] > levels[-1]["coverage"]["hierarchy"]
+
+
+def test_experiment_incremental(tmp_path):
+    r, cfg = _run("incremental", tmp_path)
+    epochs = len(cfg["patterns"]) * cfg["epochs_per_pattern"]
+    assert np.array(r["neurons_mean"]).shape == (epochs, 3)
+    assert len(r["cpe_mean"]) == len(r["pe_mean"]) == len(r["evaluated_at"]) == epochs // cfg["eval_every"]
+    assert len(r["late_growth_share"]) == 3
+
+
+def test_experiment_threshold(tmp_path):
+    r, cfg = _run("threshold", tmp_path)
+    pts = r["points"]
+    assert [p["a_t"] for p in pts] == cfg["thresholds"]
+    lower = {tuple(p["neurons"][:2]) for p in pts}
+    assert lower == {tuple(r["lower_layers"])}  # GWR1/GWR2 stayed frozen
+    assert pts[-1]["neurons"][2] > pts[0]["neurons"][2]  # a higher a_T grows a larger P-GWR
+
+
+def test_experiment_delay(tmp_path):
+    r, cfg = _run("delay", tmp_path)
+    runs = r["runs"]
+    assert len(runs) == len(cfg["delays"]) * len(cfg["rules"]) * len(cfg["predictors"])
+    for x in runs:
+        if x["rule"] == "none":  # uncompensated: the robot lags by the delay plus its motor latency
+            assert x["lag_s"] == pytest.approx(x["delay_s"] + 0.035, abs=0.06)
+
+
+def test_experiment_scale(tmp_path):
+    r, cfg = _run("scale", tmp_path)
+    pts = r["points"]
+    assert [[p["input_scale"], p["normalise_distance"]] for p in pts] == cfg["variants"]
+    coarse, fine = (sum(p["neurons"]["hierarchy"]) for p in pts)
+    assert fine > coarse  # a larger scale makes the same a_T insert at a smaller distance
+
+
+def test_evaluate_prints_a_json_last_line(tmp_path, capsys):
+    from gwr_predictor.angles_io import save_angles_csv
+    from gwr_predictor.datasets import demo_angle_sequences
+
+    files = []
+    for s in demo_angle_sequences(["wave_one"], 1, 2):
+        files.append(str(save_angles_csv(tmp_path / f"{s.name}.csv", s.t, s.angles)))
+    assert main(["evaluate", *files, "--passes", "2", "--horizon", "4", "--no-progress"]) == 0
+    last = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    assert {"horizon", "mae_rad", "frames", "neurons"} <= set(last)
+    assert last["horizon"] == 4
+    assert set(last["mae_rad"]) == {"hold", "const_velocity", "rls_ar", "hierarchy"}
+    assert all(len(v) == 4 for v in last["mae_rad"].values())
+    assert last["frames"] == 2 * sum(len(s) for s in demo_angle_sequences(["wave_one"], 1, 2))
+    assert len(last["neurons"]["hierarchy"]) == 3
+
+
+def test_evaluate_reports_an_unreadable_file(tmp_path, capsys):
+    bad = Path(tmp_path / "bad.csv")
+    bad.write_text("hello,world\n1,2\n")
+    assert main(["evaluate", str(bad), "--no-progress"]) == 2
+    assert "bad.csv" in capsys.readouterr().err
