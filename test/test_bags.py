@@ -1,6 +1,5 @@
 """rosbag2/MCAP bags: round trips, independent readers, errors naming the path, crash recovery."""
 
-import errno
 import os
 import subprocess
 import sys
@@ -8,6 +7,7 @@ import textwrap
 
 import numpy as np
 import pytest
+from fakes import FullDisk
 from mcap.reader import make_reader
 from mcap_ros2.decoder import DecoderFactory
 from rosbags.rosbag2 import Reader
@@ -118,19 +118,6 @@ def test_unwritable_path_is_reported_naming_it(tmp_path):
     blocker.write_text("not a directory")
     with pytest.raises(bags.BagError, match="a_file/bag"), bags.BagWriter(blocker / "bag", TOPICS):
         pass
-
-
-class FullDisk:
-    """A file whose writes fail like a full disk; everything else goes to the real file."""
-
-    def __init__(self, real) -> None:
-        self.real = real
-
-    def write(self, _data) -> int:
-        raise OSError(errno.ENOSPC, "No space left on device")
-
-    def __getattr__(self, name):
-        return getattr(self.real, name)
 
 
 def test_full_disk_is_reported_naming_the_bag(tmp_path):

@@ -2,12 +2,12 @@
 every message up to the last periodic flush is recovered by `bags.recover_bag`; a failing write
 (full disk) stops it and it says the bag is incomplete instead of reporting it closed."""
 
-import errno
 import signal
 
 import numpy as np
 import pytest
 import rclpy
+from fakes import FullDisk
 from ros_harness import allocate_domain_id
 
 from gwr_predictor import bags
@@ -80,19 +80,6 @@ def test_ctrl_c_and_sigterm_close_the_bag_whole(ros, tmp_path, sig):
     assert "bag closed" in recorder.output() and "(25 messages)" in recorder.output()
     assert bags.bag_info(path).message_count == 25  # metadata written: no recovery needed
     assert recorded_frames(path) == list(range(25))
-
-
-class FullDisk:
-    """A file whose writes fail like a full disk; everything else goes to the real file."""
-
-    def __init__(self, real) -> None:
-        self.real = real
-
-    def write(self, _data) -> int:
-        raise OSError(errno.ENOSPC, "No space left on device")
-
-    def __getattr__(self, name):
-        return getattr(self.real, name)
 
 
 def test_a_full_disk_stops_the_recorder_and_the_bag_is_reported_incomplete(tmp_path):
