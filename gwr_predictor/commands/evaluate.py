@@ -34,7 +34,8 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--horizon", type=int, default=None, help="frames ahead (default: the model's, 6)")
     parser.add_argument("--methods", default=",".join(DEFAULT_METHODS),
                         help=f"comma-separated subset of {','.join(common.ALL_METHODS)}")
-    parser.add_argument("--checkpoint", type=Path, default=None, help="start the hierarchy from this checkpoint")
+    parser.add_argument("--checkpoint", type=Path, default=None,
+                        help="start the hierarchy (also the one inside blend_hierarchy_rls) from this checkpoint")
     parser.add_argument("--param", action="append", default=[], metavar="KEY=VALUE",
                         help="hierarchy parameter override in flat form (repeatable)")
     parser.add_argument("--seed", type=int, default=0)
@@ -84,6 +85,13 @@ def run(args: argparse.Namespace) -> int:
                 from gwr_predictor.hierarchy import Hierarchy
 
                 models[m] = Hierarchy.load(args.checkpoint)
+            elif m == common.BLEND and args.checkpoint is not None:
+                from gwr_predictor.ensemble import BlendedPredictor
+                from gwr_predictor.hierarchy import Hierarchy
+
+                blend = common.make_model(m, params, args.seed)
+                models[m] = BlendedPredictor({**blend.members, "hierarchy": Hierarchy.load(args.checkpoint)},
+                                             blend.params)
             else:
                 models[m] = common.make_model(m, params, args.seed)
         horizon = args.horizon or params.horizon

@@ -2,7 +2,8 @@
 
 Every model is built here, so that all experiments compare the same methods under the same names:
 "hierarchy" (GWR1 -> GWR2 -> P-GWR), "pgwr_flat" (the P-GWR alone on raw frames, the ablation),
-and the baselines of `gwr_predictor.baselines`.
+the baselines of `gwr_predictor.baselines`, and the per-step inverse-MSE blends of a GWR predictor with
+RLS-AR (`gwr_predictor.ensemble`): "blend_hierarchy_rls", "blend_flat_rls".
 """
 
 from __future__ import annotations
@@ -20,9 +21,13 @@ from gwr_predictor.params import HierarchyParams
 HIERARCHY = "hierarchy"
 FLAT = "pgwr_flat"
 BASELINES = ("hold", "const_velocity", "rls_ar")
-ALL_METHODS = (*BASELINES, FLAT, HIERARCHY)
+BLEND = "blend_hierarchy_rls"
+BLEND_FLAT = "blend_flat_rls"
+BLENDS = {BLEND: "hierarchy+rls", BLEND_FLAT: "flat+rls"}  # method name -> ensemble.make_blend kind
+ALL_METHODS = (*BASELINES, FLAT, HIERARCHY, BLEND, BLEND_FLAT)
 LABELS = {"hold": "hold last", "const_velocity": "constant velocity", "rls_ar": "RLS-AR",
-          FLAT: "P-GWR alone", HIERARCHY: "GWR hierarchy"}
+          FLAT: "P-GWR alone", HIERARCHY: "GWR hierarchy", BLEND: "blend hierarchy + RLS-AR",
+          BLEND_FLAT: "blend P-GWR alone + RLS-AR"}
 
 
 def make_params(overrides: Iterable[tuple[str, object]] = (), **changes: Any) -> HierarchyParams:
@@ -41,6 +46,10 @@ def make_model(name: str, params: HierarchyParams, seed: int) -> Predictor:
         from gwr_predictor.hierarchy import FlatPredictor
 
         return FlatPredictor(params, seed=seed)
+    if name in BLENDS:
+        from gwr_predictor.ensemble import make_blend
+
+        return make_blend(BLENDS[name], params, seed=seed)
     baselines = make_baselines(params.horizon, params.span)
     if name not in baselines:
         raise KeyError(f"unknown method {name!r}; choose from {', '.join(ALL_METHODS)}")

@@ -1,6 +1,7 @@
 """Baselines and ablation side by side, on the same frames, on trained and held-out data.
 
-Every method (hold, constant velocity, RLS-AR, P-GWR alone, hierarchy) is trained online on the
+Every method (hold, constant velocity, RLS-AR, P-GWR alone, hierarchy, and the per-step inverse-MSE
+blends of hierarchy or P-GWR alone with RLS-AR, `gwr_predictor.ensemble`) is trained online on the
 training split for `epochs` passes in random order; the online error of every pass is the learning
 curve. Then each trained model is copied and evaluated on the training split, held-out repetitions
 and held-out subjects, once frozen and once still learning (the paper's continual setting).
@@ -82,11 +83,13 @@ def run(config: Config, out: Path, seed: int = 0, progress: bool = True) -> Expe
                                         for m in methods], digits=3 if metric == "mae" else 4)
 
     best = {c: min(methods, key=lambda m, c=c: r["conditions"][c][m]["mae"][-1]) for c in conds}
+    best_mse = {c: min(methods, key=lambda m, c=c: r["conditions"][c][m]["mse"][-1]) for c in conds}
     md = [f"MAE (rad) at the {horizon}-frame ({100 * horizon} ms) horizon, every method scored on the same "
           f"frames. Splits: {r['splits']}; {config.epochs} training epochs of {r['frames_per_epoch']} frames; "
           f"neurons: {r['neurons']}.", "", table("mae"), "",
           "Best MAE per column: " + ", ".join(f"{c}: {common.LABELS[m]}" for c, m in best.items()) + ".", "",
-          "MSE (rad²) at the same horizon, same frames (large errors weigh more):", "", table("mse")]
+          "MSE (rad²) at the same horizon, same frames (large errors weigh more):", "", table("mse"), "",
+          "Best MSE per column: " + ", ".join(f"{c}: {common.LABELS[m]}" for c, m in best_mse.items()) + "."]
     out = Path(out)
     figs = [_plot_horizons(r, methods, out), _plot_curve(r, methods, out)]
     return ExperimentOutput(NAME, "Hierarchy vs baselines and ablation", _config_dict(config), r, md, figs)
@@ -101,16 +104,19 @@ def _config_dict(config: Config) -> dict[str, Any]:
 def _plot_horizons(r: dict[str, Any], methods: tuple[str, ...], out: Path) -> str:
     conds = [c for c in ("train/frozen", "heldout_repetitions/frozen", "heldout_subjects/online")
              if c in r["conditions"]]
-    fig, axes = figure(1, len(conds), size=(4.2 * len(conds), 3.6))
-    for ax, c in zip(axes[0], conds, strict=True):
-        for m in methods:
-            mae = r["conditions"][c][m]["mae"]
-            ax.plot(np.arange(1, len(mae) + 1), mae, marker="o", ms=3, label=common.LABELS[m])
-        ax.set_title(c.replace("_", " "))
-        ax.set_xlabel("horizon (frames of 100 ms)")
-        ax.grid(alpha=0.3)
-    axes[0][0].set_ylabel("MAE (rad)")
-    axes[0][-1].legend(fontsize=8)
+    fig, axes = figure(2, len(conds), size=(4.2 * len(conds), 6.6))
+    for row, metric in enumerate(("mae", "mse")):
+        for ax, c in zip(axes[row], conds, strict=True):
+            for m in methods:
+                vals = r["conditions"][c][m][metric]
+                ax.plot(np.arange(1, len(vals) + 1), vals, marker="o", ms=3, label=common.LABELS[m])
+            if row == 0:
+                ax.set_title(c.replace("_", " "))
+            else:
+                ax.set_xlabel("horizon (frames of 100 ms)")
+            ax.grid(alpha=0.3)
+        axes[row][0].set_ylabel("MAE (rad)" if metric == "mae" else "MSE (rad²)")
+    axes[0][-1].legend(fontsize=7)
     return save_figure(fig, out, "compare_mae_vs_horizon")
 
 

@@ -1,0 +1,214 @@
+"""BlendedPredictor: per-step inverse-MSE weights from already-scored predictions only."""
+
+from __future__ import annotations
+
+import copy
+
+import numpy as np
+import pytest
+
+from gwr_predictor.baselines import HoldLast
+from gwr_predictor.ensemble import BlendedPredictor, BlendError, BlendParams, make_blend
+from gwr_predictor.evaluation import Predictor, compare_online, train_online
+
+H, J = 4, 3
+
+
+class Noisy:
+    """Predicts the last sample plus Gaussian noise at every step."""
+
+    def __init__(self, sigma: float, seed: int = 0, horizon: int = H) -> None:
+        self.sigma, self.horizon, self.rng = sigma, horizon, np.random.default_rng(seed)
+        self.last = None
+
+    def step(self, x, learn=True):
+        if x is not None:
+            self.last = np.asarray(x, float)
+        if self.last is None:
+            return None
+        return self.last + self.sigma * self.rng.standard_normal((self.horizon, self.last.size))
+
+    def reset_sequence(self):
+        self.last = None
+
+
+class Scripted:
+    """Returns predetermined outputs: out[t] at the t-th step of a sequence (None where NaN); logs inputs."""
+
+    def __init__(self, outputs: np.ndarray) -> None:
+        self.outputs, self.t, self.seen = outputs, 0, []
+
+    def step(self, x, learn=True):
+        self.seen.append(None if x is None else np.array(x))
+        out = self.outputs[self.t]
+        self.t += 1
+        return None if np.isnan(out).any() else out.copy()
+
+    def reset_sequence(self):
+        self.t = 0
+
+
+def reference_mse(outputs: np.ndarray, frames: np.ndarray, upto: int, decay: float) -> np.ndarray:
+    """Naive running MSE per step after frame `upto` of one sequence: the prediction made at s for step
+    k counts iff s + k <= upto and frame s + k is observed; updates in target-frame order."""
+    sse, w = np.zeros(H), np.zeros(H)
+    for t in range(upto + 1):
+        if np.isnan(frames[t]).any():
+            continue
+        for k in range(1, H + 1):
+            s = t - k
+            if s < 0 or np.isnan(outputs[s]).any():
+                continue
+            e = np.mean((outputs[s, k - 1] - frames[t]) ** 2)
+            sse[k - 1] = decay * sse[k - 1] + e
+            w[k - 1] = decay * w[k - 1] + 1
+    with np.errstate(invalid="ignore"):
+        return np.where(w > 0, sse / np.where(w > 0, w, 1), np.nan)
+
+
+def test_params_validated():
+    for bad in ({"decay": 0.0}, {"decay": 1.5}, {"floor": 0.0}, {"floor": np.inf}, {"horizon": 0},
+                {"horizon": 2.5}):
+        with pytest.raises(BlendError):
+            BlendParams(**bad)
+    with pytest.raises(BlendError):
+        BlendedPredictor({})
+    with pytest.raises(BlendError):
+        make_blend("nope")
+    assert isinstance(BlendedPredictor({"a": HoldLast(H, J)}, BlendParams(horizon=H)), Predictor)
+
+
+def test_weights_go_to_the_member_with_lower_past_error():
+    blend = BlendedPredictor({"hold": HoldLast(H, J), "noisy": Noisy(0.3)}, BlendParams(horizon=H))
+    assert blend.step(None) is None  # nothing observed, nobody predicts
+    x = np.array([0.5, -0.2, 1.0])
+    first = blend.step(x)
+    w0 = blend.weights()
+    np.testing.assert_allclose(w0["hold"], 0.5)  # nothing scored yet: equal weights
+    assert first.shape == (H, J)
+    for _ in range(200):
+        out = blend.step(x)
+    w = blend.weights()
+    assert (w["hold"] > 0.999).all() and (w["noisy"] < 1e-3).all()
+    np.testing.assert_allclose(w["hold"] + w["noisy"], 1.0)
+    np.testing.assert_allclose(out, np.tile(x, (H, 1)), atol=1e-3)
+    mse = blend.running_mse()
+    assert mse[0].max() == 0.0 and np.all(mse[1] > 0.05)
+    err = blend.errors()
+    assert set(err) >= {"running_mse", "scored", "weights"}
+    assert err["scored"]["hold"] == [200, 199, 198, 197]  # predictions made at frames 1..200, step k targets +k
+
+
+def test_mse_uses_only_frames_already_observed():
+    """The running MSE after frame t equals a naive count over targets <= t, for random scripted
+    outputs and frames with gaps; outputs up to t do not depend on frames after t."""
+    rng = np.random.default_rng(1)
+    t_len, decay = 40, 0.9
+    frames = rng.standard_normal((t_len, J))
+    frames[[7, 8, 20]] = np.nan  # missing samples
+    outputs = rng.standard_normal((t_len, H, J))
+    outputs[[0, 13, 14]] = np.nan  # the member did not predict there
+    other = np.zeros((t_len, H, J))
+    blend = BlendedPredictor({"a": Scripted(outputs), "b": Scripted(other)}, BlendParams(decay, horizon=H))
+    blend.reset_sequence()
+    history = []
+    for t in range(t_len):
+        history.append(blend.step(None if np.isnan(frames[t]).any() else frames[t]))
+        np.testing.assert_allclose(blend.running_mse()[0], reference_mse(outputs, frames, t, decay), rtol=1e-12)
+        np.testing.assert_allclose(blend.running_mse()[1], reference_mse(other, frames, t, decay), rtol=1e-12)
+    # the member received the missing samples as None
+    assert blend.members["a"].seen[7] is None and blend.members["a"].seen[6] is not None
+    # changing the future leaves the past outputs alone
+    changed = frames.copy()
+    changed[25:] += 10.0
+    blend2 = BlendedPredictor({"a": Scripted(outputs), "b": Scripted(other)}, BlendParams(decay, horizon=H))
+    for t in range(t_len):
+        out = blend2.step(None if np.isnan(changed[t]).any() else changed[t])
+        if t < 25:
+            np.testing.assert_array_equal(out, history[t])
+        elif t > 25:
+            assert not np.allclose(out, history[t])
+
+
+def test_members_returning_none_are_left_out():
+    rng = np.random.default_rng(2)
+    outputs = rng.standard_normal((10, H, J))
+    outputs[3:6] = np.nan
+    const = np.full((10, H, J), 7.0)
+    blend = BlendedPredictor({"a": Scripted(outputs), "b": Scripted(const)}, BlendParams(horizon=H))
+    for t in range(10):
+        out = blend.step(rng.standard_normal(J))
+        if 3 <= t < 6:
+            np.testing.assert_array_equal(out, const[t])  # only b predicted
+        else:
+            assert not np.allclose(out, const[t])
+    nobody = BlendedPredictor({"a": Scripted(np.full((3, H, J), np.nan))}, BlendParams(horizon=H))
+    assert all(nobody.step(np.zeros(J)) is None for _ in range(3))
+
+
+def test_blend_of_identical_members_is_the_member():
+    rng = np.random.default_rng(3)
+    seq = np.cumsum(0.05 * rng.standard_normal((60, J)), axis=0)
+    seq[[10, 11, 30]] = np.nan
+    ref = HoldLast(H, J)
+    blend = BlendedPredictor({"a": HoldLast(H, J), "b": HoldLast(H, J)}, BlendParams(horizon=H))
+    for t, x in enumerate(seq):
+        if t == 40:
+            ref.reset_sequence()
+            blend.reset_sequence()
+        x = None if np.isnan(x).any() else x
+        np.testing.assert_allclose(blend.step(x), ref.step(x), rtol=1e-12, atol=1e-15)
+    np.testing.assert_allclose(blend.weights()["a"], 0.5)
+
+
+def test_reset_drops_pending_predictions():
+    """A prediction made in one sequence is never scored against a frame of the next one."""
+    outputs = np.zeros((10, H, J))
+    blend = BlendedPredictor({"a": Scripted(outputs)}, BlendParams(decay=1.0, horizon=H))
+    for _ in range(5):
+        blend.step(np.zeros(J))
+    before = blend.running_mse().copy()
+    count = blend.errors()["scored"]["a"]
+    assert np.all(before == 0) and count == [4, 3, 2, 1]
+    blend.reset_sequence()
+    blend.step(np.ones(J))  # would score error 1 at every step if the pending ring survived
+    np.testing.assert_array_equal(blend.running_mse(), before)
+    assert blend.errors()["scored"]["a"] == count
+    blend.step(np.ones(J))  # now the prediction (0) made at the new sequence's first frame is scored
+    assert blend.running_mse()[0, 0] == pytest.approx(1 / 5) and blend.errors()["scored"]["a"][0] == 5
+
+
+def test_frozen_scoring_is_optional_and_predict_needs_members_with_predict():
+    frozen = BlendedPredictor({"a": HoldLast(H, J), "b": Noisy(0.3)}, BlendParams(horizon=H, adapt_frozen=False))
+    for _ in range(10):
+        frozen.step(np.ones(J), learn=False)
+    assert np.isnan(frozen.running_mse()).all()
+    with pytest.raises(BlendError):
+        frozen.predict()
+
+
+def test_make_blend_on_demonstrator_subset():
+    """Trained on the first sequences, the blend's 6-step MSE on the last ones (still learning) is no
+    worse than the worse member's and close to or below the better member's."""
+    from gwr_predictor.datasets import demo_angle_sequences
+
+    seqs = demo_angle_sequences(patterns=("wave_one", "raise_front_both", "rotate_cw_one"), subjects=2,
+                                repetitions=3)
+    train, test = seqs[:-4], seqs[-4:]
+    for kind in ("hierarchy+rls", "flat+rls"):
+        blend = make_blend(kind, seed=0)
+        assert blend.horizon == 6
+        train_online(blend, train, passes=2, progress=False)
+        members = copy.deepcopy(blend.members)  # independent copies: they learn exactly as the blend's own
+        assert len(blend.neuron_counts) == (3 if kind == "hierarchy+rls" else 1)
+        res = compare_online({"blend": blend, **members}, test, progress=False)
+        mse = {m: r.stats.mse[-1] for m, r in res.items()}
+        worse = max(mse[m] for m in members)
+        better = min(mse[m] for m in members)
+        assert mse["blend"] <= worse, (kind, mse)
+        assert mse["blend"] <= better * 1.1, (kind, mse)
+        assert res["blend"].scored_frames > 100
+        assert set(blend.errors()["members"]) == {kind.split("+")[0]}
+        np.testing.assert_allclose(sum(blend.weights().values()), 1.0)
+        p = blend.predict()
+        assert p is not None and p.shape == (6, 8)
