@@ -123,6 +123,9 @@ class GWR:
         self._decay_c = np.full(cap, self._decay[1][1])
         self._decay_c[0] = self._decay[0][1]
         self._block = np.empty(cap, dtype=np.intp)
+        # affinity kept by `search_keep` for the next `learn_unchecked` on the same query (see there)
+        self._kept_buf = np.empty(cap)
+        self._kept: bytes | None = None  # the query it was kept for
 
     def _put(self, idx: np.ndarray | int, rows: np.ndarray) -> None:
         """Write whole weight rows (matched + carried part) and refresh their norms."""
@@ -242,6 +245,19 @@ class GWR:
         n = self._n
         return self._wa[:n], self._xa, self._buf[:n], self._w
 
+    def search_keep(self, xm: np.ndarray) -> np.ndarray:
+        """The affinity of a trusted matched-part vector (as `_affinity`), computed into a separate
+        buffer and kept: the next `learn_unchecked` on the unchanged network whose matched part has
+        the same bytes reuses it instead of repeating the product (same operands, same result).
+        Recursive mode forecasts from r(t), then learns (r(t), x(t+1)) next frame, with the P-GWR
+        unchanged in between: one 73-d product less per frame. Any learning step drops it."""
+        xa = self._xa
+        xa[:-1] = xm
+        out = self._kept_buf[:self._n]
+        np.dot(self._wa[:self._n], xa, out=out)
+        self._kept = xm.tobytes()
+        return out
+
     def match_unchecked(self, xm: np.ndarray) -> int:
         """BMU index of a trusted matched-part vector; records `last_distance`. No learning."""
         b = int(self._affinity(xm).argmax())
@@ -267,7 +283,11 @@ class GWR:
         n = self._n
         m = self.match_dim
         xm = x[:m]
-        affinity = self._affinity(xm)
+        if self._kept is not None and self._kept == xm.tobytes():  # see `search_keep`
+            affinity = self._kept_buf[:n]
+        else:
+            affinity = self._affinity(xm)
+        self._kept = None
         b = int(affinity.argmax())
         affinity[b] = -np.inf
         s = int(affinity.argmax())
@@ -289,12 +309,16 @@ class GWR:
             rate = (self._eps_vec[:k] * h)[:, None]
             wa = self._wa.take(block, axis=0)
             w = wa[:, :m]
-            w += rate * (xm - w)
+            step = xm - w  # w += rate * (x - w), with one temporary fewer (same products)
+            step *= rate
+            w += step
             wa[:, m] = np.vecdot(w, w)
             self._wa[block] = wa
             if m < self.dim:
                 wo = self._wo.take(block, axis=0)
-                wo += rate * (x[m:] - wo)
+                step = x[m:] - wo
+                step *= rate
+                wo += step
                 self._wo[block] = wo
         # ageing of b's edges and firing counters (Eq. 3), in both branches
         if k > 1:

@@ -229,6 +229,8 @@ class _OnlinePredictor:
         if reg is None:
             return
         buf = self._xbuf
+        # in recursive mode the P-GWR has not changed since `_forecast` searched this very regressor
+        # last frame: the affinity it kept is reused (`GWR.search_keep`)
         if self._delta:  # displacement of each target frame from the regressor's newest frame
             target = self._target.reshape(k, -1)
             np.subtract(buf[1:], buf[0], out=target)
@@ -239,11 +241,10 @@ class _OnlinePredictor:
     def _forecast(self, reg: np.ndarray, record: bool) -> np.ndarray:
         p = self.params
         pg = self.pgwr
-        if self._readout_k == 1:
-            b = pg.match_unchecked(reg) if record else pg.nearest(reg)
-            y = pg.output_row(b)
-        else:
-            y = pg.blended_output(reg, self._readout_k, record)
+        # recursive mode: the affinity is kept for the P-GWR's next learning step, which is on this
+        # very regressor (see `_train_pgwr`); vector mode learns an older one
+        aff = pg.search_keep(reg) if self._target_steps == 1 else None
+        y = pg.blended_output(reg, self._readout_k, record, affinity=aff)
         if record:
             self._errors.quantization("pgwr", pg.last_distance / self._scale)
         out = np.empty((p.horizon, p.n_joints))
@@ -465,6 +466,13 @@ class Hierarchy(_OnlinePredictor):
         self._fill1 = self._fill2 = 0
         self._roll1 = np.empty((p.horizon - 1 + p.tau1, p.n_joints))  # roll-out scratch (see _rollout)
         self._roll2 = np.empty((p.horizon - 1 + p.tau2, p.gwr2_dim))
+        # per start row s: the row written there and the window starting there (flattened), made once
+        # here rather than sliced in every roll-out step
+        f1, f2 = self._roll1.reshape(-1), self._roll2.reshape(-1)
+        n1, n2, d2 = p.tau1 * p.n_joints, p.tau2 * p.gwr2_dim, p.gwr2_dim
+        starts = range(p.horizon - 1)
+        self._roll_views = (list(self._roll1), [f1[s * p.n_joints:s * p.n_joints + n1] for s in starts],
+                            list(self._roll2), [f2[s * d2:s * d2 + n2] for s in starts])
 
     def _encode(self, xs: np.ndarray, learn: bool) -> tuple[np.ndarray, np.ndarray | None]:
         p = self.params
@@ -489,42 +497,47 @@ class Hierarchy(_OnlinePredictor):
     def _rollout(self, first: np.ndarray, out: np.ndarray) -> None:
         """Each roll-out step is a chain of three BMU searches. The windows slide over two buffers
         holding the current windows at their end, newest first: the window after k steps is the
-        contiguous slice starting k rows before it, so no step copies or shifts a window."""
-        p = self.params
-        g1, g2 = self.gwr1, self.gwr2
-        h, nj, d2 = len(out), p.n_joints, p.gwr2_dim
-        n1, n2 = p.tau1 * nj, p.tau2 * d2
-        b1, b2 = self._roll1, self._roll2
+        contiguous slice starting k rows before it, so no step copies or shifts a window. The ~85 %
+        of a step spent in the three matrix-vector products is kept as is (their exact operands give
+        the exact results); the rest is trimmed: views made once per sequence, no per-step slicing."""
+        h = len(out)
         s = h - 1
-        b1[s:] = self._win1
-        b2[s:] = self._win2
-        f1, f2 = b1.reshape(-1), b2.reshape(-1)
+        rows1, wins1, rows2, wins2 = self._roll_views
+        self._roll1[s:] = self._win1
+        self._roll2[s:] = self._win2
         # the two lower searches inlined (nothing learns during a roll-out): one product + argmax each
-        a1, x1, o1, w1 = g1.search_views()
-        a2, x2, o2, w2 = g2.search_views()
+        a1, x1, o1, w1 = self.gwr1.search_views()
+        a2, x2, o2, w2 = self.gwr2.search_views()
+        q1, q2 = x1[:-1], x2[:-1]  # where the queries go ([query | -1/2] is the product's operand)
         dot = np.dot
+        prev = out[0]
         if self._readout_k == 1:  # the BMU read-out (Eq. 10), inlined as well
             a3, x3, o3, _ = self.pgwr.search_views()
+            q3 = x3[:-1]
             wo, delta = self.pgwr.weights_out, self._delta
             for k in range(1, h):
                 s -= 1
-                x1[:-1] = out[k - 1]
-                b1[s] = w1[dot(a1, x1, out=o1).argmax()]
-                x2[:-1] = f1[s * nj:s * nj + n1]
-                b2[s] = w2[dot(a2, x2, out=o2).argmax()]
-                x3[:-1] = f2[s * d2:s * d2 + n2]
-                out[k] = wo[dot(a3, x3, out=o3).argmax()]
+                q1[...] = prev
+                rows1[s][...] = w1[dot(a1, x1, out=o1).argmax()]
+                q2[...] = wins1[s]
+                rows2[s][...] = w2[dot(a2, x2, out=o2).argmax()]
+                q3[...] = wins2[s]
+                cur = out[k]
+                cur[...] = wo[dot(a3, x3, out=o3).argmax()]
                 if delta:
-                    out[k] += out[k - 1]
+                    cur += prev
+                prev = cur
             return
         readout = self._readout
         for k in range(1, h):
             s -= 1
-            x1[:-1] = out[k - 1]
-            b1[s] = w1[dot(a1, x1, out=o1).argmax()]
-            x2[:-1] = f1[s * nj:s * nj + n1]
-            b2[s] = w2[dot(a2, x2, out=o2).argmax()]
-            readout(f2[s * d2:s * d2 + n2], out[k - 1], out[k])
+            q1[...] = prev
+            rows1[s][...] = w1[dot(a1, x1, out=o1).argmax()]
+            q2[...] = wins1[s]
+            rows2[s][...] = w2[dot(a2, x2, out=o2).argmax()]
+            cur = out[k]
+            readout(wins2[s], prev, cur)
+            prev = cur
 
     def _window_arrays(self) -> dict[str, np.ndarray]:
         return {"win1": self._win1, "win2": self._win2, "fill": np.array([self._fill1, self._fill2])}

@@ -85,11 +85,13 @@ class PredictiveGWR(GWR):
         """View of neuron i's output weights (valid until the network changes)."""
         return self._wo[i]
 
-    def blended_output(self, xm: np.ndarray, k: int, record: bool = False) -> np.ndarray:
+    def blended_output(self, xm: np.ndarray, k: int, record: bool = False,
+                       affinity: np.ndarray | None = None) -> np.ndarray:
         """Soft read-out (beyond the paper): the output weights of the k nearest neurons of the trusted
         regressor xm, averaged with weights 1/distance (a neuron at distance 0 takes all). k = 1 is
-        Eq. 10 (a view of the BMU's output row). With `record`, `last_distance` is the BMU's distance."""
-        aff = self._affinity(xm)
+        Eq. 10 (a view of the BMU's output row). With `record`, `last_distance` is the BMU's distance.
+        `affinity`: xm's affinity if already computed (e.g. by `search_keep`)."""
+        aff = self._affinity(xm) if affinity is None else affinity
         k = min(k, self._n)
         if k == 1:
             b = int(aff.argmax())

@@ -7,6 +7,9 @@ Prints readable lines, then one JSON object as the last line:
                     P-GWR, best of 3 passes (also over all passes, and in CPU time)
   speedup_vs_loop   vectorised GWR step vs loop_gwr.py (plain per-neuron loops), same data, same
                     process, ~1,000 neurons
+  search_us_<mode>  of one frame's time (1e6 / frames_per_s_<mode>), the part spent in its BMU
+                    products (timed alone on the same networks; 6 per layer in recursive mode, see
+                    `products_per_frame`); the rest is numpy call overhead, learning updates, copies
   peak_rss_mb       peak resident memory with the benchmark models (before the loop/BMU probes)
   bmu_overhead_us / bmu_ns_per_value  fit of one BMU search time = overhead + n * dim * cost,
                     to tell call overhead from memory bandwidth
@@ -135,6 +138,32 @@ def measure_throughput(h: Hierarchy, stream: np.ndarray, chunk: int = 1000) -> t
     return float(np.median(rates)), float(np.max(rates))
 
 
+def products_per_frame(params: HierarchyParams) -> tuple[int, int, int]:
+    """BMU matrix-vector products per learned frame, per layer (GWR1, GWR2, P-GWR), once windows
+    are full: one per learning step, one for the forecast and three per roll-out step; in
+    recursive mode the P-GWR's learning step reuses the forecast's product of the previous frame."""
+    if params.mode == "vector":
+        return 1, 1, 2
+    steps = params.horizon - 1
+    return 1 + steps, 1 + steps, 1 + steps
+
+
+def measure_products(h: Hierarchy, reps: int = 2000) -> tuple[float, float, float]:
+    """Time (us) of one BMU matrix-vector product per layer at its current size (best of 3)."""
+    times = []
+    for net in (h.gwr1, h.gwr2, h.pgwr):
+        a, xa, buf, _ = net.search_views()
+        xa[:-1] = 0.1
+        best = math.inf
+        for _ in range(3):
+            t0 = time.perf_counter()
+            for _ in range(reps):
+                np.dot(a, xa, out=buf)
+            best = min(best, (time.perf_counter() - t0) / reps)
+        times.append(best * 1e6)
+    return times[0], times[1], times[2]
+
+
 def measure_predict(h: Hierarchy, stream: np.ndarray, calls: int) -> tuple[np.ndarray, np.ndarray]:
     """Wall-clock and CPU durations (ms) of `predict()` after each frame of `stream` (the frames
     themselves are matched untimed, without learning, so the network size stays fixed)."""
@@ -215,8 +244,13 @@ def run(args: argparse.Namespace) -> int:
         result[f"frames_per_s_{mode}"] = round(fps, 1)
         result[f"frames_per_s_{mode}_best"] = round(best, 1)
         result[f"neurons_{mode}"] = list(h.neuron_counts)
+        counts = products_per_frame(params)
+        search = float(np.dot(counts, measure_products(h, 200 if args.quick else 2000)))
+        result[f"search_us_{mode}"] = round(search, 1)
         _log(args.quiet, f"{mode:9s}: {fps:9.0f} frames/s learn+predict (median of {chunk}-frame chunks; best "
-                         f"{best:.0f}), neurons {h.neuron_counts} (grown on {used} frames)")
+                         f"{best:.0f}), neurons {h.neuron_counts} (grown on {used} frames); per frame "
+                         f"{1e6 / fps:.0f} us, of which {search:.0f} us in {sum(counts)} BMU products "
+                         f"{counts}, {1e6 / fps - search:.0f} us the rest")
     result["frames_per_s"] = result[f"frames_per_s_{HierarchyParams().mode}"]
 
     mode = HierarchyParams().mode
