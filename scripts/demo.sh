@@ -2,8 +2,8 @@
 # THE DEMO: pretrain offline, run the live ROS 2 pipeline with and without delay compensation,
 # and report. Works on a fresh machine (env.sh builds the venv on first use). A few minutes.
 #
-#   1. gwr-predictor pretrain   the hierarchy learns the demonstrator's repetitions 1-3 (~20-40 s)
-#   2. scripts/run_pipeline.sh  live pipeline on new repetitions (4-5) for --seconds (default 60),
+#   1. gwr-predictor pretrain   the hierarchy learns the demonstrator's repetitions 1-8 (~30-60 s)
+#   2. scripts/run_pipeline.sh  live pipeline on new repetitions (9-10) for --seconds (default 60),
 #                               learning on, from the pretrained model, a compensated robot and an
 #                               uncompensated one (namespace /uncompensated), everything recorded
 #   3. gwr-predictor report     prediction error at 600 ms, robot lags, neurons, counts, plot
@@ -38,7 +38,7 @@ start=$SECONDS
 
 gwr_log "step 1/3: pretraining the hierarchy offline"
 gwr-predictor pretrain --out "$out/pretrained.npz" --params-file "$GWR_ROOT/config/gwr_hierarchy.yaml" \
-    --epochs "$epochs" | tee "$out/pretrain.log"
+    --epochs "$epochs" --repetitions 8 | tee "$out/pretrain.log"
 
 gwr_log "step 2/3: live pipeline for $seconds s (compensated + uncompensated robot)"
 "$HERE/run_pipeline.sh" --seconds "$seconds" --out "$out" --checkpoint "$out/pretrained.npz" "${extra[@]}"
