@@ -37,6 +37,7 @@ from typing import Any
 import numpy as np
 
 from gwr_predictor import bags, conventions
+from gwr_predictor.pipeline_report import finite_json
 
 #: Percentiles reported for every latency.
 PERCENTILES = (50, 90, 99)
@@ -135,7 +136,7 @@ class LatencyReport:
         }
 
     def to_json(self) -> str:
-        return json.dumps(_finite(self.to_dict()), indent=2)
+        return json.dumps(finite_json(self.to_dict()), indent=2)
 
     def summary_lines(self) -> list[str]:
         lines = [f"bag {self.bag}: {self.duration_s:.1f} s",
@@ -154,16 +155,6 @@ class LatencyReport:
         lines.append(f"messages lost: {self.total_lost} (early: published before the publisher's first "
                      "/diagnostics, not counted for the recorder)")
         return lines
-
-
-def _finite(obj: Any) -> Any:
-    if isinstance(obj, float):
-        return obj if np.isfinite(obj) else None
-    if isinstance(obj, dict):
-        return {k: _finite(v) for k, v in obj.items()}
-    if isinstance(obj, list):
-        return [_finite(v) for v in obj]
-    return obj
 
 
 # --- reading --------------------------------------------------------------------------------------

@@ -78,7 +78,7 @@ class PipelineReport:
     rejected: dict[str, int] = field(default_factory=dict)
 
     def to_json(self) -> str:
-        return json.dumps(_finite(asdict(self)), indent=2, sort_keys=False)
+        return json.dumps(finite_json(asdict(self)), indent=2, sort_keys=False)
 
     def summary_lines(self) -> list[str]:
         h_ms = round(self.horizon * self.frame_period_s * 1000)
@@ -101,14 +101,14 @@ class PipelineReport:
         return lines
 
 
-def _finite(obj: Any) -> Any:
-    """NaN/inf -> None so that report.json is strict JSON."""
+def finite_json(obj: Any) -> Any:
+    """NaN/inf -> None (recursively) so that the JSON files written are strict JSON."""
     if isinstance(obj, float):
         return obj if math.isfinite(obj) else None
     if isinstance(obj, dict):
-        return {k: _finite(v) for k, v in obj.items()}
+        return {k: finite_json(v) for k, v in obj.items()}
     if isinstance(obj, (list, tuple)):
-        return [_finite(v) for v in obj]
+        return [finite_json(v) for v in obj]
     return obj
 
 
