@@ -11,7 +11,8 @@ All learn only from what they have observed: a step with x None (or non-finite) 
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass
+from typing import Any, ClassVar
 
 import numpy as np
 
@@ -209,6 +210,39 @@ class RLSAutoregressive:
     def _reset_p(self) -> None:
         self.p_ = self.params.delta * np.eye(self.dim)
         self.resets_ += 1
+
+    # --- persistence (used by the blend's checkpoint) -------------------------------------------
+    kind: ClassVar[str] = "RLSAutoregressive"
+    STATE_ARRAYS: ClassVar[tuple[str, ...]] = ("weights", "p", "buf", "real")
+
+    def state(self) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
+        """(JSON-able header, arrays) of the whole state; `from_state` continues bit for bit."""
+        header = {"params": asdict(self.params), "horizon": self.horizon, "joints": self.joints,
+                  "updates": self.updates_, "resets": self.resets_, "started": self._started}
+        arrays = {"weights": self.weights_.copy(), "p": self.p_.copy(), "buf": self._buf.copy(),
+                  "real": self._real.copy()}
+        return header, arrays
+
+    @classmethod
+    def from_state(cls, header: dict[str, Any], arrays: dict[str, np.ndarray]) -> RLSAutoregressive:
+        """The model of a `state()`; BaselineError if the arrays do not fit the stored parameters."""
+        try:
+            model = cls(RLSParams(**header["params"]), int(header["horizon"]), int(header["joints"]))
+            expected = {"weights": model.weights_.shape, "p": model.p_.shape, "buf": model._buf.shape,
+                        "real": model._real.shape}
+            for name, shape in expected.items():
+                if name not in arrays or np.shape(arrays[name]) != shape:
+                    got = np.shape(arrays[name]) if name in arrays else "missing"
+                    raise BaselineError(f"RLS state array {name!r}: {got}, expected {shape}")
+            model.weights_ = np.array(arrays["weights"], dtype=float)
+            model.p_ = np.array(arrays["p"], dtype=float)
+            model._buf = np.array(arrays["buf"], dtype=float)
+            model._real = np.array(arrays["real"], dtype=bool)
+            model.updates_, model.resets_ = int(header["updates"]), int(header["resets"])
+            model._started = bool(header["started"])
+        except (KeyError, TypeError) as exc:
+            raise BaselineError(f"RLS state header incomplete: {type(exc).__name__}: {exc}") from exc
+        return model
 
 
 def make_baselines(horizon: int = DEFAULT_HORIZON, order: int = 5) -> dict[str, object]:

@@ -32,6 +32,14 @@ class CheckpointError(Exception):
     """A checkpoint that cannot be written or read; the message names the file and the cause."""
 
 
+class KindMismatchError(CheckpointError):
+    """A readable checkpoint of another model kind (e.g. a Hierarchy where a BlendedPredictor was asked)."""
+
+    def __init__(self, message: str, found: Any, expected: str) -> None:
+        super().__init__(message)
+        self.found, self.expected = found, expected
+
+
 def write_checkpoint(path: str | os.PathLike[str], kind: str, header: Mapping[str, Any],
                      arrays: Mapping[str, np.ndarray]) -> None:
     """Atomically write `arrays` and the JSON-able `header` as a checkpoint of `kind`."""
@@ -106,7 +114,8 @@ def read_checkpoint(path: str | os.PathLike[str], kind: str,
         raise CheckpointError(f"{path}: format_version {version!r} is not supported (this build reads "
                               f"{FORMAT_VERSION}){hint}")
     if header.get("kind") != kind:
-        raise CheckpointError(f"{path}: holds a {header.get('kind')!r}, expected a {kind!r}")
+        found = header.get("kind")
+        raise KindMismatchError(f"{path}: holds a {found!r}, expected a {kind!r}", found, kind)
     missing = sorted(set(required) - arrays.keys())
     if missing:
         raise CheckpointError(f"{path}: missing arrays {missing}")

@@ -10,18 +10,22 @@ the weights used at frame t depend only on frames <= t (no peeking at the target
 The GWR hierarchy is better in MAE but heavy-tailed, RLS-AR is better in MSE (docs/experiments.md);
 blended per step they beat both in MSE. `make_blend` builds the two pairings used in the reports.
 
-Persistence is not supported: a blend has no `save`/`load` (its members may; the running errors are
-cheap to re-learn).
+Persistence: `save`/`load` write and read ONE checkpoint (checkpoint.py: atomic, versioned, kind
+"BlendedPredictor") holding every member's full state (members must have `state()` and a class
+`from_state`: Hierarchy, FlatPredictor, RLSAutoregressive), the running MSEs, the pending predictions
+and the parameters, so a blend saved mid-stream continues bit for bit after `load`.
 """
 
 from __future__ import annotations
 
+import os
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass
 from typing import Any
 
 import numpy as np
 
+from gwr_predictor.checkpoint import CheckpointError, read_checkpoint, write_checkpoint
 from gwr_predictor.conventions import DEFAULT_HORIZON
 from gwr_predictor.evaluation import Predictor
 
@@ -175,6 +179,84 @@ class BlendedPredictor:
                 return tuple(counts)
         return None
 
+    # --- persistence ----------------------------------------------------------------------------
+    kind = "BlendedPredictor"
+    _BLEND_ARRAYS = ("sse", "weight", "count")
+
+    def save(self, path: str | os.PathLike[str]) -> None:
+        """Write the blend and all its members atomically to one checkpoint (CheckpointError on failure)."""
+        members, arrays = [], {}
+        for name, m in self.members.items():
+            state = getattr(m, "state", None)
+            if not callable(state) or _member_class(getattr(m, "kind", None)) is None:
+                raise CheckpointError(f"{path}: member {name!r} ({type(m).__name__}) cannot be saved: "
+                                      f"supported members are {', '.join(_member_kinds())}")
+            header, member_arrays = state()
+            members.append({"name": name, "kind": m.kind, "header": header})
+            arrays.update({f"{name}:{k}": v for k, v in member_arrays.items()})
+        arrays.update({"blend:sse": self._sse, "blend:weight": self._weight, "blend:count": self._count})
+        joints = None
+        if self._pending is not None:
+            joints = int(self._pending.shape[-1])
+            arrays.update({"blend:pending": self._pending, "blend:outputs": self._outputs})
+        header = {"blend": {"params": asdict(self.params), "members": members, "joints": joints}}
+        write_checkpoint(path, self.kind, header, arrays)
+
+    @classmethod
+    def load(cls, path: str | os.PathLike[str]) -> BlendedPredictor:
+        """A blend written by `save`; continues exactly where it stopped. CheckpointError naming the file
+        (and the kind it holds) if it is not a readable blend checkpoint."""
+        header, arrays = read_checkpoint(path, cls.kind, [f"blend:{a}" for a in cls._BLEND_ARRAYS])
+        try:
+            meta = header["blend"]
+            params = BlendParams(**meta["params"])
+            members: dict[str, Predictor] = {}
+            for entry in meta["members"]:
+                name, kind = entry["name"], entry["kind"]
+                member_cls = _member_class(kind)
+                if member_cls is None:
+                    raise CheckpointError(f"{path}: member {name!r} is a {kind!r}; this build restores "
+                                          f"{', '.join(_member_kinds())}")
+                prefix = f"{name}:"
+                sub = {k[len(prefix):]: v for k, v in arrays.items() if k.startswith(prefix)}
+                if kind == "RLSAutoregressive":
+                    members[name] = member_cls.from_state(entry["header"], sub)
+                else:
+                    members[name] = member_cls.from_state(entry["header"], sub, f"{path} (member {name!r})")
+            blend = cls._assemble(members, params)
+            n, h = len(blend.names), blend.horizon
+            for a in cls._BLEND_ARRAYS:
+                if arrays[f"blend:{a}"].shape != (n, h):
+                    raise ValueError(f"array blend:{a} has shape {arrays[f'blend:{a}'].shape}, expected {(n, h)}")
+            blend._sse = np.array(arrays["blend:sse"], dtype=float)
+            blend._weight = np.array(arrays["blend:weight"], dtype=float)
+            blend._count = np.array(arrays["blend:count"], dtype=np.int64)
+            if meta["joints"] is not None:
+                blend._allocate(int(meta["joints"]))
+                for a, dest in (("pending", blend._pending), ("outputs", blend._outputs)):
+                    if arrays[f"blend:{a}"].shape != dest.shape:
+                        raise ValueError(f"array blend:{a} has shape {arrays[f'blend:{a}'].shape}, "
+                                         f"expected {dest.shape}")
+                    dest[...] = arrays[f"blend:{a}"]
+        except CheckpointError:
+            raise
+        except (KeyError, ValueError, TypeError, IndexError) as exc:  # BlendError, BaselineError are ValueErrors
+            raise CheckpointError(f"{path}: inconsistent blend checkpoint: {type(exc).__name__}: {exc}") from exc
+        return blend
+
+    @classmethod
+    def _assemble(cls, members: dict[str, Predictor], params: BlendParams) -> BlendedPredictor:
+        """A blend of restored members, without resetting them (as __init__ would)."""
+        blend = cls.__new__(cls)
+        blend.members, blend.names, blend.params = members, tuple(members), params
+        blend.horizon = h = params.horizon
+        n = len(members)
+        blend._sse, blend._weight = np.zeros((n, h)), np.zeros((n, h))
+        blend._count = np.zeros((n, h), dtype=np.int64)
+        blend._diag = np.arange(h)
+        blend._pending = blend._outputs = None
+        return blend
+
     # --- internals ------------------------------------------------------------------------------
     def _allocate(self, joints: int) -> None:
         n, h = len(self.names), self.horizon
@@ -217,6 +299,21 @@ class BlendedPredictor:
             return None
         w = self.weight_matrix(avail)
         return np.einsum("mh,mhj->hj", w, np.where(avail[:, :, None], preds, 0.0))
+
+
+def _member_classes() -> dict[str, type]:
+    from gwr_predictor.baselines import RLSAutoregressive
+    from gwr_predictor.hierarchy import FlatPredictor, Hierarchy
+
+    return {c.kind: c for c in (Hierarchy, FlatPredictor, RLSAutoregressive)}
+
+
+def _member_kinds() -> tuple[str, ...]:
+    return tuple(_member_classes())
+
+
+def _member_class(kind: Any) -> type | None:
+    return _member_classes().get(kind) if isinstance(kind, str) else None
 
 
 BLEND_KINDS = ("hierarchy+rls", "flat+rls")

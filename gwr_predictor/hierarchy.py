@@ -355,6 +355,12 @@ class _OnlinePredictor:
 
     def save(self, path: str | os.PathLike[str]) -> None:
         """Write the whole state (networks, windows, queues, errors, random state) atomically."""
+        header, arrays = self.state()
+        write_checkpoint(path, self.kind, header, arrays)
+
+    def state(self) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
+        """(JSON-able header, named arrays) of the whole state, as `save` writes it under `kind`. The
+        arrays may share memory with the model: write or copy them before it steps again."""
         regs = list(self._regs)
         reg_dim = self.pgwr.in_dim
         reg_arr = np.array([np.zeros(reg_dim) if r is None else r for r in regs]).reshape(len(regs), reg_dim)
@@ -377,20 +383,33 @@ class _OnlinePredictor:
             arrays[f"{name}.weights"] = net.weights
             arrays[f"{name}.counters"] = net.counters
             arrays[f"{name}.edges"] = net.edge_array()
-        write_checkpoint(path, self.kind, header, arrays)
+        return header, arrays
+
+    @classmethod
+    def required_arrays(cls) -> list[str]:
+        """Names of the arrays `state` always holds."""
+        required = ["xbuf", "regs", *ErrorTracker.ARRAYS]
+        return required + [f"{n}.{a}" for n in cls.layer_names for a in ("weights", "counters", "edges")]
 
     @classmethod
     def load(cls, path: str | os.PathLike[str]) -> Any:
         """A model saved by `save`; continues exactly where it stopped. Raises CheckpointError."""
-        required = ["xbuf", "regs", *ErrorTracker.ARRAYS]
-        required += [f"{n}.{a}" for n in cls.layer_names for a in ("weights", "counters", "edges")]
-        header, arrays = read_checkpoint(path, cls.kind, required)
+        header, arrays = read_checkpoint(path, cls.kind, cls.required_arrays())
+        return cls.from_state(header, arrays, path)
+
+    @classmethod
+    def from_state(cls, header: dict[str, Any], arrays: dict[str, np.ndarray],
+                   source: str | os.PathLike[str] = "<state>") -> Any:
+        """The model of a `state()` (header, arrays); content errors raise CheckpointError naming `source`."""
+        missing = sorted(set(cls.required_arrays()) - arrays.keys())
+        if missing:
+            raise CheckpointError(f"{source}: missing arrays {missing}")
         try:
             return cls._from_saved(header, arrays)
         except CheckpointError:
             raise
         except (KeyError, ValueError, TypeError, IndexError) as exc:
-            raise CheckpointError(f"{path}: inconsistent checkpoint content: {type(exc).__name__}: {exc}") from exc
+            raise CheckpointError(f"{source}: inconsistent checkpoint content: {type(exc).__name__}: {exc}") from exc
 
     @classmethod
     def _from_saved(cls, header: dict[str, Any], arrays: dict[str, np.ndarray]) -> Any:

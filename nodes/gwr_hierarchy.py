@@ -6,6 +6,10 @@ and the h-step prediction as a JointState on `predicted_angles` (stamped t + h *
 Missing frames inside a sequence are fed as missing samples, a gap longer than `max_gap_s` ends
 the sequence. The model is loaded from `checkpoint` at start and saved there atomically every
 `checkpoint_interval_s` and at shutdown; an unreadable checkpoint is moved aside, never overwritten.
+
+`predictor` picks the model: `hierarchy` (the paper) or a per-step inverse-MSE blend of a GWR
+predictor with RLS-AR (`blend_hierarchy_rls`, `blend_flat_rls`; beyond the paper, see ensemble.py).
+A checkpoint of another kind than `predictor` stops the node (it is neither used nor moved aside).
 """
 
 from __future__ import annotations
@@ -17,8 +21,9 @@ from pathlib import Path
 import numpy as np
 
 from gwr_predictor import conventions
-from gwr_predictor.checkpoint import CheckpointError
-from gwr_predictor.hierarchy import Hierarchy
+from gwr_predictor.checkpoint import CheckpointError, KindMismatchError
+from gwr_predictor.ensemble import BlendedPredictor, make_blend
+from gwr_predictor.hierarchy import FlatPredictor, Hierarchy
 from gwr_predictor.nao import ARM_JOINTS
 from gwr_predictor.params import HierarchyParams, hierarchy_parameter_specs
 
@@ -34,7 +39,13 @@ from .node_base import (
     stream_qos,
 )
 
+#: `predictor` value -> make_blend kind (None: the plain hierarchy)
+PREDICTORS = {"hierarchy": None, "blend_hierarchy_rls": "hierarchy+rls", "blend_flat_rls": "flat+rls"}
+
 PARAMS = (
+    Param("predictor", "hierarchy", "model: 'hierarchy' (GWR1 -> GWR2 -> P-GWR, the paper) or an online "
+          "per-step inverse-MSE blend with RLS-AR ('blend_hierarchy_rls', 'blend_flat_rls'; beyond the paper)",
+          choices=tuple(PREDICTORS)),
     Param("seed", 0, "seed of the networks' initial random neurons", 0, 2**31 - 1),
     Param("learn", True, "learn from every frame (false: predict with the networks as they are)"),
     Param("frame_period_s", 1.0 / conventions.ANGLE_FPS, "spacing of the angle frames (s)", 0.001, 10.0),
@@ -64,6 +75,7 @@ class GwrHierarchyNode(PipelineNode):
             except OSError as exc:
                 raise NodeFatalError(f"parameter 'checkpoint': cannot create {self.checkpoint.parent}: {exc}") from None
         self.model = self.load_or_create(params)
+        self.gwr = gwr_member(self.model)  # the GWR learner (the model itself, or the blend's GWR member)
         self.horizon = self.model.params.horizon
         self.gate = ArmAnglesGate(self.counters, "arm_angles")
         self.step_times: list[float] = []
@@ -78,13 +90,27 @@ class GwrHierarchyNode(PipelineNode):
         if self.checkpoint is not None and p["checkpoint_interval_s"] > 0:
             self.create_timer(p["checkpoint_interval_s"], self.save_checkpoint)
 
-    def load_or_create(self, params: HierarchyParams) -> Hierarchy:
+    def create(self, params: HierarchyParams) -> Hierarchy | BlendedPredictor:
+        blend = PREDICTORS[self.params["predictor"]]
+        if blend is None:
+            return Hierarchy(params, seed=self.params["seed"])
+        return make_blend(blend, params, seed=self.params["seed"])
+
+    def load_or_create(self, params: HierarchyParams) -> Hierarchy | BlendedPredictor:
         """The checkpoint's model if there is a readable one, else a fresh one with `params`."""
         path = self.checkpoint
         if path is None or not path.exists():
-            return Hierarchy(params, seed=self.params["seed"])
+            return self.create(params)
+        cls = Hierarchy if PREDICTORS[self.params["predictor"]] is None else BlendedPredictor
         try:
-            model = Hierarchy.load(path)
+            model = cls.load(path)
+            if isinstance(model, BlendedPredictor) and tuple(model.names) != tuple(self.create_names()):
+                raise KindMismatchError(f"{path}: holds a blend of {list(model.names)}, expected one of "
+                                        f"{list(self.create_names())}", model.names, self.params["predictor"])
+        except KindMismatchError as exc:
+            raise NodeFatalError(f"checkpoint {path} does not fit parameter predictor="
+                                 f"{self.params['predictor']!r} ({exc}); set 'predictor' to match it or use "
+                                 "another checkpoint path") from None
         except CheckpointError as exc:
             aside = path.with_name(f"{path.name}.corrupt-{time.strftime('%Y%m%d-%H%M%S')}")
             try:
@@ -94,14 +120,19 @@ class GwrHierarchyNode(PipelineNode):
                                      "not starting, to avoid overwriting it") from None
             self.get_logger().error(f"unreadable checkpoint moved to {aside}; starting a fresh model: {exc}")
             self.counters.count("checkpoint.corrupt_moved_aside")
-            return Hierarchy(params, seed=self.params["seed"])
-        differ = {k: (v, model.params.to_flat()[k]) for k, v in params.to_flat().items()
-                  if model.params.to_flat()[k] != v}
+            return self.create(params)
+        saved = gwr_member(model).params.to_flat()
+        differ = {k: (v, saved[k]) for k, v in params.to_flat().items() if saved[k] != v}
         if differ:
             self.get_logger().warning("the checkpoint's learning parameters are used, not these node parameters: "
                                       + ", ".join(f"{k}={a} (checkpoint {b})" for k, (a, b) in differ.items()))
-        self.get_logger().info(f"loaded {path}: {model.frames_seen} frames seen, neurons {model.neuron_counts}")
+        self.get_logger().info(f"loaded {path} ({self.params['predictor']}): {gwr_member(model).frames_seen} "
+                               f"frames seen, neurons {model.neuron_counts}")
         return model
+
+    def create_names(self) -> tuple[str, ...]:
+        """Member names of the blend `predictor` asks for."""
+        return tuple(PREDICTORS[self.params["predictor"]].split("+"))
 
     def on_angles(self, msg: messages.JointState) -> None:
         """One frame: bridge a short gap with missing samples or end the sequence, learn, predict, publish."""
@@ -139,13 +170,16 @@ class GwrHierarchyNode(PipelineNode):
 
     def publish_status(self) -> None:
         """Neurons per layer, errors and step times as a DiagnosticArray (about 1 Hz)."""
-        errors = self.model.errors()
+        errors = self.gwr.errors()
         values: dict[str, object] = {conventions.NEURON_KEYS[k]: v for k, v in errors["neurons"].items()}
         for key in ("frames", "missing", "sequences", "predictions"):
             values[key] = errors[key]
         values["pe_mean_mse"] = float(errors["pe_mean"])
         values["cpe_mean_mse"] = float(errors["cpe_mean"])
         values[f"cpe_h{self.horizon}_mse"] = float(errors["cpe"][-1])
+        if isinstance(self.model, BlendedPredictor):  # blend weights at the last horizon step
+            for name, w in self.model.weights().items():
+                values[f"blend_weight_{name}_h{self.horizon}"] = float(w[-1])
         times = self.step_times or [0.0]
         values["step_ms_mean"] = 1e3 * float(np.mean(times))
         values["step_ms_max"] = 1e3 * self.step_max  # both since the last status
@@ -170,6 +204,13 @@ class GwrHierarchyNode(PipelineNode):
         if not self.save_checkpoint():
             raise NodeFatalError(f"the final checkpoint could not be written to {self.checkpoint}")
         self.get_logger().info(f"checkpoint saved to {self.checkpoint} (neurons {self.model.neuron_counts})")
+
+
+def gwr_member(model: Hierarchy | BlendedPredictor) -> Hierarchy | FlatPredictor:
+    """The GWR learner: the model itself, or the blend's member with neuron counts (its first)."""
+    if isinstance(model, BlendedPredictor):
+        return next(m for m in model.members.values() if getattr(m, "neuron_counts", None) is not None)
+    return model
 
 
 def main(args: list[str] | None = None) -> int:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import copy
+import re
 
 import numpy as np
 import pytest
@@ -212,3 +213,72 @@ def test_make_blend_on_demonstrator_subset():
         np.testing.assert_allclose(sum(blend.weights().values()), 1.0)
         p = blend.predict()
         assert p is not None and p.shape == (6, 8)
+
+
+def _arm_frames(n: int, seed: int = 0) -> np.ndarray:
+    rng = np.random.default_rng(seed)
+    t = 0.1 * np.arange(n)
+    return 0.3 * np.sin(t[:, None] * np.arange(1, 9) * 0.5) + 0.01 * rng.standard_normal((n, 8))
+
+
+@pytest.mark.parametrize("kind", ["hierarchy+rls", "flat+rls"])
+def test_blend_saved_mid_stream_continues_bit_for_bit(tmp_path, kind):
+    frames = _arm_frames(160)
+    frames[50] = np.nan  # a missing sample before the save, one right after it
+    frames[91] = np.nan
+    a = make_blend(kind, seed=3)
+    for x in frames[:90]:
+        a.step(x)
+    path = tmp_path / "blend.npz"
+    a.save(path)
+    b = BlendedPredictor.load(path)
+    assert b.names == a.names and b.params == a.params and b.neuron_counts == a.neuron_counts
+    np.testing.assert_array_equal(b.running_mse(), a.running_mse())
+    for t, x in enumerate(frames[90:]):
+        if t == 40:
+            a.reset_sequence(), b.reset_sequence()
+        pa, pb = a.step(x), b.step(x)
+        assert (pa is None) == (pb is None)
+        if pa is not None:
+            np.testing.assert_array_equal(pa, pb)
+    np.testing.assert_array_equal(b.running_mse(), a.running_mse())
+    np.testing.assert_array_equal(b.predict(), a.predict())
+    np.testing.assert_array_equal(b.weight_matrix(), a.weight_matrix())
+    np.testing.assert_array_equal(b._count, a._count)
+
+
+def test_fresh_blend_round_trips_before_any_frame(tmp_path):
+    a = make_blend("hierarchy+rls", seed=1, blend=BlendParams(decay=0.95, floor=1e-5, adapt_frozen=False))
+    a.save(tmp_path / "b.npz")
+    b = BlendedPredictor.load(tmp_path / "b.npz")
+    assert b.params == a.params and b._pending is None
+    for x in _arm_frames(20):
+        pa, pb = a.step(x), b.step(x)
+        assert (pa is None) == (pb is None)
+        if pa is not None:
+            np.testing.assert_array_equal(pa, pb)
+
+
+def test_checkpoint_kind_mismatch_names_the_file_and_the_kind(tmp_path):
+    from gwr_predictor.checkpoint import CheckpointError
+    from gwr_predictor.hierarchy import FlatPredictor, Hierarchy
+
+    blend_path, plain_path = tmp_path / "blend.npz", tmp_path / "plain.npz"
+    make_blend("hierarchy+rls").save(blend_path)
+    Hierarchy().save(plain_path)
+    expected = f"{plain_path}: holds a 'Hierarchy', expected a 'BlendedPredictor'"
+    with pytest.raises(CheckpointError, match=re.escape(expected)):
+        BlendedPredictor.load(plain_path)
+    for cls in (Hierarchy, FlatPredictor):
+        expected = f"{blend_path}: holds a 'BlendedPredictor', expected a '{cls.kind}'"
+        with pytest.raises(CheckpointError, match=re.escape(expected)):
+            cls.load(blend_path)
+
+
+def test_blend_with_unsaveable_members_refuses_to_save(tmp_path):
+    from gwr_predictor.checkpoint import CheckpointError
+
+    blend = BlendedPredictor({"hold": HoldLast(H, J)}, BlendParams(horizon=H))
+    with pytest.raises(CheckpointError, match=r"member 'hold' .*cannot be saved"):
+        blend.save(tmp_path / "x.npz")
+    assert not (tmp_path / "x.npz").exists()

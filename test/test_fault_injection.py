@@ -83,7 +83,7 @@ def test_each_node_killed_and_restarted_the_pipeline_recovers_and_keeps_what_it_
     n_status = len(statuses)
     restart("gwr_hierarchy", ("predictions", "learner_status"))
     log = procs["gwr_hierarchy"].output()
-    assert f"loaded {checkpoint}: {saved.frames_seen} frames seen, neurons {saved.neuron_counts}" in log
+    assert f"loaded {checkpoint} (hierarchy): {saved.frames_seen} frames seen, neurons {saved.neuron_counts}" in log
     after = learner_values(statuses[n_status])
     assert int(after["frames"]) >= saved.frames_seen
     assert all(a >= b for a, b in zip(layer_neurons(after), saved.neuron_counts, strict=True)), \
