@@ -343,3 +343,25 @@ def make_blend(kind: str = "hierarchy+rls", params: Any = None, seed: int = 0, h
     if bp.horizon != params.horizon:
         bp = BlendParams(decay=bp.decay, floor=bp.floor, horizon=params.horizon, adapt_frozen=bp.adapt_frozen)
     return BlendedPredictor(members, bp)
+
+
+#: The learner node's and `pretrain`'s `predictor` names -> blend kind (None: the paper's hierarchy).
+PREDICTORS: dict[str, str | None] = {"hierarchy": None, "blend_hierarchy_rls": "hierarchy+rls",
+                                     "blend_flat_rls": "flat+rls"}
+
+
+def make_predictor(name: str, params: Any = None, seed: int = 0) -> Any:
+    """A fresh online predictor by its `PREDICTORS` name: the hierarchy or one of the blends."""
+    from gwr_predictor.hierarchy import Hierarchy
+
+    if name not in PREDICTORS:
+        raise BlendError(f"unknown predictor {name!r}; choose from {', '.join(PREDICTORS)}")
+    kind = PREDICTORS[name]
+    return Hierarchy(params, seed=seed) if kind is None else make_blend(kind, params, seed=seed)
+
+
+def gwr_member(model: Any) -> Any:
+    """The GWR learner inside `model`: the model itself, or the blend's member that has neurons."""
+    if isinstance(model, BlendedPredictor):
+        return next(m for m in model.members.values() if getattr(m, "neuron_counts", None) is not None)
+    return model

@@ -22,8 +22,8 @@ import numpy as np
 
 from gwr_predictor import conventions
 from gwr_predictor.checkpoint import CheckpointError, KindMismatchError
-from gwr_predictor.ensemble import BlendedPredictor, make_blend
-from gwr_predictor.hierarchy import FlatPredictor, Hierarchy
+from gwr_predictor.ensemble import PREDICTORS, BlendedPredictor, gwr_member, make_predictor
+from gwr_predictor.hierarchy import Hierarchy
 from gwr_predictor.nao import ARM_JOINTS
 from gwr_predictor.params import HierarchyParams, hierarchy_parameter_specs
 
@@ -38,9 +38,6 @@ from .node_base import (
     status_qos,
     stream_qos,
 )
-
-#: `predictor` value -> make_blend kind (None: the plain hierarchy)
-PREDICTORS = {"hierarchy": None, "blend_hierarchy_rls": "hierarchy+rls", "blend_flat_rls": "flat+rls"}
 
 PARAMS = (
     Param("predictor", "hierarchy", "model: 'hierarchy' (GWR1 -> GWR2 -> P-GWR, the paper) or an online "
@@ -91,10 +88,7 @@ class GwrHierarchyNode(PipelineNode):
             self.create_timer(p["checkpoint_interval_s"], self.save_checkpoint)
 
     def create(self, params: HierarchyParams) -> Hierarchy | BlendedPredictor:
-        blend = PREDICTORS[self.params["predictor"]]
-        if blend is None:
-            return Hierarchy(params, seed=self.params["seed"])
-        return make_blend(blend, params, seed=self.params["seed"])
+        return make_predictor(self.params["predictor"], params, seed=self.params["seed"])
 
     def load_or_create(self, params: HierarchyParams) -> Hierarchy | BlendedPredictor:
         """The checkpoint's model if there is a readable one, else a fresh one with `params`."""
@@ -204,13 +198,6 @@ class GwrHierarchyNode(PipelineNode):
         if not self.save_checkpoint():
             raise NodeFatalError(f"the final checkpoint could not be written to {self.checkpoint}")
         self.get_logger().info(f"checkpoint saved to {self.checkpoint} (neurons {self.model.neuron_counts})")
-
-
-def gwr_member(model: Hierarchy | BlendedPredictor) -> Hierarchy | FlatPredictor:
-    """The GWR learner: the model itself, or the blend's member with neuron counts (its first)."""
-    if isinstance(model, BlendedPredictor):
-        return next(m for m in model.members.values() if getattr(m, "neuron_counts", None) is not None)
-    return model
 
 
 def main(args: list[str] | None = None) -> int:

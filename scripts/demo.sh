@@ -8,7 +8,8 @@
 #                               uncompensated one (namespace /uncompensated), everything recorded
 #   3. gwr-predictor report     prediction error at 600 ms, robot lags, neurons, counts, plot
 #
-# usage: scripts/demo.sh [--seconds N] [--out DIR] [--epochs N] [--scenario YAML] [--render]
+# usage: scripts/demo.sh [--seconds N] [--out DIR] [--epochs N] [--scenario YAML | --predictor NAME] [--render]
+#   --predictor NAME   hierarchy (default, the paper), blend_hierarchy_rls or blend_flat_rls (beyond the paper)
 set -euo pipefail
 HERE="$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)"
 # shellcheck source=env.sh
@@ -19,15 +20,18 @@ source "$HERE/lib.sh"
 seconds=60
 out=""
 epochs=5
+predictor=""
+scenario=""
 extra=()
 while [ $# -gt 0 ]; do
     case "$1" in
         --seconds) seconds="$2"; shift 2 ;;
         --out) out="$2"; shift 2 ;;
         --epochs) epochs="$2"; shift 2 ;;
-        --scenario) extra+=(--scenario "$2"); shift 2 ;;
+        --scenario) scenario="$2"; shift 2 ;;
+        --predictor) predictor="$2"; shift 2 ;;
         --render) extra+=(--render); shift ;;
-        -h|--help) sed -n '2,12p' "$0"; exit 0 ;;
+        -h|--help) sed -n '2,13p' "$0"; exit 0 ;;
         *) gwr_die "unknown argument $1 (see --help)" ;;
     esac
 done
@@ -35,9 +39,18 @@ out="${out:-$GWR_ROOT/results/demo_$(date +%Y%m%d_%H%M%S)}"
 mkdir -p "$out"
 out="$(cd "$out" && pwd)"
 start=$SECONDS
+if [ -n "$predictor" ]; then
+    # The node and the pretraining must build the same kind of model: one scenario file says which.
+    [ -z "$scenario" ] || gwr_die "--predictor and --scenario cannot be combined (put 'predictor' in the scenario)"
+    scenario="$out/predictor.yaml"
+    printf '/**/gwr_hierarchy:\n  ros__parameters:\n    predictor: %s\n' "$predictor" > "$scenario"
+fi
+[ -z "$scenario" ] || extra+=(--scenario "$scenario")
+pretrain_args=(--params-file "$GWR_ROOT/config/gwr_hierarchy.yaml")
+[ -z "$predictor" ] || pretrain_args+=(--predictor "$predictor")
 
-gwr_log "step 1/3: pretraining the hierarchy offline"
-gwr-predictor pretrain --out "$out/pretrained.npz" --params-file "$GWR_ROOT/config/gwr_hierarchy.yaml" \
+gwr_log "step 1/3: pretraining offline (${predictor:-hierarchy})"
+gwr-predictor pretrain --out "$out/pretrained.npz" "${pretrain_args[@]}" \
     --epochs "$epochs" --repetitions 8 | tee "$out/pretrain.log"
 
 gwr_log "step 2/3: live pipeline for $seconds s (compensated + uncompensated robot)"

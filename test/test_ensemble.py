@@ -282,3 +282,28 @@ def test_blend_with_unsaveable_members_refuses_to_save(tmp_path):
     with pytest.raises(CheckpointError, match=r"member 'hold' .*cannot be saved"):
         blend.save(tmp_path / "x.npz")
     assert not (tmp_path / "x.npz").exists()
+
+
+def test_make_predictor_names_the_hierarchy_and_both_blends():
+    from gwr_predictor.ensemble import PREDICTORS, gwr_member, make_predictor
+    from gwr_predictor.hierarchy import FlatPredictor, Hierarchy
+
+    assert isinstance(make_predictor("hierarchy"), Hierarchy)
+    assert isinstance(gwr_member(make_predictor("blend_hierarchy_rls")), Hierarchy)
+    assert isinstance(gwr_member(make_predictor("blend_flat_rls")), FlatPredictor)
+    assert set(PREDICTORS) == {"hierarchy", "blend_hierarchy_rls", "blend_flat_rls"}
+    with pytest.raises(BlendError, match="unknown predictor 'nope'"):
+        make_predictor("nope")
+
+
+def test_pretrain_writes_a_blend_checkpoint_the_blend_loader_reads(tmp_path):
+    from gwr_predictor.cli import main
+    from gwr_predictor.ensemble import BlendedPredictor
+
+    out = tmp_path / "blend.npz"
+    code = main(["pretrain", "-o", str(out), "--predictor", "blend_flat_rls", "--patterns", "wave_one",
+                 "--subjects", "1", "--repetitions", "2", "--epochs", "1", "--quiet"])
+    assert code == 0
+    model = BlendedPredictor.load(out)
+    assert tuple(model.names) == ("flat", "rls")
+    assert model.neuron_counts[0] > 2  # the P-GWR grew while pretraining

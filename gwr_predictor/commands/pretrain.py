@@ -1,8 +1,9 @@
-"""`gwr-predictor pretrain`: train a hierarchy offline on the demonstrator's training repetitions.
+"""`gwr-predictor pretrain`: train a predictor offline on the demonstrator's training repetitions.
 
 The live pipeline then starts from this checkpoint (gwr_hierarchy's `checkpoint` parameter) and
 keeps learning: pretraining only front-loads what the paper's online training would learn over
-many demonstrations. The learning parameters come from the node's YAML (`--params-file`), so the
+many demonstrations. The learning parameters and the `predictor` (the paper's hierarchy or a blend
+with RLS-AR) come from the node's YAML (`--params-file`) unless `--predictor` is given, so the
 checkpoint and the node agree. Each epoch presents every sequence once, in a shuffled order, with
 a sequence reset between them; the summary line per epoch is neurons and C.P.E. per horizon step.
 """
@@ -20,7 +21,7 @@ import numpy as np
 
 from gwr_predictor.datasets import demo_angle_sequences
 from gwr_predictor.demonstrator import PATTERNS, DemonstratorError
-from gwr_predictor.hierarchy import Hierarchy
+from gwr_predictor.ensemble import PREDICTORS, gwr_member, make_predictor
 from gwr_predictor.params import HierarchyParams, hierarchy_parameter_specs
 
 NODE_NAME = "gwr_hierarchy"
@@ -40,6 +41,9 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--max-seconds", type=float, default=120.0, help="stop after the epoch that exceeds this")
     parser.add_argument("--seed", type=int, default=None, help="model seed (default: the params file's, else 0)")
     parser.add_argument("--data-seed", type=int, default=0, help="demonstrator seed (default 0, as the live source)")
+    parser.add_argument("--predictor", choices=tuple(PREDICTORS), default=None,
+                        help="model to train (default: the params file's 'predictor', else hierarchy); must match "
+                             "the node's 'predictor' parameter")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
 
 
@@ -87,16 +91,22 @@ def run(args: argparse.Namespace) -> int:
     if args.epochs < 1:
         print("error: --epochs must be >= 1", file=sys.stderr)
         return 2
-    model = Hierarchy(params, seed=seed)
+    predictor = args.predictor or str(flat.get("predictor", "hierarchy"))
+    if predictor not in PREDICTORS:
+        print(f"error: predictor {predictor!r} is not one of {', '.join(PREDICTORS)}", file=sys.stderr)
+        return 2
+    model = make_predictor(predictor, params, seed=seed)
+    learner = gwr_member(model)  # neurons and C.P.E. of the GWR learner (the model, or the blend's member)
     rng = np.random.default_rng(seed)
     frames = sum(len(s) for s in seqs)
-    print(f"pretraining on {len(seqs)} sequences ({frames} frames at 10 fps) x {args.epochs} epochs", flush=True)
+    print(f"pretraining a {predictor} on {len(seqs)} sequences ({frames} frames at 10 fps) x {args.epochs} epochs",
+          flush=True)
     start = time.monotonic()
     summary: list[dict[str, Any]] = []
     for epoch in range(1, args.epochs + 1):
-        model.reset_errors()
+        learner.reset_errors()
         _epoch(model, [seqs[i] for i in rng.permutation(len(seqs))], f"epoch {epoch}/{args.epochs}", args.quiet)
-        err = model.errors()
+        err = learner.errors()
         summary.append({"epoch": epoch, "neurons": err["neurons"], "cpe": err["cpe"]})
         cpe = " ".join(f"{v:.4f}" for v in err["cpe"])
         print(f"epoch {epoch}: neurons {err['neurons']}, C.P.E. (MSE rad^2) per step {cpe}", flush=True)
@@ -112,7 +122,7 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-def _epoch(model: Hierarchy, seqs: list[Any], label: str, quiet: bool) -> None:
+def _epoch(model: Any, seqs: list[Any], label: str, quiet: bool) -> None:
     from tqdm import tqdm
 
     with tqdm(total=sum(len(s) for s in seqs), desc=label, unit="frame", disable=quiet, leave=False,
