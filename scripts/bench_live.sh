@@ -39,8 +39,7 @@ while [ $# -gt 0 ]; do
         *) gwr_die "unknown argument $1 (see --help)" ;;
     esac
 done
-out="${out:-$GWR_ROOT/results/bench_live_$(date +%Y%m%d_%H%M%S)}"
-mkdir -p "$out"
+out="$(gwr_run_folder "$out" bench_live)"
 start=$SECONDS
 gwr_log "live benchmark: $seconds s into $out"
 status=0

@@ -35,9 +35,7 @@ while [ $# -gt 0 ]; do
         *) gwr_die "unknown argument $1 (see --help)" ;;
     esac
 done
-out="${out:-$GWR_ROOT/results/demo_$(date +%Y%m%d_%H%M%S)}"
-mkdir -p "$out"
-out="$(cd "$out" && pwd)"
+out="$(gwr_run_folder "$out" demo)"
 start=$SECONDS
 if [ -n "$predictor" ]; then
     # The node and the pretraining must build the same kind of model: one scenario file says which.

@@ -12,6 +12,13 @@ gwr_log() { echo "[gwr_predictor] $*" >&2; }
 
 gwr_die() { gwr_log "error: $*"; exit 1; }
 
+# gwr_run_folder DIR KIND: the absolute path of the run folder DIR (empty: results/KIND_<time>), created.
+gwr_run_folder() {
+    local dir="${1:-$GWR_ROOT/results/${2}_$(date +%Y%m%d_%H%M%S)}"
+    mkdir -p "$dir" || gwr_die "cannot create the run folder $dir"
+    (cd "$dir" && pwd)
+}
+
 # gwr_start NAME LOGDIR COMMAND [ARGS...]: start COMMAND in the background, output in LOGDIR/NAME.log.
 # The child gets its own bootstrap of the ROS wheels (guard variable unset) and the caller's
 # ROS_DOMAIN_ID / ROS_LOG_DIR / discovery range.

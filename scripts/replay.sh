@@ -46,9 +46,7 @@ done
 bag="$(cd "$bag" && pwd)"
 case "$topic" in /skeleton|/arm_angles) ;; *) gwr_die "--topic must be /skeleton or /arm_angles" ;; esac
 [ -z "$checkpoint" ] || [ -f "$checkpoint" ] || gwr_die "--checkpoint $checkpoint not found"
-out="${out:-$GWR_ROOT/results/replay_$(date +%Y%m%d_%H%M%S)}"
-mkdir -p "$out"
-out="$(cd "$out" && pwd)"
+out="$(gwr_run_folder "$out" replay)"
 [ ! -e "$out/bag" ] || gwr_die "$out/bag exists already: choose another --out"
 export ROS_LOG_DIR="$out/ros_log"
 if [ -n "$checkpoint" ]; then cp "$checkpoint" "$out/model.npz"; fi

@@ -44,9 +44,7 @@ done
 [ -d "$params_dir" ] || gwr_die "--params-dir $params_dir is not a folder"
 [ -z "$scenario" ] || [ -f "$scenario" ] || gwr_die "--scenario $scenario not found"
 [ -z "$checkpoint" ] || [ -f "$checkpoint" ] || gwr_die "--checkpoint $checkpoint not found"
-out="${out:-$GWR_ROOT/results/run_$(date +%Y%m%d_%H%M%S)}"
-mkdir -p "$out"
-out="$(cd "$out" && pwd)"
+out="$(gwr_run_folder "$out" run)"
 [ ! -e "$out/bag" ] || gwr_die "$out/bag exists already: choose another --out"
 export ROS_LOG_DIR="$out/ros_log"
 if [ -n "$checkpoint" ]; then
