@@ -365,3 +365,21 @@ def gwr_member(model: Any) -> Any:
     if isinstance(model, BlendedPredictor):
         return next(m for m in model.members.values() if getattr(m, "neuron_counts", None) is not None)
     return model
+
+
+def load_predictor(name: str, path: str | os.PathLike[str]) -> Any:
+    """The predictor `name` saved at `path`; KindMismatchError if the file holds another kind or blend."""
+    from gwr_predictor.checkpoint import KindMismatchError
+    from gwr_predictor.hierarchy import Hierarchy
+
+    if name not in PREDICTORS:
+        raise BlendError(f"unknown predictor {name!r}; choose from {', '.join(PREDICTORS)}")
+    kind = PREDICTORS[name]
+    if kind is None:
+        return Hierarchy.load(path)
+    model = BlendedPredictor.load(path)
+    expected = tuple(kind.split("+"))
+    if tuple(model.names) != expected:
+        raise KindMismatchError(f"{path}: holds a blend of {list(model.names)}, expected one of {list(expected)}",
+                                model.names, name)
+    return model

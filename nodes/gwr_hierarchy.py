@@ -22,7 +22,7 @@ import numpy as np
 
 from gwr_predictor import conventions
 from gwr_predictor.checkpoint import CheckpointError, KindMismatchError
-from gwr_predictor.ensemble import PREDICTORS, BlendedPredictor, gwr_member, make_predictor
+from gwr_predictor.ensemble import PREDICTORS, BlendedPredictor, gwr_member, load_predictor, make_predictor
 from gwr_predictor.hierarchy import Hierarchy
 from gwr_predictor.nao import ARM_JOINTS
 from gwr_predictor.params import HierarchyParams, hierarchy_parameter_specs
@@ -95,12 +95,8 @@ class GwrHierarchyNode(PipelineNode):
         path = self.checkpoint
         if path is None or not path.exists():
             return self.create(params)
-        cls = Hierarchy if PREDICTORS[self.params["predictor"]] is None else BlendedPredictor
         try:
-            model = cls.load(path)
-            if isinstance(model, BlendedPredictor) and tuple(model.names) != tuple(self.create_names()):
-                raise KindMismatchError(f"{path}: holds a blend of {list(model.names)}, expected one of "
-                                        f"{list(self.create_names())}", model.names, self.params["predictor"])
+            model = load_predictor(self.params["predictor"], path)
         except KindMismatchError as exc:
             raise NodeFatalError(f"checkpoint {path} does not fit parameter predictor="
                                  f"{self.params['predictor']!r} ({exc}); set 'predictor' to match it or use "
@@ -115,18 +111,15 @@ class GwrHierarchyNode(PipelineNode):
             self.get_logger().error(f"unreadable checkpoint moved to {aside}; starting a fresh model: {exc}")
             self.counters.count("checkpoint.corrupt_moved_aside")
             return self.create(params)
-        saved = gwr_member(model).params.to_flat()
+        learner = gwr_member(model)
+        saved = learner.params.to_flat()
         differ = {k: (v, saved[k]) for k, v in params.to_flat().items() if saved[k] != v}
         if differ:
             self.get_logger().warning("the checkpoint's learning parameters are used, not these node parameters: "
                                       + ", ".join(f"{k}={a} (checkpoint {b})" for k, (a, b) in differ.items()))
-        self.get_logger().info(f"loaded {path} ({self.params['predictor']}): {gwr_member(model).frames_seen} "
+        self.get_logger().info(f"loaded {path} ({self.params['predictor']}): {learner.frames_seen} "
                                f"frames seen, neurons {model.neuron_counts}")
         return model
-
-    def create_names(self) -> tuple[str, ...]:
-        """Member names of the blend `predictor` asks for."""
-        return tuple(PREDICTORS[self.params["predictor"]].split("+"))
 
     def on_angles(self, msg: messages.JointState) -> None:
         """One frame: bridge a short gap with missing samples or end the sequence, learn, predict, publish."""

@@ -307,3 +307,17 @@ def test_pretrain_writes_a_blend_checkpoint_the_blend_loader_reads(tmp_path):
     model = BlendedPredictor.load(out)
     assert tuple(model.names) == ("flat", "rls")
     assert model.neuron_counts[0] > 2  # the P-GWR grew while pretraining
+
+
+def test_load_predictor_refuses_a_blend_of_other_members(tmp_path):
+    from gwr_predictor.checkpoint import KindMismatchError
+    from gwr_predictor.ensemble import load_predictor, make_predictor
+
+    path = tmp_path / "flat.npz"
+    make_predictor("blend_flat_rls").save(path)
+    assert tuple(load_predictor("blend_flat_rls", path).names) == ("flat", "rls")
+    with pytest.raises(KindMismatchError, match=r"holds a blend of \['flat', 'rls'\], expected one of "
+                                                r"\['hierarchy', 'rls'\]"):
+        load_predictor("blend_hierarchy_rls", path)
+    with pytest.raises(KindMismatchError, match="expected a 'Hierarchy'"):
+        load_predictor("hierarchy", path)
