@@ -3,7 +3,7 @@
 import os
 from glob import glob
 
-from setuptools import setup
+from setuptools import find_packages, setup
 
 PACKAGE = "gwr_predictor"
 
@@ -19,7 +19,6 @@ NODES = [
 ]
 
 
-
 def tree_data_files(root: str, dest: str) -> list[tuple[str, list[str]]]:
     """data_files entries for every file below `root`, keeping the folder structure."""
     entries = []
@@ -33,13 +32,14 @@ def tree_data_files(root: str, dest: str) -> list[tuple[str, list[str]]]:
 setup(
     name=PACKAGE,
     version="0.1.0",
-    packages=[PACKAGE, f"{PACKAGE}.nodes"],
+    packages=[*find_packages(include=[PACKAGE, f"{PACKAGE}.*"]), f"{PACKAGE}.nodes"],
     package_dir={f"{PACKAGE}.nodes": "nodes"},
-    package_data={PACKAGE: ["data/*.urdf"]},
+    package_data={f"{PACKAGE}.robot": ["*.urdf"]},
     data_files=[
         ("share/ament_index/resource_index/packages", [f"resource/{PACKAGE}"]),
         (f"share/{PACKAGE}", ["package.xml"]),
         (f"share/{PACKAGE}/config", glob("config/*.yaml")),
+        (f"share/{PACKAGE}/urdf", ["gwr_predictor/robot/nao.urdf"]),
     ]
     + tree_data_files("bags", f"share/{PACKAGE}/bags"),
     install_requires=["setuptools", "numpy"],
@@ -51,6 +51,6 @@ setup(
     tests_require=["pytest"],
     entry_points={
         "console_scripts": [f"{name} = {PACKAGE}.nodes.{name}:main" for name in NODES]
-        + [f"gwr-predictor = {PACKAGE}.cli:main"],
+        + [f"gwr-predictor = {PACKAGE}.commands.cli:main"],
     },
 )

@@ -1,9 +1,35 @@
 """gwr_predictor: online sensorimotor prediction with a hierarchy of Growing When Required networks.
 
-The library is pure Python + numpy (no rclpy). It reads top-down like the paper:
-gwr -> predictive_gwr -> hierarchy for learning; demonstrator -> skeleton_io -> smoothing ->
-angles -> nao (kinematics) for data; nao_sim and compensator for the robot side; bags and
-experiments on top. ROS nodes live in `gwr_predictor.nodes` and only convert messages.
+The library is pure Python + numpy (no rclpy), one subpackage per concern, in the order data flows:
+
+- `data`: demonstrator, skeleton files, median of 3, the 8 Nao arm angles;
+- `learning`: the paper's GWR -> Predictive GWR -> hierarchy, parameters, checkpoints;
+- `predictors`: baselines and blends with the same `step` protocol;
+- `evaluation`: the online evaluation loop, metrics and the paper's experiments;
+- `robot`: Nao kinematics/URDF, PyBullet simulator, delayed arm, delay compensator;
+- `pipeline`: message conventions, MCAP bags, run reports and latency (ROS-free);
+- `commands`: the `gwr-predictor` command line over all of the above.
+
+ROS nodes live in `gwr_predictor.nodes` and only convert messages.
 """
 
+from gwr_predictor._exports import lazy_exports
+
 __version__ = "0.1.0"
+
+_EXPORTS = {
+    "Hierarchy": "learning.hierarchy",
+    "HierarchyParams": "learning.params",
+    "GWRParams": "learning.params",
+    "GWR": "learning.gwr",
+    "PredictiveGWR": "learning.predictive_gwr",
+    "HoldLast": "predictors.baselines",
+    "make_predictor": "predictors.blend",
+    "load_predictor": "predictors.blend",
+    "compare_online": "evaluation.online",
+    "skeleton_to_angles": "data.angles",
+    "load_skeleton": "data.skeleton_files",
+    "ARM_JOINTS": "robot.nao",
+}
+__all__ = ["__version__", *sorted(_EXPORTS)]
+__getattr__, __dir__ = lazy_exports(__name__, _EXPORTS)

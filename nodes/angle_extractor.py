@@ -1,8 +1,8 @@
 """angle_extractor: skeletons (30 fps) -> median of 3 -> the 8 Nao arm angles (10 fps) as JointState.
 
 The paper's vision module: every 3 skeleton frames are smoothed into one by their median
-(`gwr_predictor.smoothing.MedianOf3`), then mapped to the Nao's arm joints
-(`gwr_predictor.angles.skeleton_to_angles`). The JointState is stamped with the smoothed frame's
+(`gwr_predictor.data.smoothing.MedianOf3`), then mapped to the Nao's arm joints
+(`gwr_predictor.data.angles.skeleton_to_angles`). The JointState is stamped with the smoothed frame's
 stamp (its middle frame), so downstream timing refers to when the person was in that pose.
 """
 
@@ -10,12 +10,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from gwr_predictor import conventions
-from gwr_predictor.angles import skeleton_to_angles
-from gwr_predictor.conventions import SKELETON_JOINTS, LayoutError
-from gwr_predictor.nao import ARM_JOINTS, clip_to_limits
-from gwr_predictor.skeleton_io import MAX_PLAUSIBLE_METRES
-from gwr_predictor.smoothing import MedianOf3
+from gwr_predictor.data.angles import skeleton_to_angles
+from gwr_predictor.data.skeleton_files import MAX_PLAUSIBLE_METRES
+from gwr_predictor.data.smoothing import MedianOf3
+from gwr_predictor.pipeline import conventions
+from gwr_predictor.pipeline.conventions import SKELETON_JOINTS, LayoutError
+from gwr_predictor.robot.nao import ARM_JOINTS, clip_to_limits
 
 from . import messages
 from .node_base import Param, PipelineNode, run_node, stream_qos

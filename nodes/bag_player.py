@@ -17,7 +17,7 @@ from typing import Any
 import numpy as np
 from rclpy.duration import Duration
 
-from gwr_predictor import bags
+from gwr_predictor.pipeline import bags
 
 from . import messages
 from .node_base import NodeFatalError, Param, ParameterError, PipelineNode, run_node, stream_qos

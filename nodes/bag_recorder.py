@@ -1,7 +1,7 @@
 """bag_recorder: records pipeline topics as received (raw CDR) into a rosbag2 MCAP bag.
 
 No rosbag2_py on PyPI, so recording is the package's own job: raw subscriptions hand over the CDR
-bytes from the wire, which `gwr_predictor.bags.BagWriter` stores unchanged. The bag is flushed
+bytes from the wire, which `gwr_predictor.pipeline.bags.BagWriter` stores unchanged. The bag is flushed
 periodically (a crash loses at most one flush period; `bags.recover_bag` repairs it) and closed
 properly on Ctrl-C and SIGTERM. An unwritable path or a full disk stops the node with exit code 1.
 """
@@ -12,7 +12,7 @@ import time
 from collections.abc import Callable
 from pathlib import Path
 
-from gwr_predictor import bags, conventions
+from gwr_predictor.pipeline import bags, conventions
 
 from . import messages
 from .node_base import NodeFatalError, Param, ParameterError, PipelineNode, run_node, stream_qos
@@ -103,7 +103,7 @@ class BagRecorderNode(PipelineNode):
         if self.failure is not None:
             raise NodeFatalError(f"bag {self.writer.path} is INCOMPLETE ({self.failure}); {self.on_disk} messages "
                                  "were flushed before the failure: recover them with "
-                                 f"gwr_predictor.bags.recover_bag({str(self.writer.path)!r})")
+                                 f"gwr_predictor.pipeline.bags.recover_bag({str(self.writer.path)!r})")
         try:
             self.writer.close()
         except bags.BagError as exc:

@@ -2,7 +2,7 @@
 
 Subscribes to the observed angles, the predictions and the robot's reported joint states; on every
 prediction (and on an observation when no usable prediction exists) asks
-`gwr_predictor.compensator.DelayCompensator` which pose to execute and publishes it as a
+`gwr_predictor.robot.compensator.DelayCompensator` which pose to execute and publishes it as a
 JointState on `joint_commands`. Mode "none" forwards each observation (the uncompensated baseline).
 """
 
@@ -10,9 +10,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from gwr_predictor import compensator, conventions
-from gwr_predictor.conventions import LayoutError
-from gwr_predictor.nao import ARM_JOINTS
+from gwr_predictor.pipeline import conventions
+from gwr_predictor.pipeline.conventions import LayoutError
+from gwr_predictor.robot import compensator
+from gwr_predictor.robot.nao import ARM_JOINTS
 
 from . import messages
 from .node_base import ArmAnglesGate, Param, PipelineNode, run_node, stream_qos

@@ -20,12 +20,12 @@ from pathlib import Path
 
 import numpy as np
 
-from gwr_predictor import conventions
-from gwr_predictor.checkpoint import CheckpointError, KindMismatchError
-from gwr_predictor.ensemble import PREDICTORS, BlendedPredictor, gwr_member, load_predictor, make_predictor
-from gwr_predictor.hierarchy import Hierarchy
-from gwr_predictor.nao import ARM_JOINTS
-from gwr_predictor.params import HierarchyParams, hierarchy_parameter_specs
+from gwr_predictor.learning.checkpoint import CheckpointError, KindMismatchError
+from gwr_predictor.learning.hierarchy import Hierarchy
+from gwr_predictor.learning.params import HierarchyParams, hierarchy_parameter_specs
+from gwr_predictor.pipeline import conventions
+from gwr_predictor.predictors.blend import PREDICTORS, BlendedPredictor, gwr_member, load_predictor, make_predictor
+from gwr_predictor.robot.nao import ARM_JOINTS
 
 from . import messages
 from .node_base import (

@@ -1,7 +1,7 @@
 """The only place that builds or reads ROS messages: msg <-> conventions / numpy.
 
 Nodes convert a message here, hand plain numpy to the library and convert the answer back, so
-the layouts defined in `gwr_predictor.conventions` are applied in exactly one spot.
+the layouts defined in `gwr_predictor.pipeline.conventions` are applied in exactly one spot.
 """
 
 from __future__ import annotations
@@ -16,8 +16,8 @@ from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray, MultiArrayDimension
 
-from gwr_predictor import conventions
-from gwr_predictor.conventions import ArrayDim, LayoutError, PackedArray
+from gwr_predictor.pipeline import conventions
+from gwr_predictor.pipeline.conventions import ArrayDim, LayoutError, PackedArray
 
 # --- time ------------------------------------------------------------------------------------
 

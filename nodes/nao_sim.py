@@ -1,6 +1,6 @@
 """nao_sim: a simulated Nao whose arms execute commands after a transport delay and a motor latency.
 
-The robot is `gwr_predictor.robot.SimulatedRobot` (PyBullet by default, DIRECT mode, or the
+The robot is `gwr_predictor.robot.delayed_arm.SimulatedRobot` (PyBullet by default, DIRECT mode, or the
 kinematic model): commands reach its motors `delay_s` later (the paper's 600 ms of sensing and
 transport) plus `latency_s` of motor response. A timer advances it to the node clock in control
 periods (the physics runs at 240 Hz inside) and publishes what the robot reports on `joint_states`.
@@ -12,9 +12,9 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
-from gwr_predictor import conventions
-from gwr_predictor.nao import ARM_JOINTS
-from gwr_predictor.robot import RobotError, SimulatedRobot
+from gwr_predictor.pipeline import conventions
+from gwr_predictor.robot.delayed_arm import RobotError, SimulatedRobot
+from gwr_predictor.robot.nao import ARM_JOINTS
 
 from . import messages
 from .node_base import ArmAnglesGate, NodeFatalError, Param, ParameterError, PipelineNode, run_node, stream_qos
@@ -45,7 +45,7 @@ class NaoSimNode(PipelineNode):
             raise ParameterError("parameter 'render_dir' needs backend 'pybullet'")
         self.sim = None
         if p["backend"] == "pybullet":
-            from gwr_predictor.nao_sim import NaoSimulator, SimulatorError
+            from gwr_predictor.robot.pybullet_nao import NaoSimulator, SimulatorError
 
             try:
                 self.sim = NaoSimulator(gui=p["gui"], time_step=min(p["control_period_s"], 1.0 / 240.0))
@@ -96,7 +96,7 @@ class NaoSimNode(PipelineNode):
         self.counters.count("states.published")
 
     def render(self) -> None:
-        from gwr_predictor.nao_sim import save_png
+        from gwr_predictor.robot.pybullet_nao import save_png
 
         index = self.counters.get("frames.rendered")
         path = self.render_dir / f"nao_{index:05d}.png"

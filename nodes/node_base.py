@@ -30,9 +30,9 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPo
 from rclpy.signals import SignalHandlerOptions
 from rclpy.task import Future
 
-from gwr_predictor import conventions
-from gwr_predictor.conventions import LayoutError
-from gwr_predictor.nao import ARM_JOINTS, limits_array
+from gwr_predictor.pipeline import conventions
+from gwr_predictor.pipeline.conventions import LayoutError
+from gwr_predictor.robot.nao import ARM_JOINTS, limits_array
 
 from . import messages
 
@@ -154,7 +154,7 @@ def declare_parameters(node: Node, specs: Iterable[Any]) -> dict[str, Any]:
     """Declare every spec (read-only, described) and return {name: validated value}.
 
     Specs are `Param`s or any object with name/default/description/minimum/maximum
-    (e.g. `gwr_predictor.params.ParamSpec`).
+    (e.g. `gwr_predictor.learning.params.ParamSpec`).
     """
     values: dict[str, Any] = {}
     for spec in specs:
@@ -260,7 +260,7 @@ class PipelineNode(Node):
 
     def publish_final_diagnostics(self, timeout_s: float = 1.0) -> None:
         """The counters once more as the node stops, so that a recording holds each node's final
-        counts (what `gwr_predictor.latency` compares with the messages recorded); waits until the
+        counts (what `gwr_predictor.pipeline.message_latency` compares with the messages recorded); waits until the
         reliable subscribers acknowledged them."""
         self.publish_diagnostics()
         self._diag_pub.wait_for_all_acked(Duration(seconds=timeout_s))

@@ -13,8 +13,9 @@ from collections.abc import Iterator
 
 import numpy as np
 
-from gwr_predictor import conventions, demonstrator, faults
-from gwr_predictor.skeleton_io import SkeletonFileError, SkeletonSequence, load_skeleton
+from gwr_predictor.data import demonstrator, faults
+from gwr_predictor.data.skeleton_files import SkeletonFileError, SkeletonSequence, load_skeleton
+from gwr_predictor.pipeline import conventions
 
 from . import messages
 from .node_base import NodeFatalError, Param, ParameterError, PipelineNode, run_node, stream_qos

@@ -39,14 +39,25 @@ _domain_counter = itertools.count()
 _used_domains: set[int] = set()
 
 
+def _domain_range() -> tuple[int, int]:
+    """Domain ids this run may use: `GWR_TEST_DOMAINS=LO-HI` (parallel checkouts), else 20..99."""
+    text = os.environ.get("GWR_TEST_DOMAINS", "20-99")
+    lo, hi = (int(v) for v in text.split("-"))
+    if not 0 <= lo <= hi <= 101:
+        raise ValueError(f"GWR_TEST_DOMAINS={text!r}: expected LO-HI within 0..101")
+    return lo, hi
+
+
 def allocate_domain_id() -> int:
-    """A domain id in 20..99 not used before in this pytest run (spread over runs by the pid)."""
-    for _ in range(80):
-        domain = (os.getpid() * 7 + next(_domain_counter)) % 80 + 20
+    """A domain id not used before in this pytest run (spread over runs by the pid)."""
+    lo, hi = _domain_range()
+    size = hi - lo + 1
+    for _ in range(size):
+        domain = (os.getpid() * 7 + next(_domain_counter)) % size + lo
         if domain not in _used_domains:
             _used_domains.add(domain)
             return domain
-    raise RuntimeError("all ROS domain ids 20..99 used in this run")
+    raise RuntimeError(f"all ROS domain ids {lo}..{hi} used in this run")
 
 
 def ros_env(domain_id: int, log_dir: Path, extra: dict[str, str] | None = None) -> dict[str, str]:

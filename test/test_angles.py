@@ -6,7 +6,9 @@ import argparse
 import numpy as np
 import pytest
 
-from gwr_predictor.angles import (
+from gwr_predictor.commands import angles as angles_cmd
+from gwr_predictor.data.angle_files import AngleFileError, load_angles_csv, save_angles_csv
+from gwr_predictor.data.angles import (
     PITCH_SINGULAR_WIDTH,
     AngleExtractionError,
     arm_angles,
@@ -14,11 +16,12 @@ from gwr_predictor.angles import (
     skeleton_to_angles,
     torso_frame,
 )
-from gwr_predictor.angles_io import AngleFileError, load_angles_csv, save_angles_csv
-from gwr_predictor.commands import angles as angles_cmd
-from gwr_predictor.conventions import SKELETON_JOINTS
-from gwr_predictor.demonstrator import PATTERNS, default_subjects, demonstrate, demonstrate_one
-from gwr_predictor.nao import (
+from gwr_predictor.data.demonstrator import PATTERNS, default_subjects, demonstrate, demonstrate_one
+from gwr_predictor.data.skeleton_files import save_skeleton
+from gwr_predictor.data.smoothing import median_of_3
+from gwr_predictor.pipeline.conventions import SKELETON_JOINTS
+from gwr_predictor.pipeline.plotting import PlotError, plot_angle_series
+from gwr_predictor.robot.nao import (
     ARM_JOINTS,
     ELBOW_OFFSET,
     HAND_OFFSET,
@@ -28,9 +31,6 @@ from gwr_predictor.nao import (
     rot_y,
     rot_z,
 )
-from gwr_predictor.plotting import PlotError, plot_angle_series
-from gwr_predictor.skeleton_io import save_skeleton
-from gwr_predictor.smoothing import median_of_3
 
 J = {name: i for i, name in enumerate(SKELETON_JOINTS)}
 BODY_TO_CAMERA = np.array([[0.0, -1.0, 0.0], [0.0, 0.0, 1.0], [-1.0, 0.0, 0.0]])

@@ -10,12 +10,12 @@ import numpy as np
 import pytest
 from test_node_bad_input import FAST, POSE, Stamps, joint_state, ros_now, skeleton, wait_counters
 
-from gwr_predictor.angles import skeleton_to_angles
-from gwr_predictor.conventions import SKELETON_JOINTS
-from gwr_predictor.demonstrator import default_subjects, demonstrate_one
-from gwr_predictor.nao import ARM_JOINTS, clip_to_limits
+from gwr_predictor.data.angles import skeleton_to_angles
+from gwr_predictor.data.demonstrator import default_subjects, demonstrate_one
 from gwr_predictor.nodes import messages
 from gwr_predictor.nodes.messages import Float64MultiArray, JointState
+from gwr_predictor.pipeline.conventions import SKELETON_JOINTS
+from gwr_predictor.robot.nao import ARM_JOINTS, clip_to_limits
 
 OVER_LIMIT = POSE + np.where(np.arange(8) == 0, 3.0, 0.0)  # far beyond LShoulderPitch's limit
 NEAR_LIMIT = POSE + np.where(np.arange(8) == 0, 0.9, 0.0)  # 1.2 + 0.9 = 2.1 rad: within 0.2 rad, clipped

@@ -12,15 +12,15 @@ from mcap.reader import make_reader
 from mcap_ros2.decoder import DecoderFactory
 from rosbags.rosbag2 import Reader
 
-from gwr_predictor import bags
-from gwr_predictor.conventions import (
+from gwr_predictor.pipeline import bags
+from gwr_predictor.pipeline.conventions import (
     TOPIC_ANGLES,
     TOPIC_PREDICTIONS,
     TOPIC_TYPES,
     pack_predictions,
     unpack_predictions,
 )
-from gwr_predictor.nao import ARM_JOINTS
+from gwr_predictor.robot.nao import ARM_JOINTS
 
 TOPICS = {TOPIC_ANGLES: TOPIC_TYPES[TOPIC_ANGLES], TOPIC_PREDICTIONS: TOPIC_TYPES[TOPIC_PREDICTIONS]}
 T0 = 1_700_000_000_000_000_000
@@ -150,8 +150,8 @@ def test_reading_something_that_is_not_a_bag_names_it(tmp_path):
 CRASHING_RECORDER = textwrap.dedent("""
     import os, sys
     import numpy as np
-    from gwr_predictor import bags
-    from gwr_predictor.nao import ARM_JOINTS
+    from gwr_predictor.pipeline import bags
+    from gwr_predictor.robot.nao import ARM_JOINTS
     writer = bags.BagWriter(sys.argv[1], {"arm_angles": bags.JOINT_STATE}, flush_every=int(sys.argv[2]))
     writer.open()
     for k in range(int(sys.argv[3])):

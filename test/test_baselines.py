@@ -3,7 +3,8 @@
 import numpy as np
 import pytest
 
-from gwr_predictor.baselines import (
+from gwr_predictor.evaluation.online import compare_online
+from gwr_predictor.predictors.baselines import (
     BaselineError,
     ConstantVelocity,
     HoldLast,
@@ -11,7 +12,6 @@ from gwr_predictor.baselines import (
     RLSParams,
     make_baselines,
 )
-from gwr_predictor.evaluation import compare_online
 
 
 def _ramp(n=30, joints=8):

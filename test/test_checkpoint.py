@@ -6,10 +6,10 @@ import os
 import numpy as np
 import pytest
 
-from gwr_predictor import checkpoint
-from gwr_predictor.checkpoint import FORMAT_VERSION, MAGIC, CheckpointError, read_checkpoint, write_checkpoint
-from gwr_predictor.hierarchy import FlatPredictor, Hierarchy
-from gwr_predictor.params import HierarchyParams
+from gwr_predictor.learning import checkpoint
+from gwr_predictor.learning.checkpoint import FORMAT_VERSION, MAGIC, CheckpointError, read_checkpoint, write_checkpoint
+from gwr_predictor.learning.hierarchy import FlatPredictor, Hierarchy
+from gwr_predictor.learning.params import HierarchyParams
 
 
 def movement(n: int, offset: int = 0) -> np.ndarray:

@@ -3,10 +3,10 @@
 import numpy as np
 import pytest
 
-from gwr_predictor.closed_loop import run_closed_loop
-from gwr_predictor.lag import LagError, estimate_lag, shift_mse, tracking_error
-from gwr_predictor.nao import limits_array
-from gwr_predictor.robot import RobotError, RobotParams
+from gwr_predictor.robot.closed_loop import run_closed_loop
+from gwr_predictor.robot.delayed_arm import RobotError, RobotParams
+from gwr_predictor.robot.nao import limits_array
+from gwr_predictor.robot.tracking import LagError, estimate_lag, shift_mse, tracking_error
 
 LATENCY = 0.035
 

@@ -3,8 +3,8 @@
 import numpy as np
 import pytest
 
-from gwr_predictor import nao
-from gwr_predictor.compensator import (
+from gwr_predictor.robot import nao
+from gwr_predictor.robot.compensator import (
     NO_PREDICTIONS,
     NO_ROBOT_STATE,
     STALE_PREDICTIONS,

@@ -6,10 +6,9 @@ import dataclasses
 import numpy as np
 import pytest
 
-from gwr_predictor.angles import skeleton_to_angles, torso_frame
-from gwr_predictor.conventions import SKELETON_JOINTS
-from gwr_predictor.datasets import AngleSequence, demo_angle_sequences
-from gwr_predictor.demonstrator import (
+from gwr_predictor.data.angles import skeleton_to_angles, torso_frame
+from gwr_predictor.data.datasets import AngleSequence, demo_angle_sequences
+from gwr_predictor.data.demonstrator import (
     HUMAN_RANGES,
     PATTERNS,
     DemonstratorError,
@@ -20,8 +19,9 @@ from gwr_predictor.demonstrator import (
     demonstrate_one,
     duration,
 )
-from gwr_predictor.nao import ARM_JOINTS, VELOCITY_LIMITS
-from gwr_predictor.smoothing import median_of_3
+from gwr_predictor.data.smoothing import median_of_3
+from gwr_predictor.pipeline.conventions import SKELETON_JOINTS
+from gwr_predictor.robot.nao import ARM_JOINTS, VELOCITY_LIMITS
 
 J = {name: i for i, name in enumerate(SKELETON_JOINTS)}
 SUBJECTS = default_subjects(3)

@@ -8,9 +8,9 @@ import re
 import numpy as np
 import pytest
 
-from gwr_predictor.baselines import HoldLast
-from gwr_predictor.ensemble import BlendedPredictor, BlendError, BlendParams, make_blend
-from gwr_predictor.evaluation import Predictor, compare_online, train_online
+from gwr_predictor.evaluation.online import Predictor, compare_online, train_online
+from gwr_predictor.predictors.baselines import HoldLast
+from gwr_predictor.predictors.blend import BlendedPredictor, BlendError, BlendParams, make_blend
 
 H, J = 4, 3
 
@@ -191,7 +191,7 @@ def test_frozen_scoring_is_optional_and_predict_needs_members_with_predict():
 def test_make_blend_on_demonstrator_subset():
     """Trained on the first sequences, the blend's 6-step MSE on the last ones (still learning) is no
     worse than the worse member's and close to or below the better member's."""
-    from gwr_predictor.datasets import demo_angle_sequences
+    from gwr_predictor.data.datasets import demo_angle_sequences
 
     seqs = demo_angle_sequences(patterns=("wave_one", "raise_front_both", "rotate_cw_one"), subjects=2,
                                 repetitions=3)
@@ -260,8 +260,8 @@ def test_fresh_blend_round_trips_before_any_frame(tmp_path):
 
 
 def test_checkpoint_kind_mismatch_names_the_file_and_the_kind(tmp_path):
-    from gwr_predictor.checkpoint import CheckpointError
-    from gwr_predictor.hierarchy import FlatPredictor, Hierarchy
+    from gwr_predictor.learning.checkpoint import CheckpointError
+    from gwr_predictor.learning.hierarchy import FlatPredictor, Hierarchy
 
     blend_path, plain_path = tmp_path / "blend.npz", tmp_path / "plain.npz"
     make_blend("hierarchy+rls").save(blend_path)
@@ -276,7 +276,7 @@ def test_checkpoint_kind_mismatch_names_the_file_and_the_kind(tmp_path):
 
 
 def test_blend_with_unsaveable_members_refuses_to_save(tmp_path):
-    from gwr_predictor.checkpoint import CheckpointError
+    from gwr_predictor.learning.checkpoint import CheckpointError
 
     blend = BlendedPredictor({"hold": HoldLast(H, J)}, BlendParams(horizon=H))
     with pytest.raises(CheckpointError, match=r"member 'hold' .*cannot be saved"):
@@ -285,8 +285,8 @@ def test_blend_with_unsaveable_members_refuses_to_save(tmp_path):
 
 
 def test_make_predictor_names_the_hierarchy_and_both_blends():
-    from gwr_predictor.ensemble import PREDICTORS, gwr_member, make_predictor
-    from gwr_predictor.hierarchy import FlatPredictor, Hierarchy
+    from gwr_predictor.learning.hierarchy import FlatPredictor, Hierarchy
+    from gwr_predictor.predictors.blend import PREDICTORS, gwr_member, make_predictor
 
     assert isinstance(make_predictor("hierarchy"), Hierarchy)
     assert isinstance(gwr_member(make_predictor("blend_hierarchy_rls")), Hierarchy)
@@ -297,8 +297,8 @@ def test_make_predictor_names_the_hierarchy_and_both_blends():
 
 
 def test_pretrain_writes_a_blend_checkpoint_the_blend_loader_reads(tmp_path):
-    from gwr_predictor.cli import main
-    from gwr_predictor.ensemble import BlendedPredictor
+    from gwr_predictor.commands.cli import main
+    from gwr_predictor.predictors.blend import BlendedPredictor
 
     out = tmp_path / "blend.npz"
     code = main(["pretrain", "-o", str(out), "--predictor", "blend_flat_rls", "--patterns", "wave_one",
@@ -310,8 +310,8 @@ def test_pretrain_writes_a_blend_checkpoint_the_blend_loader_reads(tmp_path):
 
 
 def test_load_predictor_refuses_a_blend_of_other_members(tmp_path):
-    from gwr_predictor.checkpoint import KindMismatchError
-    from gwr_predictor.ensemble import load_predictor, make_predictor
+    from gwr_predictor.learning.checkpoint import KindMismatchError
+    from gwr_predictor.predictors.blend import load_predictor, make_predictor
 
     path = tmp_path / "flat.npz"
     make_predictor("blend_flat_rls").save(path)

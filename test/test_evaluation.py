@@ -3,14 +3,14 @@
 import numpy as np
 import pytest
 
-from gwr_predictor.baselines import ConstantVelocity, HoldLast
-from gwr_predictor.evaluation import (
+from gwr_predictor.evaluation.online import (
     EvaluationError,
     Predictor,
     compare_online,
     evaluate_online,
     train_online,
 )
+from gwr_predictor.predictors.baselines import ConstantVelocity, HoldLast
 
 
 def _ramp(n=20, slope=0.1):

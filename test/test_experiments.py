@@ -8,10 +8,10 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from gwr_predictor.cli import main
-from gwr_predictor.experiments import EXPERIMENTS, UnknownExperiment, load
-from gwr_predictor.experiments.report import ReportError, markdown_table, to_jsonable
-from gwr_predictor.experiments.splits import SplitError, key, make_splits
+from gwr_predictor.commands.cli import main
+from gwr_predictor.evaluation.experiments import EXPERIMENTS, UnknownExperiment, load
+from gwr_predictor.evaluation.experiments.output import ReportError, markdown_table, to_jsonable
+from gwr_predictor.evaluation.experiments.splits import SplitError, key, make_splits
 
 
 def _seqs(patterns=("a", "b"), subjects=("s1", "s2", "s3"), reps=4):
@@ -147,8 +147,8 @@ def test_experiment_scale(tmp_path):
 
 
 def test_evaluate_prints_a_json_last_line(tmp_path, capsys):
-    from gwr_predictor.angles_io import save_angles_csv
-    from gwr_predictor.datasets import demo_angle_sequences
+    from gwr_predictor.data.angle_files import save_angles_csv
+    from gwr_predictor.data.datasets import demo_angle_sequences
 
     files = []
     for s in demo_angle_sequences(["wave_one"], 1, 2):

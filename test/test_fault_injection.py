@@ -9,11 +9,11 @@ import signal
 import numpy as np
 import pytest
 
-from gwr_predictor import bags
-from gwr_predictor.conventions import NEURON_KEYS
-from gwr_predictor.hierarchy import Hierarchy
+from gwr_predictor.learning.hierarchy import Hierarchy
 from gwr_predictor.nodes import messages
 from gwr_predictor.nodes.messages import DiagnosticArray, Float64MultiArray, JointState
+from gwr_predictor.pipeline import bags
+from gwr_predictor.pipeline.conventions import NEURON_KEYS
 
 FAST = {"diagnostics_period_s": 0.5}
 CHECKPOINT_INTERVAL_S = 2.0

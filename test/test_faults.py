@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from gwr_predictor.faults import CHUNK_FRAMES, FaultParameterError, drop_chunks, joint_dropouts
+from gwr_predictor.data.faults import CHUNK_FRAMES, FaultParameterError, drop_chunks, joint_dropouts
 
 
 def _runs(removed: np.ndarray) -> list[int]:

@@ -5,9 +5,9 @@ import math
 import numpy as np
 import pytest
 
-from gwr_predictor.gwr import GWR, InputError
-from gwr_predictor.loop_gwr import LoopGWR
-from gwr_predictor.params import GWRParams
+from gwr_predictor.commands.loop_gwr import LoopGWR
+from gwr_predictor.learning.gwr import GWR, InputError
+from gwr_predictor.learning.params import GWRParams
 
 P = GWRParams()
 

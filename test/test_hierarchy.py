@@ -6,10 +6,10 @@ import math
 import numpy as np
 import pytest
 
-from gwr_predictor import cli
-from gwr_predictor.gwr import InputError
-from gwr_predictor.hierarchy import ErrorTracker, FlatPredictor, Hierarchy
-from gwr_predictor.params import GWRParams, HierarchyParams, hierarchy_parameter_specs
+from gwr_predictor.commands import cli
+from gwr_predictor.learning.gwr import InputError
+from gwr_predictor.learning.hierarchy import ErrorTracker, FlatPredictor, Hierarchy
+from gwr_predictor.learning.params import GWRParams, HierarchyParams, hierarchy_parameter_specs
 
 H = 6
 

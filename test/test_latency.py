@@ -1,4 +1,4 @@
-"""Latency percentiles and message loss computed from a bag alone (gwr_predictor.latency): a synthetic
+"""Latency percentiles and message loss computed from a bag alone (gwr_predictor.pipeline.message_latency): a synthetic
 recording with known delays and known final counters gives exactly those numbers."""
 
 import json
@@ -6,10 +6,17 @@ import json
 import numpy as np
 import pytest
 
-from gwr_predictor import bags, conventions
-from gwr_predictor.cli import main as cli_main
-from gwr_predictor.latency import TopicSeries, command_hop, extractor_hop, latency_report, latency_stats, same_stamp_hop
-from gwr_predictor.nao import ARM_JOINTS
+from gwr_predictor.commands.cli import main as cli_main
+from gwr_predictor.pipeline import bags, conventions
+from gwr_predictor.pipeline.message_latency import (
+    TopicSeries,
+    command_hop,
+    extractor_hop,
+    latency_report,
+    latency_stats,
+    same_stamp_hop,
+)
+from gwr_predictor.robot.nao import ARM_JOINTS
 
 T = bags.TYPESTORE.types
 DIAGNOSTICS = "diagnostic_msgs/msg/DiagnosticArray"

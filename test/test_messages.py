@@ -4,11 +4,11 @@ import numpy as np
 import pytest
 from rclpy.serialization import deserialize_message, serialize_message
 
-from gwr_predictor import conventions
-from gwr_predictor.conventions import LayoutError
-from gwr_predictor.nao import ARM_JOINTS
 from gwr_predictor.nodes import messages
 from gwr_predictor.nodes.messages import DiagnosticArray, Float64MultiArray, JointState
+from gwr_predictor.pipeline import conventions
+from gwr_predictor.pipeline.conventions import LayoutError
+from gwr_predictor.robot.nao import ARM_JOINTS
 
 
 def cdr_round_trip(msg, msg_type):

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from gwr_predictor.metrics import (
+from gwr_predictor.evaluation.metrics import (
     HorizonStats,
     MetricsError,
     future_windows,

@@ -5,8 +5,8 @@ import pybullet
 import pytest
 from PIL import Image
 
-from gwr_predictor import nao
-from gwr_predictor.nao_sim import NaoSimulator, SimulatorError, contact_sheet, save_png
+from gwr_predictor.robot import nao
+from gwr_predictor.robot.pybullet_nao import NaoSimulator, SimulatorError, contact_sheet, save_png
 
 REST = np.array([1.4, 0.2, -1.2, -0.5, 1.4, -0.2, 1.2, 0.5])
 

@@ -4,11 +4,11 @@ reason on /diagnostics, and the node keeps working on the good input that follow
 import numpy as np
 import pytest
 
-from gwr_predictor.conventions import SKELETON_JOINTS
-from gwr_predictor.demonstrator import default_subjects, demonstrate_one
-from gwr_predictor.nao import ARM_JOINTS
+from gwr_predictor.data.demonstrator import default_subjects, demonstrate_one
 from gwr_predictor.nodes import messages
 from gwr_predictor.nodes.messages import Float64MultiArray, JointState
+from gwr_predictor.pipeline.conventions import SKELETON_JOINTS
+from gwr_predictor.robot.nao import ARM_JOINTS
 
 FAST = {"diagnostics_period_s": 0.2, "warn_throttle_s": 1.0}
 POSE = np.array([1.2, 0.2, -1.0, -0.5, 1.2, -0.2, 1.0, 0.5])  # inside every joint limit

@@ -6,13 +6,13 @@ import signal
 import numpy as np
 import pytest
 
-from gwr_predictor.checkpoint import CheckpointError
-from gwr_predictor.conventions import NEURON_KEYS
-from gwr_predictor.ensemble import BlendedPredictor
-from gwr_predictor.hierarchy import Hierarchy
-from gwr_predictor.nao import ARM_JOINTS
+from gwr_predictor.learning.checkpoint import CheckpointError
+from gwr_predictor.learning.hierarchy import Hierarchy
 from gwr_predictor.nodes import messages
 from gwr_predictor.nodes.messages import DiagnosticArray, Float64MultiArray, JointState
+from gwr_predictor.pipeline.conventions import NEURON_KEYS
+from gwr_predictor.predictors.blend import BlendedPredictor
+from gwr_predictor.robot.nao import ARM_JOINTS
 
 POSE = np.array([1.2, 0.2, -1.0, -0.5, 1.2, -0.2, 1.0, 0.5])  # inside every joint limit
 FRAMES = 60

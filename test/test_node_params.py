@@ -9,8 +9,8 @@ import yaml
 from ros_harness import ROOT
 
 from gwr_predictor.commands.pretrain import _flatten
+from gwr_predictor.learning.params import hierarchy_parameter_specs
 from gwr_predictor.nodes.node_base import COMMON_PARAMS, ParameterError, check_value, param_kind
-from gwr_predictor.params import hierarchy_parameter_specs
 
 NODES = ["skeleton_source", "angle_extractor", "gwr_hierarchy", "delay_compensator", "nao_sim", "bag_recorder",
          "bag_player"]
@@ -80,9 +80,9 @@ def test_bad_parameter_stops_the_node_with_exit_code_2_naming_it(ros, node, para
 
 
 def test_pretrain_uses_the_nodes_yaml_and_writes_a_checkpoint_the_node_can_load(tmp_path):
-    from gwr_predictor.cli import main
+    from gwr_predictor.commands.cli import main
     from gwr_predictor.commands.pretrain import hierarchy_params, node_parameters
-    from gwr_predictor.hierarchy import Hierarchy
+    from gwr_predictor.learning.hierarchy import Hierarchy
 
     yaml_path = ROOT / "config" / "gwr_hierarchy.yaml"
     params = hierarchy_params(node_parameters(yaml_path))

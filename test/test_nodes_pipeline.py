@@ -6,15 +6,16 @@ import signal
 import numpy as np
 import pytest
 
-from gwr_predictor import bags, faults
-from gwr_predictor.conventions import NEURON_KEYS, SKELETON_JOINTS, TOPIC_TYPES
-from gwr_predictor.demonstrator import default_subjects, demonstrate_one
-from gwr_predictor.hierarchy import Hierarchy
-from gwr_predictor.nao import ARM_JOINTS
+from gwr_predictor.data import faults
+from gwr_predictor.data.demonstrator import default_subjects, demonstrate_one
+from gwr_predictor.data.skeleton_files import save_skeleton
+from gwr_predictor.learning.hierarchy import Hierarchy
 from gwr_predictor.nodes import messages
 from gwr_predictor.nodes.messages import DiagnosticArray, Float64MultiArray, JointState
-from gwr_predictor.pipeline_report import compute_report, read_run
-from gwr_predictor.skeleton_io import save_skeleton
+from gwr_predictor.pipeline import bags
+from gwr_predictor.pipeline.conventions import NEURON_KEYS, SKELETON_JOINTS, TOPIC_TYPES
+from gwr_predictor.pipeline.run_report import compute_report, read_run
+from gwr_predictor.robot.nao import ARM_JOINTS
 
 FAST = {"diagnostics_period_s": 0.5}
 RUN_S = 14.0

@@ -3,9 +3,9 @@
 import numpy as np
 import pytest
 
-from gwr_predictor.gwr import InputError
-from gwr_predictor.params import GWRParams
-from gwr_predictor.predictive_gwr import PredictiveGWR
+from gwr_predictor.learning.gwr import InputError
+from gwr_predictor.learning.params import GWRParams
+from gwr_predictor.learning.predictive_gwr import PredictiveGWR
 
 P = GWRParams()
 

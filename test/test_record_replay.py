@@ -8,11 +8,11 @@ import numpy as np
 import pytest
 from rclpy.serialization import deserialize_message
 
-from gwr_predictor import bags, conventions
-from gwr_predictor.nao import ARM_JOINTS
 from gwr_predictor.nodes import messages
 from gwr_predictor.nodes.bag_player import parse_remaps, shift_stamp
 from gwr_predictor.nodes.messages import JointState
+from gwr_predictor.pipeline import bags, conventions
+from gwr_predictor.robot.nao import ARM_JOINTS
 
 FAST = {"diagnostics_period_s": 0.5}
 
@@ -141,7 +141,7 @@ def write_synthetic_run(path, lag_s: float, mode: str = "none"):
 
 
 def test_report_measures_a_known_lag_and_perfect_predictions(tmp_path):
-    from gwr_predictor.pipeline_report import compute_report, plot_run, read_run
+    from gwr_predictor.pipeline.run_report import compute_report, plot_run, read_run
 
     write_synthetic_run(tmp_path / "bag", lag_s=0.5)
     run = read_run(tmp_path / "bag")
@@ -159,7 +159,7 @@ def test_report_measures_a_known_lag_and_perfect_predictions(tmp_path):
 
 
 def test_report_command_writes_json_and_plot_next_to_the_bag(tmp_path, capsys):
-    from gwr_predictor.cli import main
+    from gwr_predictor.commands.cli import main
 
     write_synthetic_run(tmp_path / "run" / "bag", lag_s=0.3, mode="fixed")
     assert main(["report", str(tmp_path / "run")]) == 0

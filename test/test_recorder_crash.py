@@ -10,11 +10,11 @@ import rclpy
 from fakes import FullDisk
 from ros_harness import allocate_domain_id
 
-from gwr_predictor import bags
-from gwr_predictor.nao import ARM_JOINTS
 from gwr_predictor.nodes import messages
 from gwr_predictor.nodes.messages import JointState
 from gwr_predictor.nodes.node_base import NodeFatalError
+from gwr_predictor.pipeline import bags
+from gwr_predictor.robot.nao import ARM_JOINTS
 
 RECORDER = {"diagnostics_period_s": 0.2, "topics": ["arm_angles"], "flush_period_s": 0.3}
 

@@ -3,8 +3,8 @@
 import numpy as np
 import pytest
 
-from gwr_predictor import nao
-from gwr_predictor.robot import DelayLine, MotorModel, MotorParams, RobotError, RobotParams, SimulatedRobot
+from gwr_predictor.robot import nao
+from gwr_predictor.robot.delayed_arm import DelayLine, MotorModel, MotorParams, RobotError, RobotParams, SimulatedRobot
 
 REST = np.array([1.4, 0.2, -1.2, -0.5, 1.4, -0.2, 1.2, 0.5])
 MOVED = REST + np.array([-0.6, 0.3, 0.5, -0.4, -0.6, -0.3, -0.5, 0.4])

@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 
 from gwr_predictor.commands import demonstrate as demonstrate_cmd
-from gwr_predictor.conventions import SKELETON_JOINTS
-from gwr_predictor.demonstrator import default_subjects, demonstrate_one
-from gwr_predictor.skeleton_io import SkeletonFileError, SkeletonSequence, load_skeleton, save_skeleton
+from gwr_predictor.data.demonstrator import default_subjects, demonstrate_one
+from gwr_predictor.data.skeleton_files import SkeletonFileError, SkeletonSequence, load_skeleton, save_skeleton
+from gwr_predictor.pipeline.conventions import SKELETON_JOINTS
 
 
 @pytest.fixture(scope="module")

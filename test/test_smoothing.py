@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from gwr_predictor.smoothing import MedianOf3, SmoothingError, median_of_3
+from gwr_predictor.data.smoothing import MedianOf3, SmoothingError, median_of_3
 
 
 def _frames(n: int, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:

@@ -5,9 +5,9 @@ import xml.etree.ElementTree as ET
 import numpy as np
 import pytest
 
-from gwr_predictor import nao
-from gwr_predictor.nao_sim import NaoSimulator
-from gwr_predictor.urdf import HAND_LINKS, build_nao_urdf, default_urdf_path, write_urdf
+from gwr_predictor.robot import nao
+from gwr_predictor.robot.pybullet_nao import NaoSimulator
+from gwr_predictor.robot.urdf import HAND_LINKS, build_nao_urdf, default_urdf_path, write_urdf
 
 AXES = {"ShoulderPitch": "0 1 0", "ShoulderRoll": "0 0 1", "ElbowYaw": "1 0 0", "ElbowRoll": "0 0 1",
         "WristYaw": "1 0 0"}

@@ -8,11 +8,11 @@ from pathlib import Path
 
 import numpy as np
 
-from gwr_predictor.angles import clip_fractions, skeleton_to_angles
-from gwr_predictor.angles_io import save_angles_csv, write_angles_csv
-from gwr_predictor.nao import ARM_JOINTS, clip_to_limits
-from gwr_predictor.skeleton_io import SkeletonFileError, load_skeleton
-from gwr_predictor.smoothing import median_of_3
+from gwr_predictor.data.angle_files import save_angles_csv, write_angles_csv
+from gwr_predictor.data.angles import clip_fractions, skeleton_to_angles
+from gwr_predictor.data.skeleton_files import SkeletonFileError, load_skeleton
+from gwr_predictor.data.smoothing import median_of_3
+from gwr_predictor.robot.nao import ARM_JOINTS, clip_to_limits
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
@@ -39,7 +39,7 @@ def run(args: argparse.Namespace) -> int:
     elif args.plot is None:
         write_angles_csv(sys.stdout, t, angles)
     if args.plot is not None:
-        from gwr_predictor.plotting import plot_angle_series
+        from gwr_predictor.pipeline.plotting import plot_angle_series
 
         plot_angle_series(args.plot, {seq.name: (t, angles)}, title=f"{args.skeleton.name}: Nao arm angles")
     if not args.quiet:

@@ -31,11 +31,11 @@ from typing import Any
 import numpy as np
 from tqdm import tqdm
 
-from gwr_predictor.gwr import GWR
-from gwr_predictor.hierarchy import Hierarchy
-from gwr_predictor.loop_gwr import LoopGWR
-from gwr_predictor.nao import ARM_JOINTS, clip_to_limits
-from gwr_predictor.params import GWRParams, HierarchyParams
+from gwr_predictor.commands.loop_gwr import LoopGWR
+from gwr_predictor.learning.gwr import GWR
+from gwr_predictor.learning.hierarchy import Hierarchy
+from gwr_predictor.learning.params import GWRParams, HierarchyParams
+from gwr_predictor.robot.nao import ARM_JOINTS, clip_to_limits
 
 # Neutral pose (arms hanging, elbows slightly bent) in ARM_JOINTS order.
 _NEUTRAL = np.array([1.4, 0.15, -1.2, -0.4, 1.4, -0.15, 1.2, 0.4])

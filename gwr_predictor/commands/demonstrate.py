@@ -8,8 +8,8 @@ from pathlib import Path
 
 from tqdm import tqdm
 
-from gwr_predictor.demonstrator import PATTERNS, DemonstratorError, default_subjects, demonstrate_one
-from gwr_predictor.skeleton_io import save_skeleton
+from gwr_predictor.data.demonstrator import PATTERNS, DemonstratorError, default_subjects, demonstrate_one
+from gwr_predictor.data.skeleton_files import save_skeleton
 
 
 def configure(parser: argparse.ArgumentParser) -> None:

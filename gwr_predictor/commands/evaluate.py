@@ -16,10 +16,10 @@ from pathlib import Path
 import numpy as np
 
 from gwr_predictor.commands.experiment import parse_overrides
-from gwr_predictor.evaluation import EvaluationError, compare_online
-from gwr_predictor.experiments import common
-from gwr_predictor.experiments.report import markdown_table, to_jsonable
-from gwr_predictor.nao import ARM_JOINTS
+from gwr_predictor.evaluation.experiments import common
+from gwr_predictor.evaluation.experiments.output import markdown_table, to_jsonable
+from gwr_predictor.evaluation.online import EvaluationError, compare_online
+from gwr_predictor.robot.nao import ARM_JOINTS
 
 DEFAULT_METHODS = ("hold", "const_velocity", "rls_ar", common.HIERARCHY)
 
@@ -44,8 +44,8 @@ def configure(parser: argparse.ArgumentParser) -> None:
 
 def load_recording(path: Path) -> np.ndarray:
     """Angles (T, 8) at 10 fps in ARM_JOINTS order from an angle CSV or a skeleton file."""
-    from gwr_predictor.angles_io import AngleFileError, load_angles_csv
-    from gwr_predictor.skeleton_io import SkeletonFileError, load_skeleton
+    from gwr_predictor.data.angle_files import AngleFileError, load_angles_csv
+    from gwr_predictor.data.skeleton_files import SkeletonFileError, load_skeleton
 
     angle_error = None
     if path.suffix.lower() == ".csv":
@@ -63,8 +63,8 @@ def load_recording(path: Path) -> np.ndarray:
     except SkeletonFileError as exc:
         raise RecordingError(f"{path}: not an angle CSV ({angle_error}) nor a skeleton file ({exc})"
                              if angle_error else str(exc)) from exc
-    from gwr_predictor.angles import skeleton_to_angles
-    from gwr_predictor.smoothing import median_of_3
+    from gwr_predictor.data.angles import skeleton_to_angles
+    from gwr_predictor.data.smoothing import median_of_3
 
     positions, _ = median_of_3(seq.positions, seq.timestamps)
     return skeleton_to_angles(positions, seq.joint_names)
@@ -82,12 +82,12 @@ def run(args: argparse.Namespace) -> int:
         models = {}
         for m in methods:
             if m == common.HIERARCHY and args.checkpoint is not None:
-                from gwr_predictor.hierarchy import Hierarchy
+                from gwr_predictor.learning.hierarchy import Hierarchy
 
                 models[m] = Hierarchy.load(args.checkpoint)
             elif m == common.BLEND and args.checkpoint is not None:
-                from gwr_predictor.ensemble import BlendedPredictor
-                from gwr_predictor.hierarchy import Hierarchy
+                from gwr_predictor.learning.hierarchy import Hierarchy
+                from gwr_predictor.predictors.blend import BlendedPredictor
 
                 blend = common.make_model(m, params, args.seed)
                 models[m] = BlendedPredictor({**blend.members, "hierarchy": Hierarchy.load(args.checkpoint)},

@@ -8,8 +8,8 @@ import sys
 import time
 from pathlib import Path
 
-from gwr_predictor.experiments import EXPERIMENTS, load
-from gwr_predictor.experiments.report import write_output
+from gwr_predictor.evaluation.experiments import EXPERIMENTS, load
+from gwr_predictor.evaluation.experiments.output import write_output
 
 
 def configure(parser: argparse.ArgumentParser) -> None:

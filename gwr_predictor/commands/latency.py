@@ -1,6 +1,6 @@
 """`gwr-predictor latency RUN_DIR`: latency percentiles per hop and message loss of a recorded run.
 
-Reads the bag only (see gwr_predictor.latency for the definitions): the recorder's receive time
+Reads the bag only (see gwr_predictor.pipeline.message_latency for the definitions): the recorder's receive time
 against the frame's source stamp, and each node's final /diagnostics counters against the messages
 recorded. Prints a table, writes latency.json next to the bag; exit code 1 if the bag is unreadable,
 3 if `--max-lost` is exceeded (for benchmark scripts).
@@ -12,8 +12,8 @@ import argparse
 import sys
 from pathlib import Path
 
-from gwr_predictor.bags import BagError
-from gwr_predictor.latency import latency_report
+from gwr_predictor.pipeline.bags import BagError
+from gwr_predictor.pipeline.message_latency import latency_report
 
 
 def configure(parser: argparse.ArgumentParser) -> None:

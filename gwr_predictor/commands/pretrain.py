@@ -19,10 +19,10 @@ from typing import Any
 
 import numpy as np
 
-from gwr_predictor.datasets import demo_angle_sequences
-from gwr_predictor.demonstrator import PATTERNS, DemonstratorError
-from gwr_predictor.ensemble import PREDICTORS, gwr_member, make_predictor
-from gwr_predictor.params import HierarchyParams, hierarchy_parameter_specs
+from gwr_predictor.data.datasets import demo_angle_sequences
+from gwr_predictor.data.demonstrator import PATTERNS, DemonstratorError
+from gwr_predictor.learning.params import HierarchyParams, hierarchy_parameter_specs
+from gwr_predictor.predictors.blend import PREDICTORS, gwr_member, make_predictor
 
 NODE_NAME = "gwr_hierarchy"
 

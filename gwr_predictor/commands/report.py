@@ -1,4 +1,4 @@
-"""`gwr-predictor report RUN_DIR`: summarise a recorded pipeline run (see gwr_predictor.pipeline_report).
+"""`gwr-predictor report RUN_DIR`: summarise a recorded pipeline run (see gwr_predictor.pipeline.run_report).
 
 Prints the prediction error at the horizon, how far each simulated robot lags the person (with and
 without compensation), neurons per layer and message counts; writes report.json and report.png
@@ -11,8 +11,8 @@ import argparse
 import sys
 from pathlib import Path
 
-from gwr_predictor.bags import BagError
-from gwr_predictor.pipeline_report import ReportError, compute_report, plot_run, read_run
+from gwr_predictor.pipeline.bags import BagError
+from gwr_predictor.pipeline.run_report import ReportError, compute_report, plot_run, read_run
 
 
 def configure(parser: argparse.ArgumentParser) -> None:

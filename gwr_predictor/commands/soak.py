@@ -21,8 +21,8 @@ import numpy as np
 from tqdm import tqdm
 
 from gwr_predictor.commands.bench import peak_rss_mb, synthetic_demonstrations
-from gwr_predictor.hierarchy import Hierarchy
-from gwr_predictor.params import HierarchyParams
+from gwr_predictor.learning.hierarchy import Hierarchy
+from gwr_predictor.learning.params import HierarchyParams
 
 
 def current_rss_mb() -> float:

@@ -1,0 +1,33 @@
+"""Where the learner's frames come from: demonstrator -> skeleton files -> median of 3 -> Nao angles.
+
+Also the angle CSV files, the memoised demonstrator data set and simulated sensor faults.
+"""
+
+from gwr_predictor._exports import lazy_exports
+
+_EXPORTS = {
+    "demonstrate": "demonstrator",
+    "demonstrate_one": "demonstrator",
+    "default_subjects": "demonstrator",
+    "SubjectProfile": "demonstrator",
+    "DemonstratorError": "demonstrator",
+    "SkeletonSequence": "skeleton_files",
+    "SkeletonFileError": "skeleton_files",
+    "load_skeleton": "skeleton_files",
+    "save_skeleton": "skeleton_files",
+    "MedianOf3": "smoothing",
+    "median_of_3": "smoothing",
+    "SmoothingError": "smoothing",
+    "skeleton_to_angles": "angles",
+    "AngleExtractionError": "angles",
+    "AngleFileError": "angle_files",
+    "load_angles_csv": "angle_files",
+    "save_angles_csv": "angle_files",
+    "AngleSequence": "datasets",
+    "demo_angle_sequences": "datasets",
+    "drop_chunks": "faults",
+    "joint_dropouts": "faults",
+    "FaultParameterError": "faults",
+}
+__all__ = sorted(_EXPORTS)
+__getattr__, __dir__ = lazy_exports(__name__, _EXPORTS)

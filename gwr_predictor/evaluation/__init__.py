@@ -1,0 +1,20 @@
+"""Measuring prediction quality: the one online evaluation loop, metrics, and the experiments.
+"""
+
+from gwr_predictor._exports import lazy_exports
+
+_EXPORTS = {
+    "Predictor": "online",
+    "OnlineResult": "online",
+    "EvaluationError": "online",
+    "compare_online": "online",
+    "evaluate_online": "online",
+    "train_online": "online",
+    "run_sequence": "online",
+    "HorizonStats": "metrics",
+    "horizon_stats": "metrics",
+    "future_windows": "metrics",
+    "MetricsError": "metrics",
+}
+__all__ = sorted(_EXPORTS)
+__getattr__, __dir__ = lazy_exports(__name__, _EXPORTS)

@@ -1,0 +1,32 @@
+"""The paper's experiments (Sec. VI) plus baselines and splits, each a module with `Config`,
+`QUICK`, `FULL` and `run(config, out, seed, progress) -> ExperimentOutput`.
+
+`gwr-predictor experiment NAME` runs one; `output.write_output` writes results.json/results.md.
+"""
+
+from __future__ import annotations
+
+import importlib
+from types import ModuleType
+
+#: name -> one-line description (the module is gwr_predictor.evaluation.experiments.<name>).
+EXPERIMENTS: dict[str, str] = {
+    "incremental": "Sec. VI-B: patterns learned one after another; C.P.E., P.E. and neurons per epoch",
+    "threshold": "Sec. VI-B3: P-GWR retrained with a_T 0.5..0.99 on frozen lower layers; neurons vs MSE",
+    "horizon": "Sec. VI-B4: MAE/std for horizons 1..20, recursive and vector prediction",
+    "dataloss": "Sec. VI-C: 0..95 % of the data removed in 1 s chunks; MSE vs loss",
+    "unseen": "Sec. VI-B1: online response to an unseen sequence presented three times; settling",
+    "delay": "Closed loop offline: lag of the robot behind the person, without and with compensation",
+    "compare": "Hierarchy vs P-GWR alone vs hold / constant velocity / RLS-AR on train and held-out data",
+    "scale": "Input-scale sweep: neurons per layer and 600 ms error on train and held-out data",
+}
+
+
+class UnknownExperiment(KeyError):
+    """A name that is not in EXPERIMENTS."""
+
+
+def load(name: str) -> ModuleType:
+    if name not in EXPERIMENTS:
+        raise UnknownExperiment(f"unknown experiment {name!r}; choose from {', '.join(EXPERIMENTS)}")
+    return importlib.import_module(f"gwr_predictor.evaluation.experiments.{name}")

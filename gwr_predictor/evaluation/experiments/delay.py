@@ -1,0 +1,125 @@
+"""Closed loop offline: how far the robot lags the person, with and without delay compensation.
+
+The person is a held-out subject doing one repetition of every pattern in a row; the robot is the
+simulated Nao behind a sensorimotor delay of 100..600 ms (plus its motor latency). Predictors are
+pre-trained on the training split and keep learning in the loop. Compensation rules
+(`compensator.py`): none (execute the newest observation), fixed 600 ms (always the 6-step
+prediction, the paper's setting), fixed at the true delay (an oracle that knows it), and variable
+(Eq. 11 tracking the delay from the robot's own state, starting from 600 ms).
+"""
+
+from __future__ import annotations
+
+import copy
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from gwr_predictor.evaluation.experiments import common
+from gwr_predictor.evaluation.experiments.output import ExperimentOutput, figure, markdown_table, save_figure
+from gwr_predictor.evaluation.experiments.splits import make_splits
+from gwr_predictor.evaluation.online import train_online
+from gwr_predictor.robot.closed_loop import run_closed_loop
+
+NAME = "delay"
+#: rule name -> (compensator mode, assumed delay: None = the true delay)
+RULES: dict[str, tuple[str, float | None]] = {
+    "none": ("none", None),
+    "fixed_600ms": ("fixed", 0.6),
+    "fixed_true": ("fixed", None),
+    "variable": ("variable", 0.6),
+}
+
+
+@dataclass(frozen=True)
+class Config:
+    delays: tuple[float, ...] = (0.1, 0.2, 0.3, 0.4, 0.5, 0.6)
+    rules: tuple[str, ...] = tuple(RULES)
+    predictors: tuple[str, ...] = (common.HIERARCHY, "rls_ar")
+    patterns: tuple[str, ...] | None = None
+    subjects: int = 3
+    repetitions: int = 10
+    heldout_repetitions: int = 2
+    pretrain_epochs: int = 3
+    skip_s: float = 2.0  # warm-up excluded from lag and error
+    overrides: tuple[tuple[str, object], ...] = ()
+
+
+QUICK = Config(delays=(0.2, 0.6), predictors=(common.HIERARCHY,), patterns=("wave_one", "raise_front_one"),
+               subjects=2, repetitions=2, heldout_repetitions=1, pretrain_epochs=1)
+FULL = Config()
+
+
+def person_sequence(heldout: tuple[Any, ...]) -> np.ndarray:
+    """One repetition of every pattern by the held-out subject, back to back."""
+    first = {}
+    for s in heldout:
+        first.setdefault(s.pattern, s)
+    return np.concatenate([np.asarray(s.angles) for s in first.values()])
+
+
+def measure(config: Config, seed: int, progress: bool) -> dict[str, Any]:
+    params = common.make_params(config.overrides)
+    data = common.demo_data(config.patterns, config.subjects, config.repetitions, seed)
+    splits = make_splits(data, 1, config.heldout_repetitions)
+    person = person_sequence(splits.heldout_subjects)
+    rng = np.random.default_rng(seed)
+    trained = {}
+    for name in config.predictors:
+        model = common.make_model(name, params, seed)
+        for epoch in range(config.pretrain_epochs):
+            train_online(model, common.shuffled(splits.train, rng), progress=progress,
+                         desc=f"{NAME} pretrain {name} {epoch + 1}")
+        trained[name] = model
+    rows = []
+    for name, model in trained.items():
+        for delay in config.delays:
+            for rule in config.rules:
+                mode, assumed = RULES[rule]
+                res = run_closed_loop(person, copy.deepcopy(model), delay_s=delay, compensation=mode,  # type: ignore[arg-type]
+                                      compensator_delay_s=delay if assumed is None else assumed)
+                err = res.errors(skip_s=config.skip_s)
+                steps = res.steps_used[res.steps_used >= 0]
+                rows.append({"predictor": name, "delay_s": delay, "rule": rule,
+                             "lag_s": res.lag_s(skip_s=config.skip_s), "mae": err["mae"], "rmse": err["rmse"],
+                             "mean_step": float(steps.mean()) if steps.size else None,
+                             "fallbacks": int(res.fallback_count)})
+    return {"params": params.to_flat(), "person_frames": int(person.shape[0]), "runs": rows}
+
+
+def run(config: Config, out: Path, seed: int = 0, progress: bool = True) -> ExperimentOutput:
+    r = measure(config, seed, progress)
+    md = [f"Held-out subject, {r['person_frames']} frames (every pattern once, back to back). Lag: time shift "
+          f"that best aligns the robot's executed angles with the person's (after {config.skip_s:g} s); "
+          "MAE: robot vs person (rad). The robot adds its motor latency to every delay."]
+    for name in config.predictors:
+        table = []
+        for delay in config.delays:
+            cells = {x["rule"]: x for x in r["runs"] if x["predictor"] == name and x["delay_s"] == delay}
+            table.append([f"{1000 * delay:.0f} ms", *[f"{1000 * cells[k]['lag_s']:.0f} ms / {cells[k]['mae']:.3f}"
+                                                       for k in config.rules]])
+        md += ["", f"**{common.LABELS[name]}** (lag / MAE rad)", "",
+               markdown_table(["delay", *config.rules], table)]
+    return ExperimentOutput(NAME, "Closed-loop delay compensation", asdict(config), r, md,
+                            [_plot(r, config, Path(out))])
+
+
+def _plot(r: dict[str, Any], config: Config, out: Path) -> str:
+    fig, axes = figure(1, 2, size=(10.0, 3.8))
+    d = np.array(config.delays) * 1000
+    for name, style in zip(config.predictors, ("-", "--"), strict=False):
+        for i, rule in enumerate(config.rules):
+            sel = [x for x in r["runs"] if x["predictor"] == name and x["rule"] == rule]
+            label = f"{rule} ({common.LABELS[name]})"
+            axes[0][0].plot(d, [1000 * x["lag_s"] for x in sel], style, color=f"C{i}", marker="o", ms=3, label=label)
+            axes[0][1].plot(d, [x["mae"] for x in sel], style, color=f"C{i}", marker="o", ms=3, label=label)
+    axes[0][0].plot(d, d, "k:", lw=0.8, label="lag = delay")
+    axes[0][0].set_ylabel("robot lag behind the person (ms)")
+    axes[0][1].set_ylabel("tracking MAE (rad)")
+    for ax in axes[0]:
+        ax.set_xlabel("sensorimotor delay (ms)")
+        ax.grid(alpha=0.3)
+    axes[0][1].legend(fontsize=6)
+    return save_figure(fig, out, "delay_lag")

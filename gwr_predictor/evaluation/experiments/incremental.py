@@ -1,0 +1,142 @@
+"""Incremental learning of the 10 patterns, one after another (Sec. VI-B2, Fig. 5).
+
+Each pattern is presented for `epochs_per_pattern` epochs (an epoch = its demonstrations, shuffled)
+before the next one comes; the presentation order is random and the run is repeated for several
+orders. After every `eval_every` epochs the model is scored, frozen, on the demonstrations of every
+pattern learned so far: C.P.E. (MSE against the true frames) and P.E. (MSE against the frames as
+GWR1 represents them, the hierarchy's own bookkeeping, which removes the quantization error of the
+lower layers). Neurons per layer are recorded after every epoch.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from gwr_predictor.evaluation.experiments import common
+from gwr_predictor.evaluation.experiments.output import ExperimentOutput, figure, markdown_table, save_figure
+from gwr_predictor.evaluation.online import compare_online
+
+NAME = "incremental"
+LAYER_NAMES = ("GWR1", "GWR2", "P-GWR")
+
+
+@dataclass(frozen=True)
+class Config:
+    patterns: tuple[str, ...] | None = None
+    subjects: int = 3
+    repetitions: int = 3  # per subject: demonstrations per epoch = subjects * repetitions
+    epochs_per_pattern: int = 50
+    orders: int = 3
+    eval_every: int = 10
+    eval_repetitions: int = 1  # per subject and learned pattern, for the C.P.E./P.E.
+    overrides: tuple[tuple[str, object], ...] = ()
+
+
+QUICK = Config(patterns=("wave_one", "raise_lateral_one", "rotate_cw_both"), subjects=1, repetitions=1,
+               epochs_per_pattern=3, orders=1, eval_every=1)
+FULL = Config()
+
+
+def one_order(config: Config, order: list[str], by_pattern: dict[str, list[Any]], seed: int,
+              progress: bool) -> dict[str, Any]:
+    params = common.make_params(config.overrides)
+    model = common.make_model(common.HIERARCHY, params, seed)
+    rng = np.random.default_rng([seed, 1])
+    neurons, online, cpe, pe, evaluated_at = [], [], [], [], []
+    learned: list[Any] = []
+    epoch = 0
+    for pattern in order:
+        demos = by_pattern[pattern]
+        learned += [s for s in demos if s.repetition <= config.eval_repetitions]
+        for e in range(config.epochs_per_pattern):
+            res = compare_online({"h": model}, common.shuffled(demos, rng), horizon=params.horizon,
+                                 progress=progress, desc=f"{NAME} {pattern} {e + 1}")["h"]
+            online.append(res.stats.overall_mse())
+            neurons.append(list(model.neuron_counts))
+            epoch += 1
+            if (e + 1) % config.eval_every == 0 or e + 1 == config.epochs_per_pattern:
+                model.reset_errors()
+                ev = compare_online({"h": model}, learned, learn=False, horizon=params.horizon, progress=False)["h"]
+                errs = model.errors()
+                cpe.append(ev.stats.mse[-1])
+                pe.append(errs["pe"][-1])
+                evaluated_at.append(epoch)
+    return {"order": order, "neurons": neurons, "online_mse": online, "cpe": cpe, "pe": pe,
+            "evaluated_at": evaluated_at}
+
+
+def growth_share(neurons: np.ndarray, block: int) -> np.ndarray:
+    """Per layer, the share of each pattern block's growth that happened in its last
+    `block - block // 2` epochs (0 = all growth at the start of the block, i.e. levelled off;
+    `steady_share(block)` = growing at a constant rate)."""
+    n = np.vstack([np.zeros((1, neurons.shape[1])), neurons])
+    blocks = (n.shape[0] - 1) // block
+    half = block // 2
+    total = np.zeros(neurons.shape[1])
+    late = np.zeros(neurons.shape[1])
+    for b in range(blocks):
+        start, mid, end = b * block, b * block + half, (b + 1) * block
+        total += np.maximum(n[end] - n[start], 0)
+        late += np.maximum(n[end] - n[mid], 0)
+    return np.where(total > 0, late / np.maximum(total, 1), 0.0)
+
+
+def steady_share(block: int) -> float:
+    return (block - block // 2) / block
+
+
+def run(config: Config, out: Path, seed: int = 0, progress: bool = True) -> ExperimentOutput:
+    data = common.demo_data(config.patterns, config.subjects, config.repetitions, seed)
+    groups = common.by_pattern(data)
+    rng = np.random.default_rng(seed)
+    names = list(groups)
+    runs = [one_order(config, [names[i] for i in rng.permutation(len(names))], groups, seed + k, progress)
+            for k in range(config.orders)]
+    neurons = np.array([r["neurons"] for r in runs], float)  # (orders, epochs, layers)
+    cpe = np.array([r["cpe"] for r in runs], float)
+    pe = np.array([r["pe"] for r in runs], float)
+    share = growth_share(neurons.mean(axis=0), config.epochs_per_pattern)
+    results = {"runs": runs, "neurons_mean": neurons.mean(axis=0), "neurons_std": neurons.std(axis=0),
+               "cpe_mean": cpe.mean(axis=0), "pe_mean": pe.mean(axis=0), "late_growth_share": share,
+               "evaluated_at": runs[0]["evaluated_at"]}
+    e = config.epochs_per_pattern
+    ends = [(i + 1) * e - 1 for i in range(len(names))]
+    rows = [[i + 1, *[int(v) for v in neurons.mean(axis=0)[k]], cpe.mean(axis=0)[runs[0]["evaluated_at"].index(k + 1)],
+             pe.mean(axis=0)[runs[0]["evaluated_at"].index(k + 1)]] for i, k in enumerate(ends)]
+    md = [f"{len(names)} patterns x {e} epochs ({config.subjects * config.repetitions} demonstrations per epoch), "
+          f"averaged over {config.orders} random presentation orders. C.P.E./P.E.: MSE (rad²) at the "
+          f"{common.make_params(config.overrides).horizon}-frame horizon on all patterns learned so far, frozen.",
+          "", markdown_table(["patterns learned", *LAYER_NAMES, "C.P.E.", "P.E."], rows, digits=4), "",
+          "Share of each pattern's neuron growth that happened in the second half of its epochs "
+          f"(0 = levelled off, {steady_share(e):.2f} = growing steadily): "
+          + ", ".join(f"{n} {s:.2f}" for n, s in zip(LAYER_NAMES, share, strict=True)) + "."]
+    return ExperimentOutput(NAME, "Incremental learning of the patterns", asdict(config), results, md,
+                            [_plot(results, config, len(names), Path(out))])
+
+
+def _plot(r: dict[str, Any], config: Config, n_patterns: int, out: Path) -> str:
+    fig, axes = figure(2, 1, size=(8.0, 6.5))
+    e = config.epochs_per_pattern
+    ax = axes[0][0]
+    ax.plot(r["evaluated_at"], r["cpe_mean"], "b-", marker=".", label="C.P.E.")
+    ax.plot(r["evaluated_at"], r["pe_mean"], "r-", marker=".", label="P.E.")
+    ax.set_ylabel("MSE (rad²)")
+    ax.legend(fontsize=8)
+    ax = axes[1][0]
+    mean, std = np.asarray(r["neurons_mean"]), np.asarray(r["neurons_std"])
+    epochs = np.arange(1, mean.shape[0] + 1)
+    for k, name in enumerate(LAYER_NAMES):
+        ax.plot(epochs, mean[:, k], label=name)
+        ax.fill_between(epochs, mean[:, k] - std[:, k], mean[:, k] + std[:, k], alpha=0.2)
+    ax.set_ylabel("neurons")
+    ax.set_xlabel("epoch")
+    ax.legend(fontsize=8)
+    for a in (axes[0][0], axes[1][0]):
+        for i in range(1, n_patterns):
+            a.axvline(i * e + 0.5, color="k", ls="--", lw=0.6)
+        a.grid(alpha=0.3)
+    return save_figure(fig, out, "incremental")

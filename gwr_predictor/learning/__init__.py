@@ -1,0 +1,26 @@
+"""The paper's learner (Sec. III-B..D), readable top-down: params -> gwr -> predictive_gwr -> hierarchy.
+
+`scaling` maps radians to the units the layers measure distances in; `checkpoint` is the one
+versioned file format every learner saves to.
+"""
+
+from gwr_predictor._exports import lazy_exports
+
+_EXPORTS = {
+    "ParamSpec": "params",
+    "GWRParams": "params",
+    "HierarchyParams": "params",
+    "GWR": "gwr",
+    "InputError": "gwr",
+    "PredictiveGWR": "predictive_gwr",
+    "Hierarchy": "hierarchy",
+    "FlatPredictor": "hierarchy",
+    "ErrorTracker": "hierarchy",
+    "InputScaling": "scaling",
+    "CheckpointError": "checkpoint",
+    "KindMismatchError": "checkpoint",
+    "read_checkpoint": "checkpoint",
+    "write_checkpoint": "checkpoint",
+}
+__all__ = sorted(_EXPORTS)
+__getattr__, __dir__ = lazy_exports(__name__, _EXPORTS)

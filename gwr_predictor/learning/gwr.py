@@ -1,0 +1,410 @@
+"""Growing When Required network (Marsland et al. 2002; Sec. III-B of the paper), vectorised.
+
+One `learn(x)` step, in this order (pinned down so that the firing-counter arithmetic is exact):
+
+1. b, s = the two nearest neurons; activity a = exp(-c * ||x - w_b||) (Eq. 1; c = 1 unless the
+   layer normalises distances).
+2. Insert when a < a_T and h_b < f_T (h_b as it was *before* this step) and the size limit allows.
+3. Without insertion, b and its neighbours move by eps * h * (x - w) with their current h (Eq. 4).
+4. The edges of b age by one; the firing counters of b (rho_b) and of its neighbours (rho_n)
+   decay by rho * kappa * (1 - h) - rho and are clipped to [0, 1] (Eq. 3), in both branches.
+5. Topology: with insertion, r gets w_r = 0.5 (x + w_b) and h_r = 1, edge b-s is removed and
+   edges r-b, r-s are created at age 0 (Eq. 2); otherwise edge b-s is created or refreshed to 0.
+6. Edges of b older than max_edge_age are removed, then neurons left without any edge
+   (swap-with-last compaction, highest index first).
+
+"Neighbours" are the neurons linked to b when the step starts. A fresh neuron (h = 1) is therefore
+trained 8 times as BMU before it can cause an insertion: h after k firings is 0.7, 0.4945, ...,
+0.1150 (k = 7), 0.0938 (k = 8) with rho_b = 0.3, kappa = 1.05.
+
+Storage is chosen for ~1,000-5,000 neurons: weights in a contiguous capacity-doubling matrix whose
+last column holds each neuron's squared norm, kept up to date on every change, so the BMU search
+is one BLAS matrix-vector product [w | ||w||^2] . [x | -1/2] = w.x - ||w||^2 / 2 followed by an
+argmax (the nearest neuron maximises it; ||x||^2 is common to all). Edges live in a dense
+symmetric int16 age matrix (-1 = no edge): the neighbours of b are one row scan and ageing is one
+indexed operation. b and its neighbours are updated together as one small gathered block. Only the
+first `match_dim` values of a vector are matched; the rest are carried in a second matrix (the
+Predictive GWR's output weights), so the matched block stays contiguous for BLAS.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from typing import Any
+
+import numpy as np
+
+from gwr_predictor.learning.params import MAX_EDGE_AGE_LIMIT, GWRParams
+
+_NO_EDGE = -1
+_MIN_CAPACITY = 64
+
+
+class InputError(ValueError):
+    """An input vector of the wrong shape or with non-finite values."""
+
+
+def counter_decay(rho: float, kappa: float) -> tuple[float, float]:
+    """(a, c) such that h + rho * kappa * (1 - h) - rho == h * a + c (Eq. 3)."""
+    return 1.0 - rho * kappa, rho * kappa - rho
+
+
+class GWR:
+    """A GWR network over `dim`-dimensional vectors; see the module docstring for the step."""
+
+    def __init__(self, dim: int, params: GWRParams, rng: np.random.Generator, *,
+                 match_dim: int | None = None, init_low: float | np.ndarray = -1.0,
+                 init_high: float | np.ndarray = 1.0, distance_factor: float = 1.0) -> None:
+        self._setup(int(dim), params, match_dim, distance_factor, capacity=_MIN_CAPACITY)
+        self._put(np.arange(2), rng.uniform(init_low, init_high, size=(2, self.dim)))
+        self._h[:2] = 1.0
+        self._n = 2
+
+    # --- construction helpers -------------------------------------------------------------------
+    def _setup(self, dim: int, params: GWRParams, match_dim: int | None, distance_factor: float,
+               capacity: int, needed: int = 2) -> None:
+        if not isinstance(params, GWRParams):
+            raise TypeError(f"params must be GWRParams, got {type(params).__name__}")
+        if dim < 1:
+            raise ValueError(f"GWR dim must be >= 1, got {dim}")
+        match_dim = dim if match_dim is None else int(match_dim)
+        if not 1 <= match_dim <= dim:
+            raise ValueError(f"GWR match_dim must be in [1, {dim}], got {match_dim}")
+        if not (math.isfinite(distance_factor) and distance_factor > 0):
+            raise ValueError(f"GWR distance_factor must be > 0, got {distance_factor!r}")
+        self.dim = dim
+        self.match_dim = match_dim
+        self.params = params
+        self.distance_factor = float(distance_factor)
+        #: Index of the neuron inserted by the last `learn` (-1: none).
+        self.last_inserted = -1
+        #: Euclidean distance between the last input and its BMU (matched part).
+        self.last_distance = math.nan
+        # per-row constants of the gathered block [b, neighbours...]; Eq. 3 as h <- h * a + c with
+        # a = 1 - rho * kappa, c = rho * kappa - rho (the same update, two operations)
+        self._rates = (params.eps_b, params.eps_n)
+        self._decay = (counter_decay(params.rho_b, params.kappa), counter_decay(params.rho_n, params.kappa))
+        # With rho * kappa <= 1, h * a + c maps [0, 1] into [0, 1] even in floating point (a >= 0,
+        # c >= 0, a + c = 1 - rho): the clip of Eq. 3 is then a no-op and skipped.
+        self._clip_counters = max(params.rho_b, params.rho_n) * params.kappa > 1.0
+        self._n = 0
+        self._alloc(self._capacity_for(capacity, needed))
+
+    def _capacity_for(self, preferred: int, needed: int) -> int:
+        """`preferred` rows (at least the minimum), but never beyond max_neurons nor below `needed`."""
+        cap = max(_MIN_CAPACITY, preferred)
+        limit = self.params.max_neurons
+        return max(cap if limit is None else min(cap, limit), needed)
+
+    def _alloc(self, cap: int) -> None:
+        """(Re)allocate the arrays with room for `cap` neurons, keeping the first n."""
+        n, m = self._n, self.match_dim
+        old = getattr(self, "_wa", None)
+        # [w | ||w||^2]: one product with [x | -1/2] gives w.x - ||w||^2 / 2 for every neuron, whose
+        # maximum is the BMU (||x - w||^2 = ||x||^2 - 2 (w.x - ||w||^2 / 2))
+        wa = np.zeros((cap, m + 1))
+        wo = np.zeros((cap, self.dim - m))
+        h = np.zeros(cap)
+        age = np.full((cap, cap), _NO_EDGE, dtype=np.int16)
+        if old is not None and n:
+            wa[:n], wo[:n], h[:n] = self._wa[:n], self._wo[:n], self._h[:n]
+            age[:n, :n] = self._age[:n, :n]
+        self._wa, self._wo, self._h, self._age = wa, wo, h, age
+        self._w = wa[:, :m]  # matched weights (strided view)
+        self._buf = np.empty(cap)
+        self._xa = np.empty(m + 1)
+        self._xa[m] = -0.5
+        # per-row rate/decay vectors of the block [b, neighbours...], longest possible block
+        self._eps_vec = np.full(cap, self._rates[1])
+        self._eps_vec[0] = self._rates[0]
+        self._decay_a = np.full(cap, self._decay[1][0])
+        self._decay_a[0] = self._decay[0][0]
+        self._decay_c = np.full(cap, self._decay[1][1])
+        self._decay_c[0] = self._decay[0][1]
+        self._block = np.empty(cap, dtype=np.intp)
+        # affinity kept by `search_keep` for the next `learn_unchecked` on the same query (see there)
+        self._kept_buf = np.empty(cap)
+        self._kept: bytes | None = None  # the query it was kept for
+
+    def _put(self, idx: np.ndarray | int, rows: np.ndarray) -> None:
+        """Write whole weight rows (matched + carried part) and refresh their norms."""
+        rows = np.asarray(rows, dtype=float)
+        m = self.match_dim
+        self._w[idx] = rows[..., :m]
+        self._wo[idx] = rows[..., m:]
+        wm = self._w[idx]
+        self._wa[idx, m] = np.vecdot(wm, wm)
+
+    @classmethod
+    def from_arrays(cls, weights: np.ndarray, params: GWRParams, *, edges: Any = (),
+                    counters: np.ndarray | None = None, match_dim: int | None = None,
+                    distance_factor: float = 1.0) -> GWR:
+        """A network with given neurons and edges ((i, j, age) triples): hand-made cases, pre-grown
+        benchmark networks and checkpoints."""
+        weights = np.array(weights, dtype=float, ndmin=2)
+        n, dim = weights.shape
+        if n < 2:
+            raise ValueError(f"a GWR needs at least 2 neurons, got {n}")
+        if params.max_neurons is not None and n > params.max_neurons:
+            raise ValueError(f"{n} neurons exceed max_neurons={params.max_neurons}")
+        if not np.isfinite(weights).all():
+            raise ValueError("weights contain NaN or infinite values")
+        net = cls.__new__(cls)
+        net._setup(dim, params, match_dim, distance_factor, capacity=n, needed=n)
+        net._put(np.arange(n), weights)
+        h = np.ones(n) if counters is None else np.asarray(counters, dtype=float)
+        if h.shape != (n,) or not ((h >= 0) & (h <= 1)).all():
+            raise ValueError(f"counters must be {n} values in [0, 1]")
+        net._h[:n] = h
+        net._n = n
+        edges = np.asarray(edges, dtype=np.int64).reshape(-1, 3)
+        if edges.size:
+            i, j, a = edges.T
+            if (i < 0).any() or (j < 0).any() or (i >= n).any() or (j >= n).any() or (i == j).any():
+                raise ValueError(f"edges must join two distinct neurons in [0, {n}), got {edges.tolist()[:5]}")
+            if (a < 0).any() or (a > MAX_EDGE_AGE_LIMIT + 1).any():  # int16 storage with room to age
+                raise ValueError(f"edge ages must be in [0, {MAX_EDGE_AGE_LIMIT + 1}]")
+            net._age[i, j] = a
+            net._age[j, i] = a
+        return net
+
+    # --- read-only views ------------------------------------------------------------------------
+    @property
+    def n_neurons(self) -> int:
+        return self._n
+
+    @property
+    def capacity(self) -> int:
+        """Neurons the arrays have room for (doubles when full, never beyond max_neurons)."""
+        return self._h.shape[0]
+
+    @property
+    def weights(self) -> np.ndarray:
+        """(n, dim) weights: a view when every value is matched, else a copy. Do not write to it."""
+        if self.match_dim == self.dim:
+            return self._w[:self._n]
+        return np.concatenate([self._w[:self._n], self._wo[:self._n]], axis=1)
+
+    @property
+    def counters(self) -> np.ndarray:
+        """(n,) view of the firing counters h."""
+        return self._h[:self._n]
+
+    def edge_array(self) -> np.ndarray:
+        """(E, 3) int64 array of edges (i, j, age) with i < j, in row-major order."""
+        n = self._n
+        i, j = np.nonzero(np.triu(self._age[:n, :n] >= 0, 1))
+        return np.stack([i, j, self._age[i, j]], axis=1).astype(np.int64)
+
+    def neighbours(self, i: int) -> np.ndarray:
+        return np.flatnonzero(self._age[i, :self._n] >= 0)
+
+    def edge_age(self, i: int, j: int) -> int | None:
+        """Age of edge i-j, or None when there is none."""
+        a = int(self._age[i, j])
+        return None if a < 0 else a
+
+    # --- matching -------------------------------------------------------------------------------
+    def _check_input(self, x: Any, size: int) -> np.ndarray:
+        x = np.asarray(x, dtype=float)
+        if x.shape != (size,):
+            raise InputError(f"expected a vector of shape ({size},), got {x.shape}")
+        if not math.isfinite(x.sum()):
+            raise InputError("input contains NaN or infinite values")
+        return x
+
+    def _affinity(self, xm: np.ndarray) -> np.ndarray:
+        """w.x - ||w||^2 / 2 of every neuron, largest for the nearest (one matrix-vector product)."""
+        xa = self._xa
+        xa[:-1] = xm
+        out = self._buf[:self._n]
+        np.dot(self._wa[:self._n], xa, out=out)
+        return out
+
+    def _distance(self, i: int, xm: np.ndarray) -> float:
+        diff = xm - self._w[i]
+        return math.sqrt(float(np.dot(diff, diff)))
+
+    def nearest(self, xm: np.ndarray) -> int:
+        """Index of the BMU of a matched-part vector (trusted input: no checks, no state change)."""
+        return int(self._affinity(xm).argmax())
+
+    def bmu(self, x: np.ndarray) -> tuple[int, float]:
+        """(index, Euclidean distance) of the BMU of x, given whole or as its matched part. No learning."""
+        xm = self._check_input(x, self.dim if np.shape(x) == (self.dim,) else self.match_dim)[:self.match_dim]
+        b = int(self._affinity(xm).argmax())
+        dist = self._distance(b, xm)
+        self.last_distance = dist
+        return b, dist
+
+    def search_views(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """(A, xa, buf, w) for inlined read-only BMU searches in hot loops: write the query into
+        xa[:-1], `np.dot(A, xa, out=buf)`, and buf.argmax() is the BMU, w its matched weights.
+        Valid only until the network next changes (learning may reallocate or resize)."""
+        n = self._n
+        return self._wa[:n], self._xa, self._buf[:n], self._w
+
+    def search_keep(self, xm: np.ndarray) -> np.ndarray:
+        """The affinity of a trusted matched-part vector (as `_affinity`), computed into a separate
+        buffer and kept: the next `learn_unchecked` on the unchanged network whose matched part has
+        the same bytes reuses it instead of repeating the product (same operands, same result).
+        Recursive mode forecasts from r(t), then learns (r(t), x(t+1)) next frame, with the P-GWR
+        unchanged in between: one 73-d product less per frame. Any learning step drops it."""
+        xa = self._xa
+        xa[:-1] = xm
+        out = self._kept_buf[:self._n]
+        np.dot(self._wa[:self._n], xa, out=out)
+        self._kept = xm.tobytes()
+        return out
+
+    def match_unchecked(self, xm: np.ndarray) -> int:
+        """BMU index of a trusted matched-part vector; records `last_distance`. No learning."""
+        b = int(self._affinity(xm).argmax())
+        self.last_distance = self._distance(b, xm)
+        return b
+
+    def weight_row(self, i: int) -> np.ndarray:
+        """View of neuron i's matched weights (valid until the network changes)."""
+        return self._w[i]
+
+    def activity(self, x: np.ndarray) -> float:
+        """Eq. 1: exp(-c ||x - w_b||) for the BMU b of x."""
+        return math.exp(-self.distance_factor * self.bmu(x)[1])
+
+    # --- learning -------------------------------------------------------------------------------
+    def learn(self, x: np.ndarray) -> int:
+        """One GWR step on x (shape (dim,)); returns the final index of the BMU."""
+        return self.learn_unchecked(self._check_input(x, self.dim))
+
+    def learn_unchecked(self, x: np.ndarray) -> int:
+        """`learn` on a trusted finite (dim,) float vector (callers that built it themselves)."""
+        p = self.params
+        n = self._n
+        m = self.match_dim
+        xm = x[:m]
+        if self._kept is not None and self._kept == xm.tobytes():  # see `search_keep`
+            affinity = self._kept_buf[:n]
+        else:
+            affinity = self._affinity(xm)
+        self._kept = None
+        b = int(affinity.argmax())
+        affinity[b] = -np.inf
+        s = int(affinity.argmax())
+        dist = self._distance(b, xm)
+        self.last_distance = dist
+
+        age = self._age
+        nb = (age[b, :n] >= 0).nonzero()[0]
+        k = nb.size + 1
+        block = self._block[:k]  # [b, neighbours...]
+        block[0] = b
+        block[1:] = nb
+        h = self._h.take(block)
+        hb = float(h[0])
+        insert = (math.exp(-self.distance_factor * dist) < p.activation_threshold
+                  and hb < p.firing_threshold
+                  and (p.max_neurons is None or n < p.max_neurons))
+        if not insert:  # Eq. 4 on b and its neighbours at once
+            rate = (self._eps_vec[:k] * h)[:, None]
+            wa = self._wa.take(block, axis=0)
+            w = wa[:, :m]
+            step = xm - w  # w += rate * (x - w), with one temporary fewer (same products)
+            step *= rate
+            w += step
+            wa[:, m] = np.vecdot(w, w)
+            self._wa[block] = wa
+            if m < self.dim:
+                wo = self._wo.take(block, axis=0)
+                step = x[m:] - wo
+                step *= rate
+                wo += step
+                self._wo[block] = wo
+        # ageing of b's edges and firing counters (Eq. 3), in both branches
+        if k > 1:
+            ages = age[b].take(nb) + 1
+            age[b, nb] = ages
+            age[nb, b] = ages
+        h *= self._decay_a[:k]
+        h += self._decay_c[:k]
+        if self._clip_counters:
+            np.minimum(np.maximum(h, 0.0, out=h), 1.0, out=h)
+        self._h[block] = h
+        # topology
+        r = -1
+        if insert:  # Eq. 2
+            r = self._append(x, b)
+            age = self._age  # may have been reallocated
+            age[b, s] = age[s, b] = _NO_EDGE
+            age[r, b] = age[b, r] = 0
+            age[r, s] = age[s, r] = 0
+        else:
+            age[b, s] = age[s, b] = 0
+        if k > 1 and max(ages.tolist()) > p.max_edge_age:
+            old = nb[(ages > p.max_edge_age) & (nb != s)]
+            if old.size:
+                b, r = self._drop_edges(b, old, r)
+        self.last_inserted = r
+        return b
+
+    # --- structure changes ----------------------------------------------------------------------
+    def _append(self, x: np.ndarray, b: int) -> int:
+        """New neuron at 0.5 (x + w_b) with h = 1; returns its index."""
+        if self._n == self._w.shape[0]:
+            self._alloc(self._capacity_for(2 * self._n, self._n + 1))
+        r = self._n
+        m = self.match_dim
+        w = 0.5 * (x[:m] + self._w[b])
+        self._w[r] = w
+        self._wo[r] = 0.5 * (x[m:] + self._wo[b])
+        self._wa[r, m] = w @ w
+        self._h[r] = 1.0
+        self._n = r + 1
+        return r
+
+    def _drop_edges(self, b: int, old: np.ndarray, r: int) -> tuple[int, int]:
+        """Remove edges b-old, then the `old` neurons left isolated; returns b and r re-indexed."""
+        age = self._age
+        age[b, old] = _NO_EDGE
+        age[old, b] = _NO_EDGE
+        for i in np.sort(old)[::-1].tolist():  # a handful of edges, not a loop over the network
+            if (age[i, :self._n] >= 0).any():
+                continue
+            moved = self._remove(i)
+            b = i if b == moved else b
+            r = i if r == moved else r
+        return b, r
+
+    def _remove(self, i: int) -> int:
+        """Delete isolated neuron i by moving the last neuron into its slot; returns the old index
+        of the moved neuron (== i when i was last)."""
+        last = self._n - 1
+        age = self._age
+        if i != last:
+            for arr in (self._wa, self._wo, self._h):
+                arr[i] = arr[last]
+            age[i, :last + 1] = age[last, :last + 1]
+            age[:last + 1, i] = age[:last + 1, last]
+            age[i, i] = _NO_EDGE
+        age[last, :last + 1] = _NO_EDGE
+        age[:last + 1, last] = _NO_EDGE
+        self._n = last
+        return last
+
+    # --- persistence ----------------------------------------------------------------------------
+    def state(self) -> dict[str, Any]:
+        """Arrays and plain values that reproduce this network exactly (see `from_state`)."""
+        return {
+            "weights": self.weights.copy(),
+            "counters": self.counters.copy(),
+            "edges": self.edge_array(),
+            "match_dim": self.match_dim,
+            "distance_factor": self.distance_factor,
+            "params": dataclasses.asdict(self.params),
+        }
+
+    @classmethod
+    def from_state(cls, state: dict[str, Any]) -> GWR:
+        params = GWRParams(**state["params"])
+        return cls.from_arrays(state["weights"], params, edges=state["edges"], counters=state["counters"],
+                               match_dim=int(state["match_dim"]), distance_factor=float(state["distance_factor"]))

@@ -1,0 +1,630 @@
+"""The online learner: GWR1 -> GWR2 -> P-GWR (Sec. III-C/D), one frame at a time.
+
+At step t, with frame x(t) observed:
+
+1. GWR1 learns the scaled frame; its representative neuron (the inserted one, else the BMU, after
+   the update) enters window 1 (newest first, Eq. 5). With tau1 entries, their concatenation is
+   GWR2's input; GWR2's representative enters window 2; with tau2 entries, window 2 is the P-GWR
+   regressor r(t) (72 values with the defaults).
+2. Predictions made earlier for frame t are scored: C.P.E. against x(t), P.E. against its GWR1
+   representative (the target "as represented by the hierarchy").
+3. The P-GWR learns only pairs whose target has now been observed: (r(t-1), x(t)) in recursive
+   mode, (r(t-h), x(t-h+1) ... x(t)) in vector mode. It never sees a frame before its step.
+4. r(t) gives the prediction of t+1..t+h: the BMU's output weights (vector mode), or recursively
+   predicted frame -> GWR1 BMU -> shifted copies of the windows -> GWR2 BMU -> P-GWR BMU (no
+   learning on predictions).
+
+A missing sample (None or non-finite values) is a gap: windows and the queue of regressors are
+cleared (a concatenation never bridges unrelated frames) and the gap is counted; predictions made
+before it are still scored against the frames they target. `reset_sequence()` does the same at a
+sequence boundary and also drops those pending predictions. Networks are never cleared by either.
+
+`FlatPredictor` is the ablation without GWR1/GWR2: the regressor is the last p scaled raw frames.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from collections import deque
+from typing import Any, ClassVar
+
+import numpy as np
+
+from gwr_predictor.learning.checkpoint import CheckpointError, read_checkpoint, write_checkpoint
+from gwr_predictor.learning.gwr import GWR, InputError
+from gwr_predictor.learning.params import LAYERS, HierarchyParams
+from gwr_predictor.learning.predictive_gwr import PredictiveGWR
+from gwr_predictor.learning.scaling import InputScaling
+
+
+class ErrorTracker:
+    """P.E./C.P.E. per horizon step (MSE, rad^2) and per-layer quantization errors (rad).
+
+    Predictions are filed under the step they target (a ring of `horizon` slots), so scoring a
+    frame is one vectorised look-up and a prediction is scored exactly when its target arrives.
+    Squared errors are summed over joints here and divided by the joint count in `summary`.
+    """
+
+    def __init__(self, horizon: int, n_joints: int, layers: tuple[str, ...]) -> None:
+        self.horizon = horizon
+        self.n_joints = n_joints
+        self.layers = layers
+        self._k = np.arange(horizon)
+        self._slots = [(t + 1 + self._k) % horizon for t in range(horizon)]  # by t % horizon
+        self._targets = np.empty((2, 1, n_joints))  # [P.E. target, C.P.E. target]
+        self.pending = np.zeros((horizon, horizon, n_joints))  # [target slot, step k-1, joint]
+        self.valid = np.zeros((horizon, horizon), dtype=bool)
+        self.reset()
+
+    def reset(self) -> None:
+        """Zero the accumulated errors (pending predictions stay)."""
+        self.sse = np.zeros((2, self.horizon))  # rows: P.E., C.P.E.; summed over joints
+        self.count = np.zeros(self.horizon, dtype=np.int64)
+        self.q_last = {name: math.nan for name in self.layers}
+        self.q_sum = {name: 0.0 for name in self.layers}
+        self.q_count = {name: 0 for name in self.layers}
+
+    def forget_pending(self) -> None:
+        self.valid[:] = False
+
+    def expect(self, t: int, prediction: np.ndarray) -> None:
+        """File the prediction (horizon, joints) made at step t: row k targets step t + k + 1."""
+        slots = self._slots[t % self.horizon]
+        self.pending[slots, self._k] = prediction
+        self.valid[slots, self._k] = True
+
+    def score(self, t: int, frame: np.ndarray | None, represented: np.ndarray | None) -> None:
+        """Score the predictions targeting step t (None: missing frame, they are dropped)."""
+        valid = self.valid[t % self.horizon]
+        if frame is not None and valid.any():
+            targets = self._targets
+            targets[0, 0] = represented
+            targets[1, 0] = frame
+            diff = self.pending[t % self.horizon] - targets
+            err = np.vecdot(diff, diff)
+            if not valid.all():
+                err *= valid
+            self.sse += err
+            self.count += valid
+        valid[:] = False
+
+    def quantization(self, layer: str, distance_rad: float) -> None:
+        self.q_last[layer] = distance_rad
+        self.q_sum[layer] += distance_rad
+        self.q_count[layer] += 1
+
+    def summary(self) -> dict[str, Any]:
+        with np.errstate(invalid="ignore", divide="ignore"):
+            pe, cpe = self.sse / (self.count * self.n_joints)
+        total = int(self.count.sum()) * self.n_joints
+        return {
+            "pe": pe.tolist(),
+            "cpe": cpe.tolist(),
+            "pe_mean": float(self.sse[0].sum() / total) if total else math.nan,
+            "cpe_mean": float(self.sse[1].sum() / total) if total else math.nan,
+            "scored": self.count.tolist(),
+            "quantization_last": dict(self.q_last),
+            "quantization_mean": {k: (self.q_sum[k] / self.q_count[k] if self.q_count[k] else math.nan)
+                                  for k in self.layers},
+        }
+
+    # persistence
+    ARRAYS = ("err.sse", "err.count", "err.pending", "err.valid")
+
+    def arrays(self) -> dict[str, np.ndarray]:
+        return dict(zip(self.ARRAYS, (self.sse, self.count, self.pending, self.valid), strict=True))
+
+    def header(self) -> dict[str, Any]:
+        return {"q_last": self.q_last, "q_sum": self.q_sum, "q_count": self.q_count}
+
+    def restore(self, header: dict[str, Any], arrays: dict[str, np.ndarray]) -> None:
+        for name, current in zip(self.ARRAYS, (self.sse, self.count, self.pending, self.valid), strict=True):
+            _copy_into(current, arrays[name], name)
+        self.q_last = {k: float(v) for k, v in header["q_last"].items()}
+        self.q_sum = {k: float(v) for k, v in header["q_sum"].items()}
+        self.q_count = {k: int(v) for k, v in header["q_count"].items()}
+
+
+class _OnlinePredictor:
+    """Shared online loop of `Hierarchy` and `FlatPredictor`: gaps, delayed targets, predictions,
+    bookkeeping, persistence. Subclasses encode frames into regressors."""
+
+    kind: ClassVar[str]
+    layer_names: ClassVar[tuple[str, ...]]
+    pgwr: PredictiveGWR
+
+    def __init__(self, params: HierarchyParams | None = None, seed: int | None = 0) -> None:
+        self.params = HierarchyParams() if params is None else params
+        if not isinstance(self.params, HierarchyParams):
+            raise TypeError(f"params must be HierarchyParams, got {type(self.params).__name__}")
+        self._rng = np.random.default_rng(seed)
+        self._configure()
+        for name in self.layer_names:
+            setattr(self, name, self._new_layer(name))
+        self._frozen: frozenset[str] = frozenset()
+        self._t = self._frames = self._missing = self._sequences = self._predictions = 0
+        self._errors = ErrorTracker(self.params.horizon, self.params.n_joints, self.layer_names)
+        self._clear_sequence()
+
+    def _configure(self) -> None:
+        p = self.params
+        self.scaling = InputScaling(p.input_scale, p.n_joints, p.normalise_distance)
+        self._scale = p.input_scale
+        self._target_steps = p.horizon if p.mode == "vector" else 1
+        self._delta = p.target == "delta"
+        self._readout_k = p.readout_k
+        self._target = np.empty(self._target_steps * p.n_joints)
+
+    # --- subclass hooks -------------------------------------------------------------------------
+    def _new_layer(self, name: str) -> GWR:
+        raise NotImplementedError
+
+    def _clear_windows(self) -> None:
+        raise NotImplementedError
+
+    def _encode(self, xs: np.ndarray, learn: bool) -> tuple[np.ndarray, np.ndarray | None]:
+        """Feed one scaled frame; returns (its representation, scaled; the regressor or None)."""
+        raise NotImplementedError
+
+    def _rollout(self, first: np.ndarray, out: np.ndarray) -> None:
+        """Recursive mode: fill out[1:] from the first predicted (scaled) frame."""
+        raise NotImplementedError
+
+    # --- the online step ------------------------------------------------------------------------
+    def step(self, x: np.ndarray | None, learn: bool = True) -> np.ndarray | None:
+        """Observe frame x (radians; None/NaN = missing), learn if `learn`, and return the predictions
+        (horizon, n_joints) in radians for t+1..t+h, or None when the windows are not full yet."""
+        t = self._t
+        self._t += 1
+        frame = self._as_frame(x)
+        if frame is None:
+            self._missing += 1
+            self._errors.score(t, None, None)
+            self._clear_sequence()
+            return None
+        self._frames += 1
+        xs = frame * self._scale
+        rep, reg = self._encode(xs, learn)
+        self._errors.score(t, frame, rep / self._scale)
+        self._push_frame(xs)
+        if learn and "pgwr" not in self._frozen:
+            self._train_pgwr()
+        self._regs.append(reg)
+        self._last_reg = reg
+        if reg is None:
+            return None
+        prediction = self._forecast(reg, record=True)
+        self._errors.expect(t, prediction)
+        self._predictions += 1
+        return prediction
+
+    def predict(self) -> np.ndarray | None:
+        """The predictions from the current windows (as the last `step` returned, with the current
+        networks); no learning, no state change."""
+        return None if self._last_reg is None else self._forecast(self._last_reg, record=False)
+
+    def _as_frame(self, x: np.ndarray | None) -> np.ndarray | None:
+        if x is None:
+            return None
+        frame = np.asarray(x, dtype=float)
+        if frame.shape != (self.params.n_joints,):
+            raise InputError(f"a frame must have shape ({self.params.n_joints},), got {frame.shape}")
+        return frame if math.isfinite(frame.sum()) else None
+
+    def _push_frame(self, xs: np.ndarray) -> None:
+        """Keep the last `_target_steps` + 1 scaled frames, oldest first: the targets of the pair
+        learned now and, for delta targets, the frame they are measured from."""
+        buf = self._xbuf
+        buf[:-1] = buf[1:]
+        buf[-1] = xs
+        self._xfill = min(self._xfill + 1, len(buf))
+
+    def _train_pgwr(self) -> None:
+        """Learn the newest pair whose target is fully observed (delayed targets, no peeking)."""
+        k = self._target_steps
+        if len(self._regs) < k or self._xfill < k + self._delta:
+            return
+        reg = self._regs[-k]
+        if reg is None:
+            return
+        buf = self._xbuf
+        # in recursive mode the P-GWR has not changed since `_forecast` searched this very regressor
+        # last frame: the affinity it kept is reused (`GWR.search_keep`)
+        if self._delta:  # displacement of each target frame from the regressor's newest frame
+            target = self._target.reshape(k, -1)
+            np.subtract(buf[1:], buf[0], out=target)
+            self.pgwr.learn_pair_unchecked(reg, self._target)
+        else:
+            self.pgwr.learn_pair_unchecked(reg, buf[1:].reshape(-1))
+
+    def _forecast(self, reg: np.ndarray, record: bool) -> np.ndarray:
+        p = self.params
+        pg = self.pgwr
+        # recursive mode: the affinity is kept for the P-GWR's next learning step, which is on this
+        # very regressor (see `_train_pgwr`); vector mode learns an older one
+        aff = pg.search_keep(reg) if self._target_steps == 1 else None
+        y = pg.blended_output(reg, self._readout_k, record, affinity=aff)
+        if record:
+            self._errors.quantization("pgwr", pg.last_distance / self._scale)
+        out = np.empty((p.horizon, p.n_joints))
+        if p.mode == "vector":
+            out.reshape(-1)[:] = y
+            if self._delta:  # offsets from the newest observed frame
+                out += self._xbuf[-1]
+        else:
+            out[0] = y
+            if self._delta:
+                out[0] += self._xbuf[-1]
+            if p.horizon > 1:
+                self._rollout(out[0], out)
+        out /= self._scale
+        return out
+
+    def _readout(self, reg: np.ndarray, prev: np.ndarray, out: np.ndarray) -> None:
+        """Roll-out step: the P-GWR's next frame for regressor `reg` into `out` (scaled); with delta
+        targets the output is added to the previous (predicted) frame `prev`."""
+        pg = self.pgwr
+        y = pg.output_row(pg.nearest(reg)) if self._readout_k == 1 else pg.blended_output(reg, self._readout_k)
+        if self._delta:
+            np.add(prev, y, out=out)
+        else:
+            out[:] = y
+
+    def _match(self, net: GWR, name: str, x: np.ndarray, learn: bool) -> int:
+        """Learn (or only match, if frozen / not learning); returns the representative neuron."""
+        if learn and name not in self._frozen:
+            b = net.learn_unchecked(x)
+            idx = net.last_inserted if net.last_inserted >= 0 else b
+        else:
+            idx = net.match_unchecked(x)
+        self._errors.quantization(name, net.last_distance / self._scale)
+        return idx
+
+    # --- sequences and layers -------------------------------------------------------------------
+    def _clear_sequence(self) -> None:
+        self._clear_windows()
+        self._xbuf = np.zeros((self._target_steps + 1, self.params.n_joints))
+        self._xfill = 0
+        self._regs: deque[np.ndarray | None] = deque(maxlen=self._target_steps)
+        self._last_reg: np.ndarray | None = None
+
+    def reset_sequence(self) -> None:
+        """Sequence boundary: clear windows, queues and pending predictions (not the networks)."""
+        self._clear_sequence()
+        self._errors.forget_pending()
+        self._sequences += 1
+
+    def reset_errors(self) -> None:
+        """Zero P.E., C.P.E. and quantization statistics (counters of frames stay)."""
+        self._errors.reset()
+
+    def freeze_layers(self, which: tuple[str, ...] | list[str]) -> None:
+        """Stop learning in exactly these layers (they still match); () unfreezes all."""
+        unknown = set(which) - set(self.layer_names)
+        if unknown:
+            raise ValueError(f"unknown layers {sorted(unknown)}; layers are {self.layer_names}")
+        self._frozen = frozenset(which)
+
+    @property
+    def frozen_layers(self) -> tuple[str, ...]:
+        return tuple(n for n in self.layer_names if n in self._frozen)
+
+    def reset_layer(self, name: str, params: Any = None) -> None:
+        """Replace one layer by a fresh two-neuron network (optionally with new GWRParams), e.g. to
+        re-learn the P-GWR on frozen lower layers with another a_T. Windows are cleared."""
+        if name not in self.layer_names:
+            raise ValueError(f"unknown layer {name!r}; layers are {self.layer_names}")
+        if params is not None:
+            self.params = self.params.replace(**{name: params})
+        setattr(self, name, self._new_layer(name))
+        self._clear_sequence()
+        self._errors.forget_pending()
+
+    @property
+    def neuron_counts(self) -> tuple[int, ...]:
+        """Neurons per layer, in `layer_names` order."""
+        return tuple(getattr(self, n).n_neurons for n in self.layer_names)
+
+    @property
+    def frames_seen(self) -> int:
+        return self._frames
+
+    def errors(self) -> dict[str, Any]:
+        """Bookkeeping: counts, neurons, quantization errors (rad, Euclidean over a layer's input,
+        last and mean), P.E./C.P.E. (MSE rad^2 per horizon step, their means, how many scored)."""
+        return {
+            "steps": self._t,
+            "frames": self._frames,
+            "missing": self._missing,
+            "sequences": self._sequences,
+            "predictions": self._predictions,
+            "neurons": dict(zip(self.layer_names, self.neuron_counts, strict=True)),
+            **self._errors.summary(),
+        }
+
+    # --- persistence ----------------------------------------------------------------------------
+    def _extra_header(self) -> dict[str, Any]:
+        return {}
+
+    def _window_arrays(self) -> dict[str, np.ndarray]:
+        raise NotImplementedError
+
+    def _restore_windows(self, header: dict[str, Any], arrays: dict[str, np.ndarray]) -> None:
+        raise NotImplementedError
+
+    def save(self, path: str | os.PathLike[str]) -> None:
+        """Write the whole state (networks, windows, queues, errors, random state) atomically."""
+        header, arrays = self.state()
+        write_checkpoint(path, self.kind, header, arrays)
+
+    def state(self) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
+        """(JSON-able header, named arrays) of the whole state, as `save` writes it under `kind`. The
+        arrays may share memory with the model: write or copy them before it steps again."""
+        regs = list(self._regs)
+        reg_dim = self.pgwr.in_dim
+        reg_arr = np.array([np.zeros(reg_dim) if r is None else r for r in regs]).reshape(len(regs), reg_dim)
+        header = {
+            "params": self.params.to_flat(),
+            "rng": self._rng.bit_generator.state,
+            "counters": {"t": self._t, "frames": self._frames, "missing": self._missing,
+                         "sequences": self._sequences, "predictions": self._predictions},
+            "frozen": sorted(self._frozen),
+            "xfill": self._xfill,
+            "reg_present": [r is not None for r in regs],
+            "last_reg": self._last_reg is not None,
+            "errors": self._errors.header(),
+            **self._extra_header(),
+        }
+        arrays: dict[str, np.ndarray] = {"xbuf": self._xbuf, "regs": reg_arr, **self._errors.arrays(),
+                                         **self._window_arrays()}
+        for name in self.layer_names:
+            net = getattr(self, name)
+            arrays[f"{name}.weights"] = net.weights
+            arrays[f"{name}.counters"] = net.counters
+            arrays[f"{name}.edges"] = net.edge_array()
+        return header, arrays
+
+    @classmethod
+    def required_arrays(cls) -> list[str]:
+        """Names of the arrays `state` always holds."""
+        required = ["xbuf", "regs", *ErrorTracker.ARRAYS]
+        return required + [f"{n}.{a}" for n in cls.layer_names for a in ("weights", "counters", "edges")]
+
+    @classmethod
+    def load(cls, path: str | os.PathLike[str]) -> Any:
+        """A model saved by `save`; continues exactly where it stopped. Raises CheckpointError."""
+        header, arrays = read_checkpoint(path, cls.kind, cls.required_arrays())
+        return cls.from_state(header, arrays, path)
+
+    @classmethod
+    def from_state(cls, header: dict[str, Any], arrays: dict[str, np.ndarray],
+                   source: str | os.PathLike[str] = "<state>") -> Any:
+        """The model of a `state()` (header, arrays); content errors raise CheckpointError naming `source`."""
+        missing = sorted(set(cls.required_arrays()) - arrays.keys())
+        if missing:
+            raise CheckpointError(f"{source}: missing arrays {missing}")
+        try:
+            return cls._from_saved(header, arrays)
+        except CheckpointError:
+            raise
+        except (KeyError, ValueError, TypeError, IndexError) as exc:
+            raise CheckpointError(f"{source}: inconsistent checkpoint content: {type(exc).__name__}: {exc}") from exc
+
+    @classmethod
+    def _from_saved(cls, header: dict[str, Any], arrays: dict[str, np.ndarray]) -> Any:
+        model = cls.__new__(cls)
+        model.params = HierarchyParams.from_flat(header["params"])
+        model._restore_extra(header)
+        model._rng = np.random.default_rng(0)  # only for the layer templates; replaced below
+        model._configure()
+        for name in cls.layer_names:
+            template = model._new_layer(name)  # sizes and distance factor from the parameters
+            net = type(template).from_arrays(
+                arrays[f"{name}.weights"], template.params, edges=arrays[f"{name}.edges"],
+                counters=arrays[f"{name}.counters"], match_dim=template.match_dim,
+                distance_factor=template.distance_factor)
+            if net.dim != template.dim:
+                raise ValueError(f"layer {name} has {net.dim}-d weights, parameters say {template.dim}")
+            setattr(model, name, net)
+        c = header["counters"]
+        model._t, model._frames, model._missing = int(c["t"]), int(c["frames"]), int(c["missing"])
+        model._sequences, model._predictions = int(c["sequences"]), int(c["predictions"])
+        model.freeze_layers(tuple(header["frozen"]))
+        model._errors = ErrorTracker(model.params.horizon, model.params.n_joints, cls.layer_names)
+        model._errors.restore(header["errors"], arrays)
+        model._clear_sequence()
+        model._restore_windows(header, arrays)
+        _copy_into(model._xbuf, arrays["xbuf"], "xbuf")
+        model._xfill = int(header["xfill"])
+        present = header["reg_present"]
+        regs = arrays["regs"]
+        if len(present) != len(regs) or len(regs) > model._target_steps:
+            raise ValueError(f"regressor queue of {len(regs)} entries does not fit the parameters")
+        for flag, reg in zip(present, regs, strict=True):
+            model._regs.append(reg.copy() if flag else None)
+        model._last_reg = model._regs[-1] if header["last_reg"] else None
+        model._rng = np.random.default_rng()
+        model._rng.bit_generator.state = header["rng"]
+        return model
+
+    def _restore_extra(self, header: dict[str, Any]) -> None:
+        """Hook for subclass constructor arguments stored in the header."""
+
+
+def _copy_into(dest: np.ndarray, src: np.ndarray, name: str) -> None:
+    if src.shape != dest.shape:
+        raise ValueError(f"array {name!r} has shape {src.shape}, expected {dest.shape}")
+    dest[...] = src
+
+
+class Hierarchy(_OnlinePredictor):
+    """GWR1 -> GWR2 -> P-GWR learning online and predicting `horizon` frames at every step."""
+
+    kind = "Hierarchy"
+    layer_names = LAYERS
+    gwr1: GWR
+    gwr2: GWR
+
+    def _new_layer(self, name: str) -> GWR:
+        p, sc, rng = self.params, self.scaling, self._rng
+        if name == "gwr1":
+            lo, hi = sc.window_bounds(1)
+            return GWR(p.n_joints, p.gwr1, rng, init_low=lo, init_high=hi, distance_factor=sc.distance_factor(1))
+        if name == "gwr2":
+            lo, hi = sc.window_bounds(p.tau1)
+            return GWR(p.gwr2_dim, p.gwr2, rng, init_low=lo, init_high=hi,
+                       distance_factor=sc.distance_factor(p.tau1))
+        frames = p.tau1 * p.tau2
+        return _new_pgwr(p, sc, rng, frames, p.regressor_dim)
+
+    def _clear_windows(self) -> None:
+        p = self.params
+        self._win1 = np.zeros((p.tau1, p.n_joints))  # newest first
+        self._win2 = np.zeros((p.tau2, p.gwr2_dim))
+        self._fill1 = self._fill2 = 0
+        self._roll1 = np.empty((p.horizon - 1 + p.tau1, p.n_joints))  # roll-out scratch (see _rollout)
+        self._roll2 = np.empty((p.horizon - 1 + p.tau2, p.gwr2_dim))
+        # per start row s: the row written there and the window starting there (flattened), made once
+        # here rather than sliced in every roll-out step
+        f1, f2 = self._roll1.reshape(-1), self._roll2.reshape(-1)
+        n1, n2, d2 = p.tau1 * p.n_joints, p.tau2 * p.gwr2_dim, p.gwr2_dim
+        starts = range(p.horizon - 1)
+        self._roll_views = (list(self._roll1), [f1[s * p.n_joints:s * p.n_joints + n1] for s in starts],
+                            list(self._roll2), [f2[s * d2:s * d2 + n2] for s in starts])
+
+    def _encode(self, xs: np.ndarray, learn: bool) -> tuple[np.ndarray, np.ndarray | None]:
+        p = self.params
+        g1, g2 = self.gwr1, self.gwr2
+        w1 = self._win1
+        i1 = self._match(g1, "gwr1", xs, learn)
+        w1[1:] = w1[:-1]
+        w1[0] = g1.weight_row(i1)
+        rep = w1[0].copy()
+        self._fill1 = min(self._fill1 + 1, p.tau1)
+        if self._fill1 < p.tau1:
+            return rep, None
+        w2 = self._win2
+        i2 = self._match(g2, "gwr2", w1.reshape(-1), learn)
+        w2[1:] = w2[:-1]
+        w2[0] = g2.weight_row(i2)
+        self._fill2 = min(self._fill2 + 1, p.tau2)
+        if self._fill2 < p.tau2:
+            return rep, None
+        return rep, w2.reshape(-1).copy()
+
+    def _rollout(self, first: np.ndarray, out: np.ndarray) -> None:
+        """Each roll-out step is a chain of three BMU searches. The windows slide over two buffers
+        holding the current windows at their end, newest first: the window after k steps is the
+        contiguous slice starting k rows before it, so no step copies or shifts a window. The ~85 %
+        of a step spent in the three matrix-vector products is kept as is (their exact operands give
+        the exact results); the rest is trimmed: views made once per sequence, no per-step slicing."""
+        h = len(out)
+        s = h - 1
+        rows1, wins1, rows2, wins2 = self._roll_views
+        self._roll1[s:] = self._win1
+        self._roll2[s:] = self._win2
+        # the two lower searches inlined (nothing learns during a roll-out): one product + argmax each
+        a1, x1, o1, w1 = self.gwr1.search_views()
+        a2, x2, o2, w2 = self.gwr2.search_views()
+        q1, q2 = x1[:-1], x2[:-1]  # where the queries go ([query | -1/2] is the product's operand)
+        dot = np.dot
+        prev = out[0]
+        if self._readout_k == 1:  # the BMU read-out (Eq. 10), inlined as well
+            a3, x3, o3, _ = self.pgwr.search_views()
+            q3 = x3[:-1]
+            wo, delta = self.pgwr.weights_out, self._delta
+            for k in range(1, h):
+                s -= 1
+                q1[...] = prev
+                rows1[s][...] = w1[dot(a1, x1, out=o1).argmax()]
+                q2[...] = wins1[s]
+                rows2[s][...] = w2[dot(a2, x2, out=o2).argmax()]
+                q3[...] = wins2[s]
+                cur = out[k]
+                cur[...] = wo[dot(a3, x3, out=o3).argmax()]
+                if delta:
+                    cur += prev
+                prev = cur
+            return
+        readout = self._readout
+        for k in range(1, h):
+            s -= 1
+            q1[...] = prev
+            rows1[s][...] = w1[dot(a1, x1, out=o1).argmax()]
+            q2[...] = wins1[s]
+            rows2[s][...] = w2[dot(a2, x2, out=o2).argmax()]
+            cur = out[k]
+            readout(wins2[s], prev, cur)
+            prev = cur
+
+    def _window_arrays(self) -> dict[str, np.ndarray]:
+        return {"win1": self._win1, "win2": self._win2, "fill": np.array([self._fill1, self._fill2])}
+
+    def _restore_windows(self, header: dict[str, Any], arrays: dict[str, np.ndarray]) -> None:
+        _copy_into(self._win1, arrays["win1"], "win1")
+        _copy_into(self._win2, arrays["win2"], "win2")
+        self._fill1, self._fill2 = (int(v) for v in arrays["fill"])
+
+
+class FlatPredictor(_OnlinePredictor):
+    """The P-GWR alone on raw frames (ablation): regressor = last `order` scaled frames, newest
+    first; `order` defaults to the span of the hierarchy's regressor (tau1 + tau2 - 1 frames)."""
+
+    kind = "FlatPredictor"
+    layer_names = ("pgwr",)
+
+    def __init__(self, params: HierarchyParams | None = None, seed: int | None = 0,
+                 order: int | None = None) -> None:
+        p = HierarchyParams() if params is None else params
+        self.order = p.span if order is None else int(order)
+        if not 1 <= self.order <= 64:
+            raise ValueError(f"FlatPredictor order must be in [1, 64], got {order!r}")
+        super().__init__(p, seed)
+
+    def _new_layer(self, name: str) -> GWR:
+        p = self.params
+        return _new_pgwr(p, self.scaling, self._rng, self.order, p.n_joints * self.order)
+
+    def _clear_windows(self) -> None:
+        self._win = np.zeros((self.order, self.params.n_joints))
+        self._fill = 0
+
+    def _encode(self, xs: np.ndarray, learn: bool) -> tuple[np.ndarray, np.ndarray | None]:
+        w = self._win
+        w[1:] = w[:-1]
+        w[0] = xs
+        self._fill = min(self._fill + 1, self.order)
+        return xs, (w.reshape(-1).copy() if self._fill == self.order else None)
+
+    def _rollout(self, first: np.ndarray, out: np.ndarray) -> None:
+        w = self._win.copy()
+        flat = w.reshape(-1)
+        for k in range(1, len(out)):
+            w[1:] = w[:-1]
+            w[0] = out[k - 1]
+            self._readout(flat, out[k - 1], out[k])
+
+    def _extra_header(self) -> dict[str, Any]:
+        return {"order": self.order}
+
+    def _restore_extra(self, header: dict[str, Any]) -> None:
+        self.order = int(header["order"])
+
+    def _window_arrays(self) -> dict[str, np.ndarray]:
+        return {"win": self._win, "fill": np.array([self._fill])}
+
+    def _restore_windows(self, header: dict[str, Any], arrays: dict[str, np.ndarray]) -> None:
+        _copy_into(self._win, arrays["win"], "win")
+        self._fill = int(arrays["fill"][0])
+
+
+def _new_pgwr(p: HierarchyParams, sc: InputScaling, rng: np.random.Generator, frames: int,
+              in_dim: int) -> PredictiveGWR:
+    """A P-GWR whose random neurons lie inside the joint limits, in and out."""
+    lo_in, hi_in = sc.window_bounds(frames)
+    lo_out, hi_out = sc.window_bounds(p.output_dim // p.n_joints)
+    if p.target == "delta":  # displacements: initial neurons predict "no movement"
+        lo_out = hi_out = np.zeros_like(lo_out)
+    return PredictiveGWR(in_dim, p.output_dim, p.pgwr, rng, init_low=np.concatenate([lo_in, lo_out]),
+                         init_high=np.concatenate([hi_in, hi_out]), distance_factor=sc.distance_factor(frames))

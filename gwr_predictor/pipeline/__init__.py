@@ -1,0 +1,29 @@
+"""What the ROS pipeline shares without ROS: message conventions, bags, run reports, latency, plots.
+"""
+
+from gwr_predictor._exports import lazy_exports
+
+_EXPORTS = {
+    "pack_skeleton": "conventions",
+    "unpack_skeleton": "conventions",
+    "pack_predictions": "conventions",
+    "unpack_predictions": "conventions",
+    "LayoutError": "conventions",
+    "BagWriter": "bags",
+    "BagError": "bags",
+    "BagMessage": "bags",
+    "read_bag": "bags",
+    "bag_info": "bags",
+    "recover_bag": "bags",
+    "latency_report": "message_latency",
+    "LatencyReport": "message_latency",
+    "compute_report": "run_report",
+    "read_run": "run_report",
+    "plot_run": "run_report",
+    "PipelineReport": "run_report",
+    "ReportError": "run_report",
+    "plot_angle_series": "plotting",
+    "PlotError": "plotting",
+}
+__all__ = sorted(_EXPORTS)
+__getattr__, __dir__ = lazy_exports(__name__, _EXPORTS)

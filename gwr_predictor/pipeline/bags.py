@@ -1,0 +1,379 @@
+"""rosbag2 bags with MCAP storage, written and read with `rosbags` (no rosbag2_py on PyPI).
+
+Why this module: the recorder node writes the CDR bytes it receives from DDS unchanged, the player
+and the reports read them back, and both need the same guarantees: bags `ros2 bag` accepts
+(metadata version 9, storage mcap), errors that name the file, and a recorder crash that costs
+seconds of data, not the whole bag.
+
+Crash safety: rosbags keeps the current MCAP chunk (up to 1 MiB) in memory and writes the
+summary, footer and metadata.yaml only on close. `BagWriter.flush()` (or `flush_every`) closes the
+pending chunk and flushes the file, so after a crash everything up to the last flush is on disk;
+`recover_bag()` rebuilds a valid bag (MCAP summary + metadata.yaml) from those chunks.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import struct
+from collections.abc import Iterable, Iterator, Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, NamedTuple
+
+import numpy as np
+from rosbags.rosbag2 import Reader, StoragePlugin, Writer
+from rosbags.rosbag2.errors import ReaderError, WriterError
+from rosbags.typesys import Stores, get_typestore
+
+from gwr_predictor.pipeline.conventions import ArrayDim, PackedArray
+
+JOINT_STATE = "sensor_msgs/msg/JointState"
+FLOAT64_MULTIARRAY = "std_msgs/msg/Float64MultiArray"
+_MCAP_MAGIC = b"\x89MCAP0\r\n"
+
+#: The ROS 2 Jazzy message definitions (sensor_msgs, std_msgs, diagnostic_msgs, ...).
+TYPESTORE = get_typestore(Stores.ROS2_JAZZY)
+
+
+class BagError(RuntimeError):
+    """A bag that cannot be written or read; the message names the bag path and the cause."""
+
+
+class BagMessage(NamedTuple):
+    """One stored message: raw CDR bytes and, when the type is known, the decoded object."""
+
+    topic: str
+    msgtype: str
+    timestamp_ns: int
+    raw: bytes
+    msg: Any
+
+
+@dataclass(frozen=True)
+class BagInfo:
+    """What a bag holds: topics with type and count, time span, storage."""
+
+    path: Path
+    storage: str
+    message_count: int
+    start_ns: int
+    end_ns: int
+    topics: dict[str, tuple[str, int]]
+
+    @property
+    def duration_s(self) -> float:
+        return max(0, self.end_ns - self.start_ns) / 1e9
+
+
+# --- message helpers ----------------------------------------------------------------------------
+
+
+def _stamp(seconds: float) -> Any:
+    sec = int(np.floor(seconds))
+    nanosec = round((seconds - sec) * 1e9)
+    if nanosec >= 1_000_000_000:
+        sec, nanosec = sec + 1, nanosec - 1_000_000_000
+    return TYPESTORE.types["builtin_interfaces/msg/Time"](sec=sec, nanosec=nanosec)
+
+
+def stamp_seconds(stamp: Any) -> float:
+    """builtin_interfaces/Time -> float seconds."""
+    return stamp.sec + stamp.nanosec * 1e-9
+
+
+def joint_state_msg(names: Iterable[str], positions: np.ndarray, stamp: float, *,
+                    velocities: np.ndarray | None = None, frame_id: str = "") -> Any:
+    """A rosbags sensor_msgs/JointState (names, positions in rad, header stamp in seconds)."""
+    names = list(names)
+    pos = np.ascontiguousarray(positions, dtype=np.float64).ravel()
+    if pos.size != len(names):
+        raise BagError(f"JointState needs one position per name: {len(names)} names, {pos.size} positions")
+    vel = np.empty(0) if velocities is None else np.ascontiguousarray(velocities, dtype=np.float64).ravel()
+    t = TYPESTORE.types
+    header = t["std_msgs/msg/Header"](stamp=_stamp(stamp), frame_id=frame_id)
+    return t[JOINT_STATE](header=header, name=names, position=pos, velocity=vel, effort=np.empty(0))
+
+
+def joint_state_arrays(msg: Any) -> tuple[float, tuple[str, ...], np.ndarray]:
+    """JointState -> (stamp seconds, names, positions)."""
+    return stamp_seconds(msg.header.stamp), tuple(msg.name), np.asarray(msg.position, dtype=float)
+
+
+def multiarray_msg(packed: PackedArray) -> Any:
+    """conventions.PackedArray -> rosbags std_msgs/Float64MultiArray."""
+    t = TYPESTORE.types
+    dims = [t["std_msgs/msg/MultiArrayDimension"](label=d.label, size=d.size, stride=d.stride) for d in packed.dims]
+    layout = t["std_msgs/msg/MultiArrayLayout"](dim=dims, data_offset=packed.data_offset)
+    return t[FLOAT64_MULTIARRAY](layout=layout, data=np.ascontiguousarray(packed.data, dtype=np.float64))
+
+
+def packed_array(msg: Any) -> PackedArray:
+    """Float64MultiArray -> conventions.PackedArray (unpack with conventions.unpack_*)."""
+    dims = tuple(ArrayDim(d.label, int(d.size), int(d.stride)) for d in msg.layout.dim)
+    return PackedArray(dims, int(msg.layout.data_offset), np.asarray(msg.data, dtype=float))
+
+
+def serialize(msg: Any, msgtype: str | None = None) -> bytes:
+    """CDR bytes of a rosbags message object (what DDS would carry)."""
+    return bytes(TYPESTORE.serialize_cdr(msg, msgtype or msg.__msgtype__))
+
+
+def deserialize(raw: bytes, msgtype: str) -> Any:
+    return TYPESTORE.deserialize_cdr(raw, msgtype)
+
+
+# --- writing ------------------------------------------------------------------------------------
+
+
+class BagWriter:
+    """A rosbag2 (version 9, MCAP) bag writer for a fixed set of topics; use as a context manager.
+
+    `flush_every` > 0 flushes after that many messages (see the module docstring on crashes).
+    """
+
+    def __init__(self, path: str | os.PathLike[str], topics: Mapping[str, str], *, flush_every: int = 0) -> None:
+        self.path = Path(path)
+        if not topics:
+            raise BagError(f"{self.path}: BagWriter needs at least one topic")
+        for topic, msgtype in topics.items():
+            if msgtype not in TYPESTORE.types:
+                raise BagError(f"{self.path}: topic {topic!r} has type {msgtype!r}, unknown to the ROS 2 Jazzy store")
+        if isinstance(flush_every, bool) or not isinstance(flush_every, int) or flush_every < 0:
+            raise BagError(f"{self.path}: flush_every must be an int >= 0, got {flush_every!r}")
+        self.topics = dict(topics)
+        self.flush_every = flush_every
+        self.messages_written: dict[str, int] = dict.fromkeys(self.topics, 0)
+        self._writer: Writer | None = None
+        self._connections: dict[str, Any] = {}
+        self._since_flush = 0
+
+    @property
+    def total_written(self) -> int:
+        return sum(self.messages_written.values())
+
+    def __enter__(self) -> BagWriter:
+        self.open()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    def open(self) -> None:
+        if self.path.exists():
+            raise BagError(f"{self.path}: bag path exists already; choose a new directory")
+        try:
+            writer = Writer(self.path, version=9, storage_plugin=StoragePlugin.MCAP)
+            writer.open()
+        except (OSError, WriterError) as err:
+            raise BagError(f"{self.path}: cannot create bag: {err}") from err
+        self._writer = writer
+        try:
+            for topic, msgtype in self.topics.items():
+                self._connections[topic] = writer.add_connection(topic, msgtype, typestore=TYPESTORE)
+        except (OSError, WriterError) as err:
+            self._abort()
+            raise BagError(f"{self.path}: cannot add topics: {err}") from err
+
+    def write_raw(self, topic: str, timestamp_ns: int, data: bytes | memoryview) -> None:
+        """Store CDR bytes as received from DDS (receive time `timestamp_ns`)."""
+        writer = self._require_open()
+        conn = self._connections.get(topic)
+        if conn is None:
+            raise BagError(f"{self.path}: topic {topic!r} was not declared (declared: {sorted(self.topics)})")
+        if isinstance(timestamp_ns, bool) or not isinstance(timestamp_ns, (int, np.integer)) or timestamp_ns < 0:
+            raise BagError(f"{self.path}: timestamp_ns must be an int >= 0, got {timestamp_ns!r}")
+        try:
+            writer.write(conn, int(timestamp_ns), data)
+        except OSError as err:
+            self._abort()
+            raise BagError(f"{self.path}: write failed ({err.strerror or err}); bag aborted, "
+                           f"recover what was flushed with recover_bag") from err
+        self.messages_written[topic] += 1
+        self._since_flush += 1
+        if self.flush_every and self._since_flush >= self.flush_every:
+            self.flush()
+
+    def write(self, topic: str, timestamp_ns: int, msg: Any) -> None:
+        """Serialise a rosbags message object with the topic's type and store it."""
+        self.write_raw(topic, timestamp_ns, serialize(msg, self.topics.get(topic)))
+
+    def flush(self) -> None:
+        """Put every message written so far on disk as a complete MCAP chunk."""
+        writer = self._require_open()
+        storage = writer.storage
+        try:
+            if storage is not None and storage.chunk.bio.tell():
+                storage.close_chunk()
+            if storage is not None:
+                storage.bio.flush()
+                os.fsync(storage.bio.fileno())
+        except OSError as err:
+            self._abort()
+            raise BagError(f"{self.path}: flush failed ({err.strerror or err}); bag aborted") from err
+        self._since_flush = 0
+
+    def close(self) -> None:
+        """Write the MCAP summary and metadata.yaml (idempotent)."""
+        writer, self._writer = self._writer, None
+        if writer is None:
+            return
+        try:
+            writer.close()
+        except (OSError, WriterError) as err:
+            writer.abort()
+            raise BagError(f"{self.path}: closing the bag failed ({err}); recover with recover_bag") from err
+
+    def _abort(self) -> None:
+        writer, self._writer = self._writer, None
+        if writer is not None:
+            writer.abort()
+
+    def _require_open(self) -> Writer:
+        if self._writer is None:
+            raise BagError(f"{self.path}: bag writer is not open (use it as a context manager)")
+        return self._writer
+
+
+# --- reading ------------------------------------------------------------------------------------
+
+
+def _open_reader(path: Path) -> Reader:
+    if not path.is_dir():
+        raise BagError(f"{path}: not a bag directory")
+    if not (path / "metadata.yaml").is_file():
+        raise BagError(f"{path}: no metadata.yaml (writer not closed? try recover_bag({str(path)!r}))")
+    try:
+        reader = Reader(path)
+        reader.open()
+    except (ReaderError, OSError, KeyError, ValueError) as err:
+        raise BagError(f"{path}: unreadable bag: {err}") from err
+    return reader
+
+
+def read_bag(path: str | os.PathLike[str], topics: Iterable[str] | None = None, *,
+             decode: bool = True) -> Iterator[BagMessage]:
+    """Messages of a bag in time order; `topics` restricts, `decode` adds the message objects."""
+    path = Path(path)
+    wanted = None if topics is None else set(topics)
+    reader = _open_reader(path)
+    try:
+        conns = [c for c in reader.connections if wanted is None or c.topic in wanted]
+        for conn, timestamp, raw in reader.messages(connections=conns):
+            msg = None
+            if decode and conn.msgtype in TYPESTORE.types:
+                try:
+                    msg = TYPESTORE.deserialize_cdr(raw, conn.msgtype)
+                except Exception as err:  # rosbags raises plain exceptions on malformed CDR
+                    raise BagError(f"{path}: cannot decode a {conn.msgtype} on {conn.topic} at {timestamp} ns: "
+                                   f"{err}") from err
+            yield BagMessage(conn.topic, conn.msgtype, int(timestamp), bytes(raw), msg)
+    except ReaderError as err:
+        raise BagError(f"{path}: {err}") from err
+    finally:
+        reader.close()
+
+
+def bag_info(path: str | os.PathLike[str]) -> BagInfo:
+    """Topics, counts and time span of a bag (from its metadata)."""
+    path = Path(path)
+    reader = _open_reader(path)
+    try:
+        topics: dict[str, tuple[str, int]] = {}
+        for conn in reader.connections:
+            old = topics.get(conn.topic, (conn.msgtype, 0))
+            topics[conn.topic] = (conn.msgtype, old[1] + conn.msgcount)
+        count = reader.message_count
+        return BagInfo(path, "mcap" if any(p.suffix == ".mcap" for p in path.iterdir()) else "sqlite3", count,
+                       reader.start_time if count else 0, reader.end_time - 1 if count else 0, topics)
+    finally:
+        reader.close()
+
+
+# --- recovery -----------------------------------------------------------------------------------
+
+
+class _Salvage(NamedTuple):
+    channels: dict[int, tuple[str, str]]  # channel id -> (topic, msgtype)
+    messages: list[tuple[int, int, bytes]]  # (channel id, log_time, data)
+    complete: bool  # the file had its footer
+
+
+def _salvage_mcap(mcap_path: Path) -> _Salvage:
+    """Schemas, channels and messages of every complete chunk, read with the `mcap` library."""
+    from mcap.exceptions import McapError
+    from mcap.records import Channel, Chunk, Footer, Message, Schema
+    from mcap.stream_reader import StreamReader, breakup_chunk
+
+    schemas: dict[int, str] = {}
+    channels: dict[int, tuple[str, str]] = {}
+    messages: list[tuple[int, int, bytes]] = []
+    complete = False
+
+    def take(record: Any) -> None:
+        if isinstance(record, Schema):
+            schemas[record.id] = record.name
+        elif isinstance(record, Channel):
+            channels[record.id] = (record.topic, schemas.get(record.schema_id, ""))
+        elif isinstance(record, Message) and record.channel_id in channels:
+            messages.append((record.channel_id, record.log_time, bytes(record.data)))
+
+    with mcap_path.open("rb") as stream:
+        try:
+            for record in StreamReader(stream, emit_chunks=True).records:
+                if isinstance(record, Chunk):
+                    if not record.compression and len(record.data) != record.uncompressed_size:
+                        break  # a chunk cut off by the crash
+                    for inner in breakup_chunk(record):
+                        take(inner)
+                elif isinstance(record, Footer):
+                    complete = True
+                else:
+                    take(record)
+        except (McapError, struct.error, ValueError):
+            pass  # the file ends inside a record (or a compressed chunk is cut): keep what was read
+    return _Salvage(channels, messages, complete)
+
+
+def recover_bag(path: str | os.PathLike[str]) -> BagInfo:
+    """Make a bag whose writer never closed readable again, in place; returns its info.
+
+    Reads the MCAP file sequentially, keeps the messages of every complete chunk, and rewrites a
+    complete MCAP file plus metadata.yaml. The damaged file is kept as `<name>.mcap.damaged`.
+    A bag that already has metadata.yaml is left untouched.
+    """
+    path = Path(path)
+    if not path.is_dir():
+        raise BagError(f"{path}: not a bag directory")
+    if (path / "metadata.yaml").is_file():
+        return bag_info(path)
+    files = sorted(path.glob("*.mcap"))
+    if len(files) != 1:
+        raise BagError(f"{path}: expected one .mcap file to recover, found {len(files)}")
+    damaged = files[0]
+    with damaged.open("rb") as f:
+        if f.read(8) != _MCAP_MAGIC:
+            raise BagError(f"{damaged}: no MCAP header; nothing recoverable (the writer never flushed)")
+    salvage = _salvage_mcap(damaged)
+    if not salvage.channels:
+        raise BagError(f"{damaged}: no complete chunk on disk; nothing recoverable (the writer never flushed)")
+    unknown = {t for _, t in salvage.channels.values() if t not in TYPESTORE.types}
+    if unknown:
+        raise BagError(f"{damaged}: cannot recover message types unknown to the Jazzy store: {sorted(unknown)}")
+    staging_root = path.parent / f".{path.name}.recovering"
+    if staging_root.exists():
+        shutil.rmtree(staging_root)
+    staging_root.mkdir()
+    staging = staging_root / path.name
+    try:
+        topics = {topic: msgtype for topic, msgtype in salvage.channels.values()}
+        cid_topic = {cid: topic for cid, (topic, _) in salvage.channels.items()}
+        with BagWriter(staging, topics) as writer:
+            for cid, log_time, data in sorted(salvage.messages, key=lambda m: m[1]):
+                writer.write_raw(cid_topic[cid], log_time, data)
+        damaged.rename(damaged.with_name(damaged.name + ".damaged"))
+        for item in staging.iterdir():
+            item.rename(path / item.name)
+    finally:
+        shutil.rmtree(staging_root, ignore_errors=True)
+    return bag_info(path)

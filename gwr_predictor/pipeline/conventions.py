@@ -1,0 +1,166 @@
+"""Every message convention of the pipeline in one place: topics, joint names, array layouts.
+
+Nodes and tests import from here, so that a rename happens once. The pipeline flows one way:
+skeleton -> angles -> hierarchy -> predictions -> compensator -> robot.
+
+"Custom arrays" are std_msgs/Float64MultiArray messages whose layout dims are labelled. A
+MultiArray has no header, so the stamp of the frame travels in the data itself: the layout's
+`data_offset` is 1 and `data[0]` is the stamp in seconds (float64, the source clock). Dim labels
+carry the names: the joint dim's label is ``"joint:" + "|".join(names)``.
+
+This module is pure Python/numpy; `gwr_predictor.nodes.messages` turns these into msg objects.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from gwr_predictor.robot.nao import ARM_JOINTS
+
+# --- topics (relative names, so a namespace or remapping moves the whole pipeline) -------------
+TOPIC_SKELETON = "skeleton"  # Float64MultiArray, skeleton layout, 30 fps
+TOPIC_ANGLES = "arm_angles"  # sensor_msgs/JointState, ARM_JOINTS, 10 fps
+TOPIC_PREDICTIONS = "predictions"  # Float64MultiArray, prediction layout (horizon x joint)
+TOPIC_PREDICTED_ANGLES = "predicted_angles"  # JointState: the h-step-ahead prediction
+TOPIC_COMMAND = "joint_commands"  # JointState: what the robot is told to execute
+TOPIC_ROBOT_STATE = "joint_states"  # JointState: what the simulated Nao reports
+TOPIC_LEARNER_STATUS = "learner_status"  # diagnostic_msgs/DiagnosticArray, about 1 Hz
+TOPIC_DIAGNOSTICS = "diagnostics"  # diagnostic_msgs/DiagnosticArray: rejection counters of all nodes
+
+#: All pipeline topics with their ROS type names (for recorders and bag checks).
+TOPIC_TYPES: dict[str, str] = {
+    TOPIC_SKELETON: "std_msgs/msg/Float64MultiArray",
+    TOPIC_ANGLES: "sensor_msgs/msg/JointState",
+    TOPIC_PREDICTIONS: "std_msgs/msg/Float64MultiArray",
+    TOPIC_PREDICTED_ANGLES: "sensor_msgs/msg/JointState",
+    TOPIC_COMMAND: "sensor_msgs/msg/JointState",
+    TOPIC_ROBOT_STATE: "sensor_msgs/msg/JointState",
+    TOPIC_LEARNER_STATUS: "diagnostic_msgs/msg/DiagnosticArray",
+    TOPIC_DIAGNOSTICS: "diagnostic_msgs/msg/DiagnosticArray",
+}
+
+# --- skeleton joints (OpenNI/NITE, 15 joints) --------------------------------------------------
+SKELETON_JOINTS: tuple[str, ...] = (
+    "head", "neck", "torso",
+    "left_shoulder", "left_elbow", "left_hand",
+    "right_shoulder", "right_elbow", "right_hand",
+    "left_hip", "left_knee", "left_foot",
+    "right_hip", "right_knee", "right_foot",
+)
+
+SKELETON_FPS = 30.0
+ANGLE_FPS = 10.0
+DEFAULT_HORIZON = 6  # frames at 10 fps: 600 ms
+
+JOINT_DIM_PREFIX = "joint:"
+XYZ_LABEL = "xyz"
+HORIZON_LABEL = "horizon"
+
+
+class LayoutError(ValueError):
+    """A MultiArray whose layout does not match the convention; the message says what differs."""
+
+
+@dataclass(frozen=True)
+class ArrayDim:
+    """One MultiArrayDimension as plain data."""
+
+    label: str
+    size: int
+    stride: int
+
+
+@dataclass(frozen=True)
+class PackedArray:
+    """A Float64MultiArray as plain data: dims, data_offset and the flat data."""
+
+    dims: tuple[ArrayDim, ...]
+    data_offset: int
+    data: np.ndarray
+
+
+def joint_label(names: tuple[str, ...] | list[str]) -> str:
+    return JOINT_DIM_PREFIX + "|".join(names)
+
+
+def parse_joint_label(label: str) -> tuple[str, ...]:
+    if not label.startswith(JOINT_DIM_PREFIX):
+        raise LayoutError(f"joint dim label must start with {JOINT_DIM_PREFIX!r}, got {label[:40]!r}")
+    names = tuple(label[len(JOINT_DIM_PREFIX):].split("|"))
+    if any(not n for n in names):
+        raise LayoutError(f"empty joint name in label {label[:80]!r}")
+    return names
+
+
+def pack_skeleton(stamp: float, positions: np.ndarray,
+                  names: tuple[str, ...] = SKELETON_JOINTS) -> PackedArray:
+    """One skeleton frame (joints x 3, metres, camera frame) -> labelled array with its stamp."""
+    positions = np.asarray(positions, dtype=np.float64)
+    if positions.shape != (len(names), 3):
+        raise LayoutError(f"skeleton positions must be ({len(names)}, 3), got {positions.shape}")
+    dims = (ArrayDim(joint_label(names), len(names), 3 * len(names)), ArrayDim(XYZ_LABEL, 3, 3))
+    return PackedArray(dims, 1, np.concatenate(([float(stamp)], positions.ravel())))
+
+
+def unpack_skeleton(packed: PackedArray) -> tuple[float, tuple[str, ...], np.ndarray]:
+    """Labelled array -> (stamp, joint names, positions joints x 3). Raises LayoutError."""
+    dims = packed.dims
+    if len(dims) != 2 or dims[1].label != XYZ_LABEL or dims[1].size != 3:
+        raise LayoutError(f"skeleton layout must be [joint:..., xyz(3)], got {[d.label[:20] for d in dims]}")
+    names = parse_joint_label(dims[0].label)
+    if dims[0].size != len(names):
+        raise LayoutError(f"joint dim size {dims[0].size} != {len(names)} names in its label")
+    return _unpack(packed, names, 3)
+
+
+def _unpack(packed: PackedArray, names: tuple[str, ...], width: int) -> tuple[float, tuple[str, ...], np.ndarray]:
+    rows = packed.dims[0].size
+    data = np.asarray(packed.data, dtype=np.float64)
+    expected = packed.data_offset + rows * width
+    if packed.data_offset != 1:
+        raise LayoutError(f"data_offset must be 1 (the stamp), got {packed.data_offset}")
+    if data.size != expected:
+        raise LayoutError(f"expected {expected} values (1 stamp + {rows}x{width}), got {data.size}")
+    return float(data[0]), names, data[1:].reshape(rows, width)
+
+
+def pack_predictions(stamp: float, predictions: np.ndarray,
+                     names: tuple[str, ...] = ARM_JOINTS) -> PackedArray:
+    """Predictions (horizon x joints, rad) for t+1..t+h made at frame `stamp` -> labelled array."""
+    predictions = np.asarray(predictions, dtype=np.float64)
+    if predictions.ndim != 2 or predictions.shape[1] != len(names):
+        raise LayoutError(f"predictions must be (horizon, {len(names)}), got {predictions.shape}")
+    h, j = predictions.shape
+    dims = (ArrayDim(HORIZON_LABEL, h, h * j), ArrayDim(joint_label(names), j, j))
+    return PackedArray(dims, 1, np.concatenate(([float(stamp)], predictions.ravel())))
+
+
+def unpack_predictions(packed: PackedArray) -> tuple[float, tuple[str, ...], np.ndarray]:
+    """Labelled array -> (stamp, joint names, predictions horizon x joints). Raises LayoutError."""
+    dims = packed.dims
+    if len(dims) != 2 or dims[0].label != HORIZON_LABEL:
+        raise LayoutError(f"prediction layout must be [horizon, joint:...], got {[d.label[:20] for d in dims]}")
+    names = parse_joint_label(dims[1].label)
+    if dims[1].size != len(names):
+        raise LayoutError(f"joint dim size {dims[1].size} != {len(names)} names in its label")
+    h = dims[0].size
+    data = np.asarray(packed.data, dtype=np.float64)
+    if packed.data_offset != 1 or data.size != 1 + h * len(names) or h < 1:
+        raise LayoutError(f"expected data_offset 1 and {1 + h * len(names)} values, got "
+                          f"{packed.data_offset} and {data.size}")
+    return float(data[0]), names, data[1:].reshape(h, len(names))
+
+
+# --- pipeline timing and QoS (used by the nodes in gwr_predictor.nodes) --------------------------
+#: A stamp gap larger than this ends a sequence: the learner resets its temporal windows.
+MAX_GAP_S = 0.5
+#: Keep-last queue depths: data streams hold about a second at 30 fps; status topics the ROS default.
+QOS_DEPTH_STREAM = 50
+QOS_DEPTH_STATUS = 10
+#: The bag recorder's subscription queue (raw CDR): several seconds of every stream.
+QOS_DEPTH_RECORDER = 500
+#: Key/value names in the learner status (DiagnosticArray on TOPIC_LEARNER_STATUS).
+LEARNER_STATUS_NAME = "learner"  # the status name is "<node>/learner"
+NEURON_KEYS = {"gwr1": "neurons.gwr1", "gwr2": "neurons.gwr2", "pgwr": "neurons.pgwr"}

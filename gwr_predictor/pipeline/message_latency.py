@@ -1,0 +1,334 @@
+"""Latency and message loss of a recorded pipeline run, from the bag alone (pure numpy, no ROS).
+
+Why from the bag: the recorder stamps every message with its receive time (the bag's log time,
+node clock) and the data carry the frame's source stamp (the skeleton's capture time travels through
+angles and predictions unchanged), so the delay from the sensor to each downstream message needs no
+instrumentation inside the nodes. Every node publishes its counters on /diagnostics once more when
+it stops, so the final counters in the bag give the exact number of messages each node published
+and received: loss = published - received, per hop.
+
+Definitions (seconds; reported as milliseconds):
+
+- ``<topic> transit``: receive time - header stamp, for topics stamped when published
+  (joint_commands, joint_states): middleware + recorder only.
+- ``source -> <topic>``: receive time - the frame's source stamp (skeleton, arm_angles,
+  predictions, joint_commands). For arm_angles this includes waiting for the third frame of the
+  median-of-3 group (one skeleton period, 33 ms); for joint_commands it is the prediction's stamp.
+- ``hop angle_extractor``: arm_angles receive - receive of the skeleton that completed the group
+  (the first skeleton stamped after the group's middle frame).
+- ``hop gwr_hierarchy``: predictions receive - receive of the arm_angles frame with the same stamp.
+- ``hop delay_compensator``: publish stamp of the command nearest to a prediction's receive (within
+  half a frame period) - that receive; ``source -> joint_commands`` is that command's receive - the
+  prediction's source stamp.
+
+All receive times are the recorder's: a hop is the difference of two receive times, so it includes
+the recorder's scheduling jitter (about a millisecond), not only the node's processing.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from collections.abc import Iterable, Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from gwr_predictor.pipeline import bags, conventions
+from gwr_predictor.pipeline.run_report import finite_json
+
+#: Percentiles reported for every latency.
+PERCENTILES = (50, 90, 99)
+_KEY_RESOLUTION = 1e-6  # stamps are matched to the microsecond (header stamps are integer ns)
+
+
+@dataclass(frozen=True)
+class LatencyStats:
+    """Percentiles of one latency (seconds)."""
+
+    n: int
+    p50: float
+    p90: float
+    p99: float
+    max: float
+    mean: float
+
+    def as_ms(self) -> dict[str, float | int]:
+        return {"n": self.n, **{k: round(1e3 * getattr(self, k), 3) for k in ("p50", "p90", "p99", "max", "mean")}}
+
+
+def latency_stats(values: Iterable[float]) -> LatencyStats:
+    """p50/p90/p99/max/mean of finite values; NaN everywhere (n = 0) when there are none."""
+    v = np.asarray(list(values) if not isinstance(values, np.ndarray) else values, dtype=float)
+    v = v[np.isfinite(v)]
+    if v.size == 0:
+        return LatencyStats(0, *([float("nan")] * 5))
+    p50, p90, p99 = (float(x) for x in np.percentile(v, PERCENTILES))
+    return LatencyStats(int(v.size), p50, p90, p99, float(v.max()), float(v.mean()))
+
+
+@dataclass
+class TopicSeries:
+    """Receive times and source stamps (s) of one topic, in receive order."""
+
+    receive: np.ndarray
+    stamp: np.ndarray
+
+
+@dataclass(frozen=True)
+class HopCount:
+    """Messages one node published on a topic vs what the next node and the recorder got."""
+
+    topic: str
+    publisher: str
+    published: int | None  # from the publisher's final counters; None if they are not in the bag
+    recorded: int
+    consumer: str | None = None
+    consumed: int | None = None  # accepted + rejected by the consumer (its final counters)
+    #: published before the publisher's first /diagnostics in the bag, and recorded after it: the
+    #: recorder's loss is counted from then on (before, its subscription may not have matched yet,
+    #: and volatile QoS resends nothing to a late joiner)
+    published_early: int = 0
+    recorded_after: int | None = None
+
+    @property
+    def lost_recorder(self) -> int | None:
+        if self.published is None:
+            return None
+        recorded = self.recorded if self.recorded_after is None else self.recorded_after
+        return self.published - self.published_early - recorded
+
+    @property
+    def lost_consumer(self) -> int | None:
+        return None if self.published is None or self.consumed is None else self.published - self.consumed
+
+
+@dataclass
+class LatencyReport:
+    """Everything `gwr-predictor latency` prints: latencies per hop and message counts per topic."""
+
+    bag: Path
+    duration_s: float
+    latencies: dict[str, LatencyStats] = field(default_factory=dict)
+    counts: list[HopCount] = field(default_factory=list)
+
+    @property
+    def total_lost(self) -> int:
+        """Messages published but neither recorded nor consumed (counting only known hops)."""
+        lost = 0
+        for c in self.counts:
+            lost += max(0, c.lost_recorder or 0) + max(0, c.lost_consumer or 0)
+        return lost
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "bag": str(self.bag),
+            "duration_s": round(self.duration_s, 3),
+            "latency_ms": {k: v.as_ms() for k, v in self.latencies.items()},
+            "counts": [{"topic": c.topic, "publisher": c.publisher, "published": c.published,
+                        "published_before_first_diagnostics": c.published_early, "recorded": c.recorded,
+                        "recorded_after_first_diagnostics": c.recorded_after,
+                        "lost_recorder": c.lost_recorder, "consumer": c.consumer,
+                        "consumed": c.consumed, "lost_consumer": c.lost_consumer} for c in self.counts],
+            "total_lost": self.total_lost,
+        }
+
+    def to_json(self) -> str:
+        return json.dumps(finite_json(self.to_dict()), indent=2)
+
+    def summary_lines(self) -> list[str]:
+        lines = [f"bag {self.bag}: {self.duration_s:.1f} s",
+                 f"{'latency (ms)':<46}{'n':>7}{'p50':>9}{'p90':>9}{'p99':>9}{'max':>9}"]
+        for name, s in self.latencies.items():
+            lines.append(f"{name:<46}{s.n:>7}{1e3 * s.p50:>9.2f}{1e3 * s.p90:>9.2f}{1e3 * s.p99:>9.2f}"
+                         f"{1e3 * s.max:>9.2f}")
+        lines.append(f"{'messages':<46}{'published':>10}{'early':>7}{'recorded':>10}{'lost':>6}{'consumed':>10}"
+                     "  consumer")
+        for c in self.counts:
+            pub = "?" if c.published is None else str(c.published)
+            lost = "?" if c.lost_recorder is None else str(c.lost_recorder)
+            con = "-" if c.consumed is None else str(c.consumed)
+            lines.append(f"{c.topic + ' (' + c.publisher + ')':<46}{pub:>10}{c.published_early:>7}{c.recorded:>10}"
+                         f"{lost:>6}{con:>10}  {c.consumer or '-'}")
+        lines.append(f"messages lost: {self.total_lost} (early: published before the publisher's first "
+                     "/diagnostics, not counted for the recorder)")
+        return lines
+
+
+# --- reading --------------------------------------------------------------------------------------
+
+
+def _source_stamp(msg: Any, msgtype: str) -> float:
+    if msgtype == bags.FLOAT64_MULTIARRAY:
+        return float(msg.data[0]) if msg.layout.data_offset >= 1 and len(msg.data) >= 1 else float("nan")
+    return bags.stamp_seconds(msg.header.stamp)
+
+
+#: {node name: [(receive s, {key: value}), ...]} of the /diagnostics statuses in a bag, in receive order.
+DiagnosticsHistory = dict[str, list[tuple[float, dict[str, str]]]]
+
+
+def read_series(bag: str | os.PathLike[str]) -> tuple[dict[str, TopicSeries], DiagnosticsHistory, float]:
+    """({topic: TopicSeries}, every /diagnostics status per node, duration s) of a pipeline bag."""
+    bag = Path(bag)
+    info = bags.bag_info(bag)
+    rows: dict[str, tuple[list[float], list[float]]] = {}
+    diagnostics: DiagnosticsHistory = {}
+    for m in bags.read_bag(bag):
+        if m.msg is None:
+            continue
+        if m.msgtype == "diagnostic_msgs/msg/DiagnosticArray":
+            if m.topic.endswith("/" + conventions.TOPIC_DIAGNOSTICS):
+                for status in m.msg.status:
+                    diagnostics.setdefault(status.name, []).append(
+                        (m.timestamp_ns * 1e-9, {kv.key: kv.value for kv in status.values}))
+            continue
+        recv, stamps = rows.setdefault(m.topic, ([], []))
+        recv.append(m.timestamp_ns * 1e-9)
+        stamps.append(_source_stamp(m.msg, m.msgtype))
+    series = {t: TopicSeries(np.asarray(r), np.asarray(s)) for t, (r, s) in rows.items()}
+    return series, diagnostics, info.duration_s
+
+
+# --- computing ------------------------------------------------------------------------------------
+
+
+def _keys(stamps: np.ndarray) -> np.ndarray:
+    return np.round(stamps / _KEY_RESOLUTION).astype(np.int64)
+
+
+def extractor_hop(skeleton: TopicSeries, angles: TopicSeries, max_gap_s: float = conventions.MAX_GAP_S
+                  ) -> np.ndarray:
+    """arm_angles receive - receive of the skeleton that completed its group (first one stamped after it)."""
+    if skeleton.stamp.size == 0 or angles.stamp.size == 0:
+        return np.zeros(0)
+    order = np.argsort(skeleton.stamp, kind="stable")
+    s_stamp, s_recv = skeleton.stamp[order], skeleton.receive[order]
+    idx = np.searchsorted(s_stamp, angles.stamp + _KEY_RESOLUTION, side="left")
+    ok = idx < s_stamp.size
+    ok[ok] &= s_stamp[idx[ok]] - angles.stamp[ok] <= max_gap_s
+    return angles.receive[ok] - s_recv[idx[ok]]
+
+
+def same_stamp_hop(upstream: TopicSeries, downstream: TopicSeries) -> np.ndarray:
+    """downstream receive - upstream receive of the message with the same source stamp."""
+    first: dict[int, float] = {}
+    for key, recv in zip(_keys(upstream.stamp).tolist(), upstream.receive.tolist(), strict=True):
+        first.setdefault(key, recv)
+    out = [recv - first[key] for key, recv in zip(_keys(downstream.stamp).tolist(), downstream.receive.tolist(),
+                                                    strict=True) if key in first]
+    return np.asarray(out, dtype=float)
+
+
+def command_hop(predictions: TopicSeries, commands: TopicSeries, frame_period_s: float = 1.0 / conventions.ANGLE_FPS
+                ) -> tuple[np.ndarray, np.ndarray]:
+    """(compensator hop, source -> command) per prediction: the command published (its header stamp is
+    the compensator's clock at publishing) nearest to the prediction's receive, within half a frame.
+
+    Paired by the command's publish stamp, not its receive, because the recorder may handle the
+    command before the prediction that caused it (separate subscriptions); the hop can therefore be
+    slightly negative by the recorder's own scheduling jitter.
+    """
+    if predictions.receive.size == 0 or commands.receive.size == 0:
+        return np.zeros(0), np.zeros(0)
+    order = np.argsort(commands.stamp, kind="stable")
+    c_stamp, c_recv = commands.stamp[order], commands.receive[order]
+    p_recv, p_stamp = predictions.receive, predictions.stamp
+    idx = np.searchsorted(c_stamp, p_recv)
+    before = np.clip(idx - 1, 0, c_stamp.size - 1)
+    after = np.clip(idx, 0, c_stamp.size - 1)
+    nearest = np.where(np.abs(c_stamp[before] - p_recv) <= np.abs(c_stamp[after] - p_recv), before, after)
+    ok = np.abs(c_stamp[nearest] - p_recv) <= 0.5 * frame_period_s
+    return c_stamp[nearest[ok]] - p_recv[ok], c_recv[nearest[ok]] - p_stamp[ok]
+
+
+def compute_latencies(series: Mapping[str, TopicSeries], namespace: str = "") -> dict[str, LatencyStats]:
+    """Every latency of the module docstring that the bag has the topics for."""
+    def topic(name: str, ns: str = "") -> TopicSeries | None:
+        return series.get(f"{ns}/{name}")
+
+    empty = TopicSeries(np.zeros(0), np.zeros(0))
+    skel = topic(conventions.TOPIC_SKELETON) or empty
+    angles = topic(conventions.TOPIC_ANGLES) or empty
+    preds = topic(conventions.TOPIC_PREDICTIONS) or empty
+    cmds = topic(conventions.TOPIC_COMMAND, namespace) or empty
+    states = topic(conventions.TOPIC_ROBOT_STATE, namespace) or empty
+    out: dict[str, LatencyStats] = {}
+    for name, s in (("skeleton", skel), ("arm_angles", angles), ("predictions", preds)):
+        if s.receive.size:
+            out[f"source -> {name}"] = latency_stats(s.receive - s.stamp)
+    if angles.receive.size:
+        out["hop angle_extractor"] = latency_stats(extractor_hop(skel, angles))
+    if preds.receive.size:
+        out["hop gwr_hierarchy"] = latency_stats(same_stamp_hop(angles, preds))
+    if cmds.receive.size:
+        hop, total = command_hop(preds, cmds)
+        out["hop delay_compensator"] = latency_stats(hop)
+        out["source -> joint_commands"] = latency_stats(total)
+        out["joint_commands transit"] = latency_stats(cmds.receive - cmds.stamp)
+    if states.receive.size:
+        out["joint_states transit"] = latency_stats(states.receive - states.stamp)
+    return out
+
+
+def _count(values: Mapping[str, str] | None, *keys: str, prefix: str | None = None) -> int | None:
+    """Sum of counters `keys` (+ every key starting with `prefix`); None if the node is not in the bag."""
+    if values is None:
+        return None
+    total = sum(int(float(values.get(k, "0"))) for k in keys)
+    if prefix:
+        total += sum(int(float(v)) for k, v in values.items() if k.startswith(prefix))
+    return total
+
+
+def hop_counts(series: Mapping[str, TopicSeries], history: DiagnosticsHistory, namespace: str = "") -> list[HopCount]:
+    """Published (publisher's final counters) vs recorded (bag) vs consumed (consumer's final counters)."""
+    final = {name: snaps[-1][1] for name, snaps in history.items()}
+
+    def hop(topic: str, publisher: str, key: str, consumer: str | None = None, consumed: int | None = None
+            ) -> HopCount:
+        s = series.get(topic)
+        recv = np.zeros(0) if s is None else s.receive
+        snaps = history.get(_fq(publisher))
+        published = None if snaps is None else _count(snaps[-1][1], key)
+        early, after = 0, None
+        if snaps:
+            first_recv, first = snaps[0]
+            early = _count(first, key) or 0
+            after = int(np.sum(recv >= first_recv))
+        return HopCount(topic, publisher, published, int(recv.size), consumer, consumed, early, after)
+
+    ext, hier = final.get("/angle_extractor"), final.get("/gwr_hierarchy")
+    comp, sim = final.get(f"{namespace}/delay_compensator"), final.get(f"{namespace}/nao_sim")
+    counts = [
+        hop("/skeleton", "skeleton_source", "frames.published", "angle_extractor",
+            _count(ext, "skeleton.accepted", prefix="rejected.skeleton.")),
+        hop("/arm_angles", "angle_extractor", "angles.published", "gwr_hierarchy",
+            _count(hier, "frames.learned", "frames.seen", prefix="rejected.arm_angles.")),
+        hop("/arm_angles", "angle_extractor", "angles.published", f"{namespace}/delay_compensator",
+            _count(comp, "arm_angles.received", prefix="rejected.arm_angles.")),
+        hop("/predictions", "gwr_hierarchy", "predictions.published", f"{namespace}/delay_compensator",
+            _count(comp, "predictions.received", prefix="rejected.predictions.")),
+        hop("/predicted_angles", "gwr_hierarchy", "predictions.published"),
+        hop(f"{namespace}/joint_commands", f"{namespace}/delay_compensator", "commands.published",
+            f"{namespace}/nao_sim", _count(sim, "commands.accepted", prefix="rejected.joint_commands.")),
+        hop(f"{namespace}/joint_states", f"{namespace}/nao_sim", "states.published"),
+    ]
+    if namespace:  # the angles and predictions hops belong to the main pipeline
+        counts = [c for c in counts if c.topic.startswith(namespace + "/")]
+    return [c for c in counts if c.published is not None or c.recorded]
+
+
+def _fq(name: str) -> str:
+    return name if name.startswith("/") else "/" + name
+
+
+def latency_report(bag: str | os.PathLike[str]) -> LatencyReport:
+    """Read a pipeline bag and compute latencies and message counts. Raises bags.BagError."""
+    series, diagnostics, duration = read_series(bag)
+    report = LatencyReport(Path(bag), duration, compute_latencies(series), hop_counts(series, diagnostics))
+    if "/uncompensated/joint_commands" in series:
+        report.counts += hop_counts(series, diagnostics, "/uncompensated")
+    return report

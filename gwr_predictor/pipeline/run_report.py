@@ -1,0 +1,315 @@
+"""What a recorded pipeline run shows: prediction error at the horizon, robot lag with and without
+compensation, neurons per layer, message counts; plus the plot of person vs prediction vs robot.
+
+Pure library code over a bag recorded by the bag_recorder node (read with `gwr_predictor.pipeline.bags`).
+Definitions (all times are the stamps inside the messages, one clock):
+
+- prediction MAE at step k: for every /predictions message made at frame t, |P(t+k) - x| over the
+  8 joints, where x is the observed /arm_angles frame stamped within half a frame period of
+  t + k * period (unmatched predictions, e.g. across a sequence gap, are not scored). "hold" is
+  the same for the no-prediction baseline P(t+k) = x(t).
+- robot lag: the time shift that best aligns a robot's /joint_states (resampled on a `dt` grid)
+  with the person's /arm_angles (linear between frames, NaN across gaps > max_gap_s);
+  `lag.estimate_lag`. Tracking MAE is the unshifted mean |robot - person| on the same grid.
+- robots: every recorded `<namespace>/joint_states`; the compensator mode of each namespace is
+  read from its delay_compensator's /diagnostics ("mode").
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from gwr_predictor.pipeline import bags, conventions
+from gwr_predictor.pipeline.conventions import LayoutError
+from gwr_predictor.robot.nao import ARM_JOINTS
+from gwr_predictor.robot.tracking import LagError, estimate_lag, tracking_error
+
+
+class ReportError(ValueError):
+    """A bag that cannot be summarised (missing topics, too little data); the message names it."""
+
+
+@dataclass
+class Series:
+    """Stamped samples: t (N,) seconds and values (N, 8) radians in ARM_JOINTS order."""
+
+    t: np.ndarray
+    values: np.ndarray
+
+
+@dataclass
+class RunData:
+    """The arrays of one run, read from its bag."""
+
+    bag: Path
+    counts: dict[str, int]
+    duration_s: float
+    person: Series
+    predictions_t: np.ndarray  # (N,) stamp of the frame each prediction was made at
+    predictions: np.ndarray  # (N, h, 8)
+    robots: dict[str, Series]  # namespace ("" = root) -> reported joint states
+    modes: dict[str, str]  # namespace -> compensator mode (from /diagnostics)
+    learner: dict[str, str]  # last learner status key/values
+    rejected: dict[str, int]  # rejection counters (all nodes, last diagnostics)
+
+
+@dataclass
+class PipelineReport:
+    """The numbers `gwr-predictor report` prints and writes to report.json."""
+
+    bag: str
+    duration_s: float
+    message_counts: dict[str, int]
+    horizon: int
+    frame_period_s: float
+    scored_predictions: int
+    prediction_mae_rad: float
+    prediction_mae_per_step_rad: list[float]
+    hold_mae_rad: float
+    robots: dict[str, dict[str, Any]] = field(default_factory=dict)
+    neurons: dict[str, int] = field(default_factory=dict)
+    learner: dict[str, str] = field(default_factory=dict)
+    rejected: dict[str, int] = field(default_factory=dict)
+
+    def to_json(self) -> str:
+        return json.dumps(finite_json(asdict(self)), indent=2, sort_keys=False)
+
+    def summary_lines(self) -> list[str]:
+        h_ms = round(self.horizon * self.frame_period_s * 1000)
+        lines = [
+            f"bag {self.bag}: {self.duration_s:.1f} s, "
+            + ", ".join(f"{t} {n}" for t, n in sorted(self.message_counts.items()) if n),
+            f"prediction error at {h_ms} ms ({self.horizon} frames): MAE {self.prediction_mae_rad:.4f} rad over "
+            f"{self.scored_predictions} predictions (holding the last frame instead: {self.hold_mae_rad:.4f} rad)",
+            "  per step: " + " ".join(f"{v:.3f}" for v in self.prediction_mae_per_step_rad),
+        ]
+        for ns, r in self.robots.items():
+            lag = "n/a" if r["lag_s"] is None else f"{r['lag_s']:.3f} s"
+            mae = "n/a" if r["tracking_mae_rad"] is None else f"{r['tracking_mae_rad']:.4f} rad"
+            lines.append(f"robot {ns or '/'} (compensator mode {r['mode']}): lags the person by {lag}, "
+                         f"tracking MAE {mae}")
+        if self.neurons:
+            lines.append("neurons: " + ", ".join(f"{k} {v}" for k, v in self.neurons.items()))
+        if self.rejected:
+            lines.append("rejected inputs: " + ", ".join(f"{k} {v}" for k, v in self.rejected.items()))
+        return lines
+
+
+def finite_json(obj: Any) -> Any:
+    """NaN/inf -> None (recursively) so that the JSON files written are strict JSON."""
+    if isinstance(obj, float):
+        return obj if math.isfinite(obj) else None
+    if isinstance(obj, dict):
+        return {k: finite_json(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [finite_json(v) for v in obj]
+    return obj
+
+
+# --- reading -------------------------------------------------------------------------------------
+
+
+def _arm_vector(msg: Any) -> tuple[float, np.ndarray] | None:
+    stamp, names, positions = bags.joint_state_arrays(msg)
+    index = {n: i for i, n in enumerate(names)}
+    if any(n not in index for n in ARM_JOINTS) or positions.size != len(names):
+        return None
+    return stamp, positions[[index[n] for n in ARM_JOINTS]]
+
+
+def _series(rows: list[tuple[float, np.ndarray]]) -> Series:
+    if not rows:
+        return Series(np.zeros(0), np.zeros((0, len(ARM_JOINTS))))
+    rows.sort(key=lambda r: r[0])
+    return Series(np.array([r[0] for r in rows]), np.vstack([r[1] for r in rows]))
+
+
+def _namespace(topic: str, base: str) -> str | None:
+    """'/uncompensated/joint_states' -> '/uncompensated'; '/joint_states' -> ''; other topics None."""
+    if topic == "/" + base:
+        return ""
+    if topic.endswith("/" + base):
+        return topic[: -len(base) - 1]
+    return None
+
+
+def read_run(bag: str | Path) -> RunData:
+    """Read the topics a report needs from a pipeline bag. Raises bags.BagError / ReportError."""
+    bag = Path(bag)
+    info = bags.bag_info(bag)
+    person: list[tuple[float, np.ndarray]] = []
+    pred_t: list[float] = []
+    preds: list[np.ndarray] = []
+    robots: dict[str, list[tuple[float, np.ndarray]]] = {}
+    modes: dict[str, str] = {}
+    learner: dict[str, str] = {}
+    diagnostics: dict[str, dict[str, str]] = {}
+    angles_topic = "/" + conventions.TOPIC_ANGLES
+    preds_topic = "/" + conventions.TOPIC_PREDICTIONS
+    for m in bags.read_bag(bag):
+        if m.msg is None:
+            continue
+        if m.topic == angles_topic:
+            row = _arm_vector(m.msg)
+            if row is not None:
+                person.append(row)
+        elif m.topic == preds_topic:
+            try:
+                stamp, names, p = conventions.unpack_predictions(bags.packed_array(m.msg))
+            except LayoutError:
+                continue
+            if names == ARM_JOINTS and (not preds or p.shape == preds[0].shape):
+                pred_t.append(stamp)
+                preds.append(p)
+        elif (ns := _namespace(m.topic, conventions.TOPIC_ROBOT_STATE)) is not None:
+            row = _arm_vector(m.msg)
+            if row is not None:
+                robots.setdefault(ns, []).append(row)
+        elif m.topic.endswith("/" + conventions.TOPIC_LEARNER_STATUS):
+            for status in m.msg.status:
+                learner = {kv.key: kv.value for kv in status.values}
+        elif m.topic.endswith("/" + conventions.TOPIC_DIAGNOSTICS):
+            for status in m.msg.status:
+                diagnostics[status.name] = {kv.key: kv.value for kv in status.values}
+    for name, values in diagnostics.items():
+        if name.endswith("/delay_compensator") and "mode" in values:
+            modes[name[: -len("/delay_compensator")]] = values["mode"]
+    rejected: dict[str, int] = {}
+    for name, values in diagnostics.items():
+        for key, value in values.items():
+            if key.startswith("rejected."):
+                rejected[f"{name}:{key[len('rejected.'):]}"] = int(float(value))
+    order = np.argsort(pred_t, kind="stable") if pred_t else np.zeros(0, dtype=int)
+    return RunData(
+        bag=bag,
+        counts={t: n for t, (_, n) in info.topics.items()},
+        duration_s=info.duration_s,
+        person=_series(person),
+        predictions_t=np.asarray(pred_t)[order] if pred_t else np.zeros(0),
+        predictions=np.stack(preds)[order] if preds else np.zeros((0, 1, len(ARM_JOINTS))),
+        robots={ns: _series(rows) for ns, rows in sorted(robots.items())},
+        modes=modes,
+        learner=learner,
+        rejected=rejected,
+    )
+
+
+# --- computing -----------------------------------------------------------------------------------
+
+
+def match_frames(person: Series, targets: np.ndarray, tolerance: float) -> np.ndarray:
+    """Index of the person frame stamped within `tolerance` of each target time, -1 if none."""
+    if person.t.size == 0:
+        return np.full(targets.shape, -1)
+    pos = np.clip(np.searchsorted(person.t, targets), 1, person.t.size - 1) if person.t.size > 1 else \
+        np.zeros(targets.shape, dtype=int)
+    if person.t.size > 1:
+        left = pos - 1
+        pos = np.where(np.abs(person.t[left] - targets) <= np.abs(person.t[pos] - targets), left, pos)
+    return np.where(np.abs(person.t[pos] - targets) <= tolerance, pos, -1)
+
+
+def prediction_errors(run: RunData, period: float) -> tuple[np.ndarray, float, int]:
+    """(MAE per step (h,), hold-baseline MAE at h, predictions scored at h)."""
+    n, h = run.predictions.shape[:2]
+    if n == 0:
+        raise ReportError(f"{run.bag}: no /predictions recorded")
+    mae = np.full(h, np.nan)
+    for k in range(1, h + 1):
+        idx = match_frames(run.person, run.predictions_t + k * period, 0.5 * period)
+        ok = idx >= 0
+        if ok.any():
+            mae[k - 1] = float(np.mean(np.abs(run.predictions[ok, k - 1] - run.person.values[idx[ok]])))
+    idx_h = match_frames(run.person, run.predictions_t + h * period, 0.5 * period)
+    idx_0 = match_frames(run.person, run.predictions_t, 0.5 * period)
+    ok = (idx_h >= 0) & (idx_0 >= 0)
+    hold = float(np.mean(np.abs(run.person.values[idx_0[ok]] - run.person.values[idx_h[ok]]))) if ok.any() else math.nan
+    return mae, hold, int(ok.sum())
+
+
+def resample(series: Series, grid: np.ndarray, max_gap_s: float) -> np.ndarray:
+    """Linear interpolation of a series on `grid`; NaN outside it and across gaps > max_gap_s."""
+    out = np.full((grid.size, series.values.shape[1]), np.nan)
+    if series.t.size < 2:
+        return out
+    for j in range(series.values.shape[1]):
+        out[:, j] = np.interp(grid, series.t, series.values[:, j], left=np.nan, right=np.nan)
+    right = np.clip(np.searchsorted(series.t, grid), 1, series.t.size - 1)
+    gap = series.t[right] - series.t[right - 1]
+    out[gap > max_gap_s] = np.nan
+    return out
+
+
+def robot_lag(run: RunData, ns: str, dt: float, max_lag_s: float, max_gap_s: float) -> dict[str, Any]:
+    """Lag (s) and tracking MAE (rad) of one robot against the person, on a `dt` grid."""
+    robot = run.robots[ns]
+    result: dict[str, Any] = {"mode": run.modes.get(ns, "unknown"), "states": int(robot.t.size),
+                              "lag_s": None, "tracking_mae_rad": None}
+    if run.person.t.size < 2 or robot.t.size < 2:
+        return result
+    start, end = max(run.person.t[0], robot.t[0]), min(run.person.t[-1], robot.t[-1])
+    if end - start < 2 * max_lag_s:
+        return result
+    grid = np.arange(start, end, dt)
+    person = resample(run.person, grid, max_gap_s)
+    follower = resample(robot, grid, 4 * dt + 0.1)
+    try:
+        result["lag_s"] = estimate_lag(person, follower, dt, max_lag_s)
+        result["tracking_mae_rad"] = tracking_error(person, follower)["mae"]
+    except LagError:
+        pass
+    return result
+
+
+def compute_report(run: RunData, period: float = 1.0 / conventions.ANGLE_FPS, dt: float = 0.02,
+                   max_lag_s: float = 1.5, max_gap_s: float = conventions.MAX_GAP_S) -> PipelineReport:
+    """The report of a run (see the module docstring for the definitions)."""
+    if run.person.t.size == 0:
+        raise ReportError(f"{run.bag}: no /{conventions.TOPIC_ANGLES} recorded")
+    mae, hold, scored = prediction_errors(run, period)
+    neurons = {layer: int(float(run.learner[key])) for layer, key in conventions.NEURON_KEYS.items()
+               if key in run.learner}
+    return PipelineReport(
+        bag=str(run.bag), duration_s=run.duration_s, message_counts=run.counts, horizon=int(mae.size),
+        frame_period_s=period, scored_predictions=scored, prediction_mae_rad=float(mae[-1]),
+        prediction_mae_per_step_rad=[float(v) for v in mae], hold_mae_rad=hold,
+        robots={ns: robot_lag(run, ns, dt, max_lag_s, max_gap_s) for ns in run.robots},
+        neurons=neurons, learner=run.learner, rejected=run.rejected)
+
+
+def plot_run(run: RunData, path: str | Path, seconds: float = 20.0, period: float = 1.0 / conventions.ANGLE_FPS
+             ) -> Path:
+    """PNG of the last `seconds`: person, h-step prediction (at the time it predicts), each robot."""
+    from gwr_predictor.pipeline.plotting import plot_angle_series
+
+    end = run.person.t[-1]
+    start = end - seconds
+
+    def window(t: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        keep = (t >= start) & (t <= end)
+        return t[keep] - start, v[keep]
+
+    h = run.predictions.shape[1]
+    series = {"person": window(run.person.t, _break_gaps(run.person))}
+    if run.predictions.shape[0]:
+        pred = Series(run.predictions_t + h * period, run.predictions[:, -1])
+        series[f"prediction +{round(h * period * 1000)} ms"] = window(pred.t, _break_gaps(pred))
+    for ns, robot in run.robots.items():
+        label = f"robot {ns or '/'} ({run.modes.get(ns, '?')})"
+        series[label] = window(robot.t, robot.values)
+    name = run.bag.parent.name if run.bag.name == "bag" else run.bag.name  # the run folder's name
+    return plot_angle_series(path, series, title=f"{name}: person, prediction and robots, last {seconds:.0f} s")
+
+
+def _break_gaps(series: Series, max_gap_s: float = conventions.MAX_GAP_S) -> np.ndarray:
+    """Values with a NaN row wherever the next sample is more than max_gap_s later (lines break there)."""
+    values = series.values.copy()
+    if series.t.size > 1:
+        values[:-1][np.diff(series.t) > max_gap_s] = np.nan
+    return values

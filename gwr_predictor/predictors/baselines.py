@@ -1,0 +1,255 @@
+"""Simple online predictors the hierarchy has to beat, with the same `step`/`reset_sequence` protocol.
+
+- `HoldLast`: the robot simply repeats the last seen pose (what a system without prediction does).
+- `ConstantVelocity`: extrapolates the velocity of the last few observed frames.
+- `RLSAutoregressive`: a multivariate linear AR model over the last p frames + bias, learned online by
+  recursive least squares with forgetting; multi-step predictions by feeding predictions back, as
+  the hierarchy does in recursive mode. p defaults to the hierarchy's effective regressor length.
+
+All learn only from what they have observed: a step with x None (or non-finite) is a missing sample.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+from typing import Any, ClassVar
+
+import numpy as np
+
+from gwr_predictor.pipeline.conventions import DEFAULT_HORIZON
+from gwr_predictor.robot.nao import ARM_JOINTS
+
+N_JOINTS = len(ARM_JOINTS)
+
+
+class BaselineError(ValueError):
+    """Invalid baseline parameters or an input of the wrong shape."""
+
+
+def observation(x: np.ndarray | None, joints: int = N_JOINTS) -> np.ndarray | None:
+    """A finite (joints,) float vector, or None for a missing sample (None or any NaN/inf)."""
+    if x is None:
+        return None
+    x = np.asarray(x, dtype=float)
+    if x.shape != (joints,):
+        raise BaselineError(f"expected a ({joints},) sample, got shape {x.shape}")
+    return x if np.isfinite(x).all() else None
+
+
+def _check_horizon(horizon: int) -> None:
+    if int(horizon) != horizon or horizon < 1:
+        raise BaselineError(f"horizon must be a positive integer, got {horizon!r}")
+
+
+class HoldLast:
+    """Predicts that the last observed pose persists: the no-compensation reference."""
+
+    def __init__(self, horizon: int = DEFAULT_HORIZON, joints: int = N_JOINTS) -> None:
+        _check_horizon(horizon)
+        self.horizon, self.joints = int(horizon), joints
+        self._last: np.ndarray | None = None
+
+    def step(self, x: np.ndarray | None, learn: bool = True) -> np.ndarray | None:
+        obs = observation(x, self.joints)
+        if obs is not None:
+            self._last = obs.copy()
+        if self._last is None:
+            return None
+        return np.repeat(self._last[None, :], self.horizon, axis=0)
+
+    def reset_sequence(self) -> None:
+        self._last = None
+
+
+class ConstantVelocity:
+    """Extrapolates the velocity of the last `window` observed frames (least-squares slope against
+    their frame indices, so gaps are handled). `window=2` is the classic two-point difference, which
+    amplifies sensor noise; a longer window trades that noise for lag."""
+
+    def __init__(self, horizon: int = DEFAULT_HORIZON, joints: int = N_JOINTS, window: int = 2) -> None:
+        _check_horizon(horizon)
+        if int(window) != window or window < 2:
+            raise BaselineError(f"window must be an integer >= 2, got {window!r}")
+        self.horizon, self.joints, self.window = int(horizon), joints, int(window)
+        self.reset_sequence()
+
+    def step(self, x: np.ndarray | None, learn: bool = True) -> np.ndarray | None:
+        self._t += 1
+        obs = observation(x, self.joints)
+        if obs is not None:
+            self._frames.append(obs.copy())
+            self._times.append(self._t)
+            if len(self._frames) > self.window:
+                del self._frames[0], self._times[0]
+        if not self._frames:
+            return None
+        last, last_t = self._frames[-1], self._times[-1]
+        velocity = np.zeros(self.joints)
+        if len(self._frames) > 1:
+            t = np.asarray(self._times, dtype=float)
+            t -= t.mean()
+            velocity = t @ np.asarray(self._frames) / (t @ t)
+        ahead = (self._t - last_t) + np.arange(1, self.horizon + 1, dtype=float)
+        return last[None, :] + ahead[:, None] * velocity[None, :]
+
+    def reset_sequence(self) -> None:
+        self._t = 0
+        self._frames: list[np.ndarray] = []
+        self._times: list[int] = []
+
+
+@dataclass(frozen=True)
+class RLSParams:
+    """Recursive least squares settings.
+
+    `delta` is the initial P = delta * I (prior variance of the weights): larger learns faster at first.
+    `prior` "hold" starts the weights at hold-last (identity on the newest frame), "zero" at zero.
+    `max_trace` bounds trace(P): with forgetting and poorly exciting data P winds up, so it is reset.
+    """
+
+    order: int = 5
+    forgetting: float = 0.999
+    delta: float = 1.0
+    prior: str = "hold"
+    max_trace: float = 1e6
+
+    def __post_init__(self) -> None:
+        if self.order < 1:
+            raise BaselineError(f"order must be >= 1, got {self.order}")
+        if not 0.9 <= self.forgetting <= 1.0:
+            raise BaselineError(f"forgetting must be in [0.9, 1], got {self.forgetting}")
+        if self.delta <= 0 or self.max_trace <= 0:
+            raise BaselineError(f"delta and max_trace must be > 0, got {self.delta}, {self.max_trace}")
+        if self.prior not in ("hold", "zero"):
+            raise BaselineError(f"prior must be 'hold' or 'zero', got {self.prior!r}")
+
+
+class RLSAutoregressive:
+    """Online linear AR(p) predictor of all joints at once: x(t+1) = W^T [x(t), ..., x(t-p+1), 1].
+
+    One P matrix is shared by the joints (they share the regressor), so an update costs O((pJ)^2).
+    The regressor of a new sequence is padded with its first frame so predictions start at once;
+    padded or imputed (missing-sample) entries are never learned from.
+    """
+
+    def __init__(self, params: RLSParams | None = None, horizon: int = DEFAULT_HORIZON,
+                 joints: int = N_JOINTS) -> None:
+        _check_horizon(horizon)
+        self.params = params or RLSParams()
+        self.horizon, self.joints = int(horizon), joints
+        self.dim = self.params.order * joints + 1
+        self.weights_ = self._prior_weights()
+        self.p_ = self.params.delta * np.eye(self.dim)
+        self.updates_ = 0
+        self.resets_ = 0
+        self.reset_sequence()
+
+    def _prior_weights(self) -> np.ndarray:
+        w = np.zeros((self.dim, self.joints))
+        if self.params.prior == "hold":
+            w[: self.joints] = np.eye(self.joints)
+        return w
+
+    def reset_sequence(self) -> None:
+        self._buf = np.zeros((self.params.order, self.joints))  # newest first
+        self._real = np.zeros(self.params.order, dtype=bool)  # observed (not padded/imputed)
+        self._started = False
+
+    def _regressor(self, buf: np.ndarray) -> np.ndarray:
+        return np.concatenate([buf.ravel(), [1.0]])
+
+    def _push(self, frame: np.ndarray, real: bool) -> None:
+        self._buf[1:] = self._buf[:-1]
+        self._real[1:] = self._real[:-1]
+        self._buf[0], self._real[0] = frame, real
+
+    def step(self, x: np.ndarray | None, learn: bool = True) -> np.ndarray | None:
+        obs = observation(x, self.joints)
+        if not self._started:
+            if obs is None:
+                return None
+            self._buf[:] = obs
+            self._real[:] = False
+            self._real[0] = True
+            self._started = True
+            return self.predict()
+        if obs is None:
+            self._push(self._regressor(self._buf) @ self.weights_, real=False)
+        else:
+            if learn and self._real.all():
+                self._update(self._regressor(self._buf), obs)
+            self._push(obs, real=True)
+        return self.predict()
+
+    def predict(self) -> np.ndarray | None:
+        """Predictions (horizon, J) for the next frames, by feeding each one back into the regressor."""
+        if not self._started:
+            return None
+        buf = self._buf.copy()
+        out = np.empty((self.horizon, self.joints))
+        for k in range(self.horizon):
+            out[k] = self._regressor(buf) @ self.weights_
+            buf[1:] = buf[:-1]
+            buf[0] = out[k]
+        return out
+
+    def _update(self, phi: np.ndarray, target: np.ndarray) -> None:
+        lam = self.params.forgetting
+        p_phi = self.p_ @ phi
+        gain = p_phi / (lam + phi @ p_phi)
+        self.weights_ += np.outer(gain, target - phi @ self.weights_)
+        p = (self.p_ - np.outer(gain, p_phi)) / lam
+        self.p_ = 0.5 * (p + p.T)
+        self.updates_ += 1
+        if not np.isfinite(self.weights_).all():
+            self.weights_ = self._prior_weights()
+            self._reset_p()
+        elif not np.isfinite(self.p_).all() or np.trace(self.p_) > self.params.max_trace:
+            self._reset_p()
+
+    def _reset_p(self) -> None:
+        self.p_ = self.params.delta * np.eye(self.dim)
+        self.resets_ += 1
+
+    # --- persistence (used by the blend's checkpoint) -------------------------------------------
+    kind: ClassVar[str] = "RLSAutoregressive"
+    STATE_ARRAYS: ClassVar[tuple[str, ...]] = ("weights", "p", "buf", "real")
+
+    def state(self) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
+        """(JSON-able header, arrays) of the whole state; `from_state` continues bit for bit."""
+        header = {"params": asdict(self.params), "horizon": self.horizon, "joints": self.joints,
+                  "updates": self.updates_, "resets": self.resets_, "started": self._started}
+        arrays = {"weights": self.weights_.copy(), "p": self.p_.copy(), "buf": self._buf.copy(),
+                  "real": self._real.copy()}
+        return header, arrays
+
+    @classmethod
+    def from_state(cls, header: dict[str, Any], arrays: dict[str, np.ndarray]) -> RLSAutoregressive:
+        """The model of a `state()`; BaselineError if the arrays do not fit the stored parameters."""
+        try:
+            model = cls(RLSParams(**header["params"]), int(header["horizon"]), int(header["joints"]))
+            expected = {"weights": model.weights_.shape, "p": model.p_.shape, "buf": model._buf.shape,
+                        "real": model._real.shape}
+            for name, shape in expected.items():
+                if name not in arrays or np.shape(arrays[name]) != shape:
+                    got = np.shape(arrays[name]) if name in arrays else "missing"
+                    raise BaselineError(f"RLS state array {name!r}: {got}, expected {shape}")
+            model.weights_ = np.array(arrays["weights"], dtype=float)
+            model.p_ = np.array(arrays["p"], dtype=float)
+            model._buf = np.array(arrays["buf"], dtype=float)
+            model._real = np.array(arrays["real"], dtype=bool)
+            model.updates_, model.resets_ = int(header["updates"]), int(header["resets"])
+            model._started = bool(header["started"])
+        except (KeyError, TypeError) as exc:
+            raise BaselineError(f"RLS state header incomplete: {type(exc).__name__}: {exc}") from exc
+        return model
+
+
+def make_baselines(horizon: int = DEFAULT_HORIZON, order: int = 5) -> dict[str, object]:
+    """Fresh instances of every baseline, keyed by the names used in reports. The constant-velocity
+    slope and the RLS regressor both span `order` frames, the hierarchy's regressor length."""
+    return {
+        "hold": HoldLast(horizon),
+        "const_velocity": ConstantVelocity(horizon, window=max(order, 2)),
+        "rls_ar": RLSAutoregressive(RLSParams(order=order), horizon),
+    }

@@ -1,0 +1,231 @@
+"""Delay compensation (paper Sec. VI-D): which of the predicted poses the robot should execute now.
+
+The predictor, given the frame stamped t, returns P(t+1..t+h) (h x 8); the newest observation is
+P(t+0). Every rule executes P(t+k) for one step k in [0, h]:
+
+- ``none``: k = 0, the newest observation (the uncompensated baseline);
+- ``fixed``: k = round(delay_s / frame_period), the configured delay (clamped to [0, h]);
+- ``variable``: k = round(xi / frame_period) for a delay estimate xi that the robot's own joint
+  state keeps up to date through the paper's Eq. 11, P* = argmin_i ||J_xi(t) - P(t+i)||.
+
+What J_xi(t) is here: the joint angles (ARM_JOINTS order, rad) that the robot *reports* when the
+command is chosen (its /joint_states), i.e. the configuration of a robot that executes commands
+xi seconds late. Taken literally, executing the P* closest to that configuration re-issues the
+pose the robot already shows and keeps whatever lag it has (measured in docs/robot.md). Eq. 11
+is used instead for what it can tell: *which person frame* the robot is showing. Searched over
+the person's trajectory (the recent observations, i <= 0, and the predictions, i > 0), the argmin
+i* gives the robot's residual lag, now - (t + i* frame_period) - frame_period / 2 (the half frame
+is the mean age of a 10 fps pose). The estimate xi (starting at `delay_s`) integrates that lag
+with `tracking_gain` whenever it exceeds `deadband` frames and the arm moves (at least
+`min_motion` rad per frame in the last observations and around the matched frame), so a delay that changes with the
+state of the hardware is followed; the paper leaves the estimation of xi out of scope.
+
+Without usable predictions (none yet, not finite, or older than `stale_after_s`) every mode
+falls back to the newest observation and says why.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import Counter, deque
+from dataclasses import dataclass
+from typing import Literal, NamedTuple
+
+import numpy as np
+
+from gwr_predictor.robot.nao import ARM_JOINTS, clip_to_limits
+
+MODES = ("none", "fixed", "variable")
+Mode = Literal["none", "fixed", "variable"]
+
+#: Fallback reasons (the strings reported in `CompensatorOutput.fallback_reason` and counted).
+NO_PREDICTIONS = "no_predictions"
+STALE_PREDICTIONS = "stale_predictions"
+NO_ROBOT_STATE = "no_robot_state"
+
+
+class CompensatorError(ValueError):
+    """Invalid compensator parameters or input shapes; the message names the field and range."""
+
+
+_RANGES = {
+    "delay_s": (0.0, 60.0),
+    "frame_period": (1e-4, 10.0),
+    "stale_after_s": (0.0, 3600.0),
+    "tracking_gain": (0.0, 1.0),
+    "deadband": (0.0, 10.0),
+    "history_frames": (1, 10_000),
+    "min_motion": (0.0, 10.0),
+}
+
+
+@dataclass(frozen=True)
+class CompensatorParams:
+    """Rule and timing of the compensator (`frame_period`: the predictor's frame spacing).
+
+    `tracking_gain`, `deadband` (in frames), `history_frames` (observations searched for the
+    robot's pose) and `min_motion` (rad per frame below which the arm counts as still and the
+    estimate is left alone) matter to ``variable`` only.
+    """
+
+    mode: Mode = "fixed"
+    delay_s: float = 0.6
+    frame_period: float = 0.1
+    stale_after_s: float = 0.5
+    tracking_gain: float = 0.15
+    deadband: float = 0.6
+    history_frames: int = 20
+    min_motion: float = 0.03
+
+    def __post_init__(self) -> None:
+        if self.mode not in MODES:
+            raise CompensatorError(f"CompensatorParams.mode must be one of {MODES}, got {self.mode!r}")
+        for name, (low, high) in _RANGES.items():
+            value = getattr(self, name)
+            kind = int if name == "history_frames" else (int, float)
+            if isinstance(value, bool) or not isinstance(value, kind) or not (low <= value <= high):
+                raise CompensatorError(f"CompensatorParams.{name} must be in [{low:g}, {high:g}], got {value!r}")
+
+
+class CompensatorOutput(NamedTuple):
+    """The angles to command, the step of P(t+i) they came from (0 = observation), and why not."""
+
+    angles: np.ndarray
+    step_used: int
+    fallback_reason: str | None
+
+
+def fixed_step(lead_s: float, frame_period: float, horizon: int) -> int:
+    """k = round(lead / frame_period) clamped to [0, horizon] (0 means the observation itself)."""
+    return int(min(max(math.floor(lead_s / frame_period + 0.5), 0), horizon))
+
+
+def eq11_step(reference: np.ndarray, observation: np.ndarray, predictions: np.ndarray) -> int:
+    """Eq. 11 as printed: the i in [0, h] minimising ||reference - P(t+i)||, P(t+0) = observation.
+
+    Ties go to the smallest i (the least extrapolated pose).
+    """
+    candidates = np.vstack([np.asarray(observation, float)[None, :], np.asarray(predictions, float)])
+    return int(np.argmin(np.linalg.norm(candidates - np.asarray(reference, float)[None, :], axis=1)))
+
+
+def robot_lag(now: float, robot_state: np.ndarray, times: np.ndarray, poses: np.ndarray,
+              frame_period: float, min_motion: float = 0.0) -> float:
+    """Residual lag (s) of a robot showing `robot_state`, on a person trajectory `poses` at `times`.
+
+    Eq. 11's argmin over the trajectory names the frame the robot shows; a robot in sync shows,
+    on average, a pose half a frame old, hence the half frame. Ties go to the latest frame. NaN
+    when the person moves less than `min_motion` (rad per frame) around that frame: a still arm
+    matches many frames, so the match says nothing about time.
+    """
+    dist = np.linalg.norm(poses - robot_state[None, :], axis=1)
+    i = len(dist) - 1 - int(np.argmin(dist[::-1]))
+    lo, hi = max(i - 1, 0), min(i + 1, len(dist) - 1)
+    if hi == lo or np.linalg.norm(poses[hi] - poses[lo]) / (hi - lo) < min_motion:
+        return math.nan
+    return float(now - times[i] - 0.5 * frame_period)
+
+
+class DelayCompensator:
+    """Stateful wrapper: validation, staleness, fallback counters, the delay estimate, clipping."""
+
+    def __init__(self, mode: Mode = "fixed", delay_s: float = 0.6, frame_period: float = 0.1,
+                 stale_after_s: float = 0.5, *, joint_names: tuple[str, ...] = ARM_JOINTS,
+                 params: CompensatorParams | None = None) -> None:
+        self.params = params or CompensatorParams(mode, delay_s, frame_period, stale_after_s)
+        self.joint_names = tuple(joint_names)
+        #: How often each fallback reason occurred, and how many commands were issued.
+        self.fallbacks: Counter[str] = Counter()
+        self.commands = 0
+        #: The delay xi (s) the compensator currently assumes (``variable`` updates it).
+        self.delay_estimate_s = self.params.delay_s
+        #: The last residual lag measured from the robot's state (``variable``), NaN before any.
+        self.last_robot_lag_s = math.nan
+        self._history: deque[tuple[float, np.ndarray]] = deque(maxlen=self.params.history_frames)
+
+    @property
+    def fallback_count(self) -> int:
+        return sum(self.fallbacks.values())
+
+    def reset(self) -> None:
+        """Forget counters, history and the delay estimate (a new session)."""
+        self.fallbacks.clear()
+        self.commands = 0
+        self.delay_estimate_s = self.params.delay_s
+        self.last_robot_lag_s = math.nan
+        self._history.clear()
+
+    def command(self, now: float, observation: np.ndarray, predictions: np.ndarray | None = None,
+                pred_stamp: float | None = None, robot_state: np.ndarray | None = None,
+                obs_stamp: float | None = None) -> CompensatorOutput:
+        """The angles to send to the robot now.
+
+        `now`, `pred_stamp` and `obs_stamp` share one clock (seconds); `predictions` (h x J) are
+        P(t+1..t+h) for t = `pred_stamp`; `observation` (J) is the newest observed pose, stamped
+        `obs_stamp` (default: `pred_stamp`, else `now`); `robot_state` (J) is what the robot
+        reports (used by ``variable``). Predictions are stale when `obs_stamp` (default `now`)
+        is more than `stale_after_s` past `pred_stamp`: pass `obs_stamp` when stamps are capture
+        times that arrive late, so that a sensing delay is not taken for staleness. The step
+        aims at person time `obs_stamp + delay`, so predictions a frame older than the
+        observation still hit it.
+        """
+        p = self.params
+        obs = self._vector(observation, "observation")
+        state = None if robot_state is None else self._vector(robot_state, "robot_state")
+        self.commands += 1
+        if p.mode == "none":
+            return CompensatorOutput(self._clip(obs), 0, None)
+        stamp = obs_stamp if obs_stamp is not None else (pred_stamp if pred_stamp is not None else now)
+        if not self._history or stamp > self._history[-1][0]:
+            self._history.append((stamp, obs))
+        reason = self._unusable(now if obs_stamp is None else obs_stamp, predictions, pred_stamp)
+        if reason is not None:
+            self.fallbacks[reason] += 1
+            return CompensatorOutput(self._clip(obs), 0, reason)
+        preds = np.asarray(predictions, dtype=float)
+        assert pred_stamp is not None
+        if p.mode == "variable":
+            if state is None:
+                self.fallbacks[NO_ROBOT_STATE] += 1
+                reason = NO_ROBOT_STATE
+            else:
+                self._track(now, state, preds, pred_stamp, stamp)
+        lead = self.delay_estimate_s + stamp - pred_stamp
+        step = fixed_step(lead, p.frame_period, preds.shape[0])
+        return CompensatorOutput(self._clip(obs if step == 0 else preds[step - 1]), step, reason)
+
+    def _track(self, now: float, state: np.ndarray, preds: np.ndarray, pred_stamp: float, stamp: float) -> None:
+        """Update the delay estimate from where the robot is on the person's trajectory."""
+        p = self.params
+        future_t = pred_stamp + p.frame_period * np.arange(1, preds.shape[0] + 1)
+        ahead = future_t > stamp + 1e-9
+        times = np.concatenate([[t for t, _ in self._history], future_t[ahead]])
+        poses = np.vstack([np.stack([x for _, x in self._history]), preds[ahead]])
+        lag = robot_lag(now, state, times, poses, p.frame_period, p.min_motion)
+        if len(self._history) >= 3 and np.linalg.norm(self._history[-1][1] - self._history[-3][1]) < 2 * p.min_motion:
+            lag = math.nan  # the person is still: predictions only add noise to the match
+        self.last_robot_lag_s = lag
+        if abs(lag) > p.deadband * p.frame_period:  # False for NaN: no update while the arm is still
+            ceiling = (preds.shape[0] + 1) * p.frame_period
+            self.delay_estimate_s = float(np.clip(self.delay_estimate_s + p.tracking_gain * lag, 0.0, ceiling))
+
+    def _unusable(self, latest: float, predictions: np.ndarray | None, pred_stamp: float | None) -> str | None:
+        if predictions is None or pred_stamp is None:
+            return NO_PREDICTIONS
+        preds = np.asarray(predictions, dtype=float)
+        if preds.ndim != 2 or preds.shape[1] != len(self.joint_names) or preds.shape[0] < 1:
+            raise CompensatorError(f"predictions must be (horizon >= 1, {len(self.joint_names)}), got {preds.shape}")
+        if not np.all(np.isfinite(preds)):
+            return NO_PREDICTIONS
+        if latest - pred_stamp > self.params.stale_after_s:
+            return STALE_PREDICTIONS
+        return None
+
+    def _vector(self, values: np.ndarray, name: str) -> np.ndarray:
+        arr = np.asarray(values, dtype=float)
+        if arr.shape != (len(self.joint_names),):
+            raise CompensatorError(f"{name} must have {len(self.joint_names)} joint angles, got shape {arr.shape}")
+        return arr
+
+    def _clip(self, angles: np.ndarray) -> np.ndarray:
+        return clip_to_limits(np.asarray(angles, dtype=float), self.joint_names)
