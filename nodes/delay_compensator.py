@@ -19,9 +19,10 @@ from . import messages
 from .node_base import ArmAnglesGate, Param, PipelineNode, run_node, stream_qos
 
 PARAMS = (
-    Param("mode", "fixed", "none: forward observations; fixed: the prediction delay_s ahead; "
+    Param("mode", "guarded", "none: forward observations; guarded: the prediction delay_s ahead, or the "
+          "longest shorter lead whose recent error beats holding still; fixed: the prediction delay_s ahead; "
           "variable: Eq. 11 against the robot's reported state", choices=compensator.MODES),
-    Param("delay_s", 0.6, "robot delay to compensate (s); sets the step in fixed mode", 0.0, 60.0),
+    Param("delay_s", 0.6, "robot delay to compensate (s); sets the step in fixed and guarded mode", 0.0, 60.0),
     Param("frame_period_s", 0.1, "spacing of the predicted frames (s)", 0.001, 10.0),
     Param("stale_after_s", 0.5, "predictions older than this (now - their stamp) are not used", 0.0, 3600.0),
     Param("robot_state_timeout_s", 0.5, "a robot state older than this is ignored (variable mode)", 0.0, 3600.0),

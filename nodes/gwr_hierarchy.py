@@ -7,8 +7,11 @@ Missing frames inside a sequence are fed as missing samples, a gap longer than `
 the sequence. The model is loaded from `checkpoint` at start and saved there atomically every
 `checkpoint_interval_s` and at shutdown; an unreadable checkpoint is moved aside, never overwritten.
 
-`predictor` picks the model: `hierarchy` (the paper) or a per-step inverse-MSE blend of a GWR
-predictor with RLS-AR (`blend_hierarchy_rls`, `blend_flat_rls`; beyond the paper, see ensemble.py).
+`predictor` picks the model: `gated_llm_gwr` (the default: a P-GWR with local linear models behind a
+confidence gate that falls back to holding the pose, see predictors/gate.py), `hierarchy` (the
+paper) or a per-step inverse-MSE blend of a GWR predictor with RLS-AR (`blend_hierarchy_rls`,
+`blend_flat_rls`; beyond the paper, see predictors/blend.py). The hierarchy parameters below apply
+to `hierarchy` and the blends; `gated_llm_gwr` takes only `horizon` from them.
 A checkpoint of another kind than `predictor` stops the node (it is neither used nor moved aside).
 """
 
@@ -24,7 +27,14 @@ from gwr_predictor.learning.checkpoint import CheckpointError, KindMismatchError
 from gwr_predictor.learning.hierarchy import Hierarchy
 from gwr_predictor.learning.params import HierarchyParams, hierarchy_parameter_specs
 from gwr_predictor.pipeline import conventions
-from gwr_predictor.predictors.blend import PREDICTORS, BlendedPredictor, gwr_member, load_predictor, make_predictor
+from gwr_predictor.predictors.blend import (
+    DEFAULT_PREDICTOR,
+    PREDICTORS,
+    BlendedPredictor,
+    gwr_member,
+    load_predictor,
+    make_predictor,
+)
 from gwr_predictor.robot.nao import ARM_JOINTS
 
 from . import messages
@@ -40,8 +50,9 @@ from .node_base import (
 )
 
 PARAMS = (
-    Param("predictor", "hierarchy", "model: 'hierarchy' (GWR1 -> GWR2 -> P-GWR, the paper) or an online "
-          "per-step inverse-MSE blend with RLS-AR ('blend_hierarchy_rls', 'blend_flat_rls'; beyond the paper)",
+    Param("predictor", DEFAULT_PREDICTOR, "model: 'gated_llm_gwr' (local-linear P-GWR behind a confidence "
+          "gate, never worse than holding the pose; default), 'hierarchy' (GWR1 -> GWR2 -> P-GWR, the paper) or "
+          "an online per-step inverse-MSE blend with RLS-AR ('blend_hierarchy_rls', 'blend_flat_rls')",
           choices=tuple(PREDICTORS)),
     Param("seed", 0, "seed of the networks' initial random neurons", 0, 2**31 - 1),
     Param("learn", True, "learn from every frame (false: predict with the networks as they are)"),
@@ -112,8 +123,8 @@ class GwrHierarchyNode(PipelineNode):
             self.counters.count("checkpoint.corrupt_moved_aside")
             return self.create(params)
         learner = gwr_member(model)
-        saved = learner.params.to_flat()
-        differ = {k: (v, saved[k]) for k, v in params.to_flat().items() if saved[k] != v}
+        saved = learner.params.to_flat() if isinstance(learner.params, HierarchyParams) else {}
+        differ = {k: (v, saved[k]) for k, v in params.to_flat().items() if k in saved and saved[k] != v}
         if differ:
             self.get_logger().warning("the checkpoint's learning parameters are used, not these node parameters: "
                                       + ", ".join(f"{k}={a} (checkpoint {b})" for k, (a, b) in differ.items()))

@@ -2,14 +2,14 @@
 # THE DEMO: pretrain offline, run the live ROS 2 pipeline with and without delay compensation,
 # and report. Works on a fresh machine (env.sh builds the venv on first use). A few minutes.
 #
-#   1. gwr-predictor pretrain   the hierarchy learns the demonstrator's repetitions 1-8 (~30-60 s)
+#   1. gwr-predictor pretrain   the default predictor learns the demonstrator's repetitions 1-8 (~30-60 s)
 #   2. scripts/run_pipeline.sh  live pipeline on new repetitions (9-10) for --seconds (default 60),
 #                               learning on, from the pretrained model, a compensated robot and an
 #                               uncompensated one (namespace /uncompensated), everything recorded
 #   3. gwr-predictor report     prediction error at 600 ms, robot lags, neurons, counts, plot
 #
 # usage: scripts/demo.sh [--seconds N] [--out DIR] [--epochs N] [--scenario YAML | --predictor NAME] [--render]
-#   --predictor NAME   hierarchy (default, the paper), blend_hierarchy_rls or blend_flat_rls (beyond the paper)
+#   --predictor NAME   gated_llm_gwr (default), hierarchy (the paper), blend_hierarchy_rls or blend_flat_rls
 set -euo pipefail
 HERE="$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)"
 # shellcheck source=env.sh
@@ -47,7 +47,7 @@ fi
 pretrain_args=(--params-file "$GWR_ROOT/config/gwr_hierarchy.yaml")
 [ -z "$predictor" ] || pretrain_args+=(--predictor "$predictor")
 
-gwr_log "step 1/3: pretraining offline (${predictor:-hierarchy})"
+gwr_log "step 1/3: pretraining offline (${predictor:-gated_llm_gwr, the default})"
 gwr-predictor pretrain --out "$out/pretrained.npz" "${pretrain_args[@]}" \
     --epochs "$epochs" --repetitions 8 | tee "$out/pretrain.log"
 

@@ -3,7 +3,8 @@
 Files are skeleton recordings (NPZ/CSV, 30 fps: median of 3 -> 10 fps -> angles) or angle CSVs
 (10 fps). All methods learn online on the recordings in the given order (optionally several
 passes) and are scored on the same frames; the table goes to stdout and its numbers again as one
-JSON object on the last line (keys horizon, mae_rad, frames, neurons, ...), for scripts.
+JSON object on the last line (keys horizon, mae_rad, frames, neurons, default_method: the key in
+mae_rad of the predictor the gwr_hierarchy node runs by default, ...), for scripts.
 """
 
 from __future__ import annotations
@@ -21,7 +22,7 @@ from gwr_predictor.evaluation.experiments.output import markdown_table, to_jsona
 from gwr_predictor.evaluation.online import EvaluationError, compare_online
 from gwr_predictor.robot.nao import ARM_JOINTS
 
-DEFAULT_METHODS = ("hold", "const_velocity", "rls_ar", common.HIERARCHY)
+DEFAULT_METHODS = ("hold", "const_velocity", "rls_ar", common.HIERARCHY, common.DEFAULT)
 
 
 class RecordingError(ValueError):
@@ -110,6 +111,7 @@ def run(args: argparse.Namespace) -> int:
     summary = {"horizon": horizon, "mae_rad": {m: r.stats.mae for m, r in results.items()},
                "mse_rad2": {m: r.stats.mse for m, r in results.items()},
                "frames": first.frames, "scored_frames": first.scored_frames, "passes": args.passes,
+               "default_method": common.DEFAULT,
                "neurons": {m: common.neuron_counts(models[m]) for m in methods if common.neuron_counts(models[m])}}
     print(json.dumps(to_jsonable(summary)))
     return 0

@@ -2,8 +2,8 @@
 
 The live pipeline then starts from this checkpoint (gwr_hierarchy's `checkpoint` parameter) and
 keeps learning: pretraining only front-loads what the paper's online training would learn over
-many demonstrations. The learning parameters and the `predictor` (the paper's hierarchy or a blend
-with RLS-AR) come from the node's YAML (`--params-file`) unless `--predictor` is given, so the
+many demonstrations. The learning parameters and the `predictor` (the default gated local-linear
+P-GWR, the paper's hierarchy or a blend with RLS-AR) come from the node's YAML (`--params-file`) unless `--predictor` is given, so the
 checkpoint and the node agree. Each epoch presents every sequence once, in a shuffled order, with
 a sequence reset between them; the summary line per epoch is neurons and C.P.E. per horizon step.
 """
@@ -22,7 +22,7 @@ import numpy as np
 from gwr_predictor.data.datasets import demo_angle_sequences
 from gwr_predictor.data.demonstrator import PATTERNS, DemonstratorError
 from gwr_predictor.learning.params import HierarchyParams, hierarchy_parameter_specs
-from gwr_predictor.predictors.blend import PREDICTORS, gwr_member, make_predictor
+from gwr_predictor.predictors.blend import DEFAULT_PREDICTOR, PREDICTORS, gwr_member, make_predictor
 
 NODE_NAME = "gwr_hierarchy"
 
@@ -42,7 +42,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--seed", type=int, default=None, help="model seed (default: the params file's, else 0)")
     parser.add_argument("--data-seed", type=int, default=0, help="demonstrator seed (default 0, as the live source)")
     parser.add_argument("--predictor", choices=tuple(PREDICTORS), default=None,
-                        help="model to train (default: the params file's 'predictor', else hierarchy); must match "
+                        help=f"model to train (default: the params file's 'predictor', else {DEFAULT_PREDICTOR}); must match "
                              "the node's 'predictor' parameter")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
 
@@ -91,7 +91,7 @@ def run(args: argparse.Namespace) -> int:
     if args.epochs < 1:
         print("error: --epochs must be >= 1", file=sys.stderr)
         return 2
-    predictor = args.predictor or str(flat.get("predictor", "hierarchy"))
+    predictor = args.predictor or str(flat.get("predictor", DEFAULT_PREDICTOR))
     if predictor not in PREDICTORS:
         print(f"error: predictor {predictor!r} is not one of {', '.join(PREDICTORS)}", file=sys.stderr)
         return 2

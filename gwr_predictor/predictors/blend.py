@@ -345,23 +345,37 @@ def make_blend(kind: str = "hierarchy+rls", params: Any = None, seed: int = 0, h
     return BlendedPredictor(members, bp)
 
 
-#: The learner node's and `pretrain`'s `predictor` names -> blend kind (None: the paper's hierarchy).
-PREDICTORS: dict[str, str | None] = {"hierarchy": None, "blend_hierarchy_rls": "hierarchy+rls",
-                                     "blend_flat_rls": "flat+rls"}
+#: The learner node's and `pretrain`'s `predictor` names -> blend kind (None: the paper's hierarchy;
+#: "gated": the local-linear P-GWR behind the confidence gate, `predictors.gate`, the default).
+PREDICTORS: dict[str, str | None] = {"gated_llm_gwr": "gated", "hierarchy": None,
+                                     "blend_hierarchy_rls": "hierarchy+rls", "blend_flat_rls": "flat+rls"}
+DEFAULT_PREDICTOR = "gated_llm_gwr"
 
 
 def make_predictor(name: str, params: Any = None, seed: int = 0) -> Any:
-    """A fresh online predictor by its `PREDICTORS` name: the hierarchy or one of the blends."""
+    """A fresh online predictor by its `PREDICTORS` name: the default gated local-linear P-GWR, the
+    hierarchy or one of the blends. The gated model takes only horizon and joints from `params`."""
     from gwr_predictor.learning.hierarchy import Hierarchy
 
     if name not in PREDICTORS:
         raise BlendError(f"unknown predictor {name!r}; choose from {', '.join(PREDICTORS)}")
     kind = PREDICTORS[name]
+    if kind == "gated":
+        from gwr_predictor.learning.params import HierarchyParams
+        from gwr_predictor.predictors.gate import make_gated_llm
+
+        hp = params or HierarchyParams()
+        return make_gated_llm(hp.horizon, hp.n_joints, seed=seed)
     return Hierarchy(params, seed=seed) if kind is None else make_blend(kind, params, seed=seed)
 
 
 def gwr_member(model: Any) -> Any:
-    """The GWR learner inside `model`: the model itself, or the blend's member that has neurons."""
+    """The GWR learner inside `model`: the model itself, the gate's model, or the blend's member that
+    has neurons."""
+    from gwr_predictor.predictors.gate import GatedPredictor
+
+    if isinstance(model, GatedPredictor):
+        return model.model
     if isinstance(model, BlendedPredictor):
         return next(m for m in model.members.values() if getattr(m, "neuron_counts", None) is not None)
     return model
@@ -377,6 +391,10 @@ def load_predictor(name: str, path: str | os.PathLike[str]) -> Any:
     kind = PREDICTORS[name]
     if kind is None:
         return Hierarchy.load(path)
+    if kind == "gated":
+        from gwr_predictor.predictors.gate import GatedPredictor
+
+        return GatedPredictor.load(path)
     model = BlendedPredictor.load(path)
     expected = tuple(kind.split("+"))
     if tuple(model.names) != expected:

@@ -5,6 +5,12 @@ P(t+0). Every rule executes P(t+k) for one step k in [0, h]:
 
 - ``none``: k = 0, the newest observation (the uncompensated baseline);
 - ``fixed``: k = round(delay_s / frame_period), the configured delay (clamped to [0, h]);
+- ``guarded`` (the default): as ``fixed``, but per command the largest k' <= k whose recent
+  scored error beats holding still: the compensator scores every prediction it was given against
+  the observation that later arrives for its target frame (running MSE with `guard_decay` per
+  scored frame, for P(t+i) and for the pose held since t), and steps back to the longest lead at
+  which the predictor currently does better than no prediction; k' = 0 (the observation) when it
+  does better nowhere. So a predictor that is failing right now costs nothing;
 - ``variable``: k = round(xi / frame_period) for a delay estimate xi that the robot's own joint
   state keeps up to date through the paper's Eq. 11, P* = argmin_i ||J_xi(t) - P(t+i)||.
 
@@ -35,8 +41,8 @@ import numpy as np
 
 from gwr_predictor.robot.nao import ARM_JOINTS, clip_to_limits
 
-MODES = ("none", "fixed", "variable")
-Mode = Literal["none", "fixed", "variable"]
+MODES = ("none", "guarded", "fixed", "variable")
+Mode = Literal["none", "guarded", "fixed", "variable"]
 
 #: Fallback reasons (the strings reported in `CompensatorOutput.fallback_reason` and counted).
 NO_PREDICTIONS = "no_predictions"
@@ -56,6 +62,7 @@ _RANGES = {
     "deadband": (0.0, 10.0),
     "history_frames": (1, 10_000),
     "min_motion": (0.0, 10.0),
+    "guard_decay": (0.5, 1.0),
 }
 
 
@@ -65,10 +72,11 @@ class CompensatorParams:
 
     `tracking_gain`, `deadband` (in frames), `history_frames` (observations searched for the
     robot's pose) and `min_motion` (rad per frame below which the arm counts as still and the
-    estimate is left alone) matter to ``variable`` only.
+    estimate is left alone) matter to ``variable`` only; `guard_decay` (forgetting of the running
+    errors per scored frame) to ``guarded`` only.
     """
 
-    mode: Mode = "fixed"
+    mode: Mode = "guarded"
     delay_s: float = 0.6
     frame_period: float = 0.1
     stale_after_s: float = 0.5
@@ -76,6 +84,7 @@ class CompensatorParams:
     deadband: float = 0.6
     history_frames: int = 20
     min_motion: float = 0.03
+    guard_decay: float = 0.98
 
     def __post_init__(self) -> None:
         if self.mode not in MODES:
@@ -129,7 +138,7 @@ def robot_lag(now: float, robot_state: np.ndarray, times: np.ndarray, poses: np.
 class DelayCompensator:
     """Stateful wrapper: validation, staleness, fallback counters, the delay estimate, clipping."""
 
-    def __init__(self, mode: Mode = "fixed", delay_s: float = 0.6, frame_period: float = 0.1,
+    def __init__(self, mode: Mode = "guarded", delay_s: float = 0.6, frame_period: float = 0.1,
                  stale_after_s: float = 0.5, *, joint_names: tuple[str, ...] = ARM_JOINTS,
                  params: CompensatorParams | None = None) -> None:
         self.params = params or CompensatorParams(mode, delay_s, frame_period, stale_after_s)
@@ -142,6 +151,7 @@ class DelayCompensator:
         #: The last residual lag measured from the robot's state (``variable``), NaN before any.
         self.last_robot_lag_s = math.nan
         self._history: deque[tuple[float, np.ndarray]] = deque(maxlen=self.params.history_frames)
+        self._guard = _Guard(self.params.guard_decay, self.params.frame_period)
 
     @property
     def fallback_count(self) -> int:
@@ -154,6 +164,13 @@ class DelayCompensator:
         self.delay_estimate_s = self.params.delay_s
         self.last_robot_lag_s = math.nan
         self._history.clear()
+        self._guard = _Guard(self.params.guard_decay, self.params.frame_period)
+
+    @property
+    def guard_mse(self) -> tuple[np.ndarray, np.ndarray]:
+        """``guarded``: running MSE (rad^2) per step 1..h of the predictions and of holding still
+        (NaN where nothing was scored yet)."""
+        return self._guard.mse()
 
     def command(self, now: float, observation: np.ndarray, predictions: np.ndarray | None = None,
                 pred_stamp: float | None = None, robot_state: np.ndarray | None = None,
@@ -178,6 +195,8 @@ class DelayCompensator:
         stamp = obs_stamp if obs_stamp is not None else (pred_stamp if pred_stamp is not None else now)
         if not self._history or stamp > self._history[-1][0]:
             self._history.append((stamp, obs))
+            if p.mode == "guarded":
+                self._guard.observe(stamp, obs)
         reason = self._unusable(now if obs_stamp is None else obs_stamp, predictions, pred_stamp)
         if reason is not None:
             self.fallbacks[reason] += 1
@@ -192,7 +211,22 @@ class DelayCompensator:
                 self._track(now, state, preds, pred_stamp, stamp)
         lead = self.delay_estimate_s + stamp - pred_stamp
         step = fixed_step(lead, p.frame_period, preds.shape[0])
+        if p.mode == "guarded":
+            base = self._pose_at(pred_stamp, obs, stamp)
+            if base is not None:
+                self._guard.expect(pred_stamp, preds, base)
+            step = self._guard.allowed(step)
         return CompensatorOutput(self._clip(obs if step == 0 else preds[step - 1]), step, reason)
+
+    def _pose_at(self, t: float, obs: np.ndarray, obs_t: float) -> np.ndarray | None:
+        """The observed pose stamped t (the P(t+0) of predictions made at t), if still known."""
+        tol = 0.5 * self.params.frame_period
+        if abs(obs_t - t) < tol:
+            return obs
+        for ts, x in reversed(self._history):
+            if abs(ts - t) < tol:
+                return x
+        return None
 
     def _track(self, now: float, state: np.ndarray, preds: np.ndarray, pred_stamp: float, stamp: float) -> None:
         """Update the delay estimate from where the robot is on the person's trajectory."""
@@ -229,3 +263,61 @@ class DelayCompensator:
 
     def _clip(self, angles: np.ndarray) -> np.ndarray:
         return clip_to_limits(np.asarray(angles, dtype=float), self.joint_names)
+
+
+class _Guard:
+    """Running MSE per step of the predictions the compensator was given and of holding still.
+
+    A prediction set made at t is kept until its targets t + i * frame_period have been observed;
+    each target frame scores ||P(t+i) - x||^2 and ||x(t) - x||^2 (mean over joints). Only
+    observations that arrive count (no peeking), and a prediction set is scored once.
+    """
+
+    def __init__(self, decay: float, frame_period: float) -> None:
+        self.decay, self.period = decay, frame_period
+        self._pending: dict[int, tuple[np.ndarray, np.ndarray]] = {}  # frame index -> (preds, base)
+        self._sse = np.zeros((2, 0))  # rows: predictor, hold
+        self._weight = np.zeros((2, 0))
+
+    def _index(self, t: float) -> int:
+        return int(math.floor(t / self.period + 0.5))
+
+    def expect(self, t: float, preds: np.ndarray, base: np.ndarray) -> None:
+        i = self._index(t)
+        if i not in self._pending:
+            self._pending[i] = (preds.copy(), base.copy())
+        h = preds.shape[0]
+        if self._sse.shape[1] < h:
+            pad = h - self._sse.shape[1]
+            self._sse = np.pad(self._sse, ((0, 0), (0, pad)))
+            self._weight = np.pad(self._weight, ((0, 0), (0, pad)))
+
+    def observe(self, t: float, obs: np.ndarray) -> None:
+        j = self._index(t)
+        for i in list(self._pending):
+            preds, base = self._pending[i]
+            k = j - i
+            if k > preds.shape[0] or k < 0:
+                if k > preds.shape[0]:
+                    del self._pending[i]
+                continue
+            if k == 0:
+                continue
+            err = np.array([np.mean((preds[k - 1] - obs) ** 2), np.mean((base - obs) ** 2)])
+            self._sse[:, k - 1] = self.decay * self._sse[:, k - 1] + err
+            self._weight[:, k - 1] = self.decay * self._weight[:, k - 1] + 1.0
+            if k == preds.shape[0]:
+                del self._pending[i]
+
+    def mse(self) -> tuple[np.ndarray, np.ndarray]:
+        with np.errstate(invalid="ignore", divide="ignore"):
+            m = np.where(self._weight > 0, self._sse / np.where(self._weight > 0, self._weight, 1.0), np.nan)
+        return m[0], m[1]
+
+    def allowed(self, step: int) -> int:
+        """The largest k <= step at which the predictions have beaten holding still (0 if none)."""
+        model, hold = self.mse()
+        for k in range(min(step, model.shape[0]), 0, -1):
+            if model[k - 1] < hold[k - 1]:  # False while unscored (NaN)
+                return k
+        return 0

@@ -24,10 +24,15 @@ BASELINES = ("hold", "const_velocity", "rls_ar")
 BLEND = "blend_hierarchy_rls"
 BLEND_FLAT = "blend_flat_rls"
 BLENDS = {BLEND: "hierarchy+rls", BLEND_FLAT: "flat+rls"}  # method name -> ensemble.make_blend kind
-ALL_METHODS = (*BASELINES, FLAT, HIERARCHY, BLEND, BLEND_FLAT)
+LLM = "llm_gwr"
+GATED = "gated_llm_gwr"
+#: The predictor the gwr_hierarchy node, demo.sh and pretrain run by default.
+DEFAULT = GATED
+ALL_METHODS = (*BASELINES, FLAT, HIERARCHY, BLEND, BLEND_FLAT, LLM, GATED)
 LABELS = {"hold": "hold last", "const_velocity": "constant velocity", "rls_ar": "RLS-AR",
           FLAT: "P-GWR alone", HIERARCHY: "GWR hierarchy", BLEND: "blend hierarchy + RLS-AR",
-          BLEND_FLAT: "blend P-GWR alone + RLS-AR"}
+          BLEND_FLAT: "blend P-GWR alone + RLS-AR", LLM: "local-linear P-GWR (ungated)",
+          GATED: "gated local-linear P-GWR (default)"}
 
 
 def make_params(overrides: Iterable[tuple[str, object]] = (), **changes: Any) -> HierarchyParams:
@@ -50,6 +55,12 @@ def make_model(name: str, params: HierarchyParams, seed: int) -> Predictor:
         from gwr_predictor.predictors.blend import make_blend
 
         return make_blend(BLENDS[name], params, seed=seed)
+    if name in (LLM, GATED):
+        from gwr_predictor.learning.local_linear import LocalLinearParams, LocalLinearPredictor
+        from gwr_predictor.predictors.gate import make_gated_llm
+
+        lp = LocalLinearParams(horizon=params.horizon, n_joints=params.n_joints)
+        return LocalLinearPredictor(lp, seed=seed) if name == LLM else make_gated_llm(params=lp, seed=seed)
     baselines = make_baselines(params.horizon, params.span)
     if name not in baselines:
         raise KeyError(f"unknown method {name!r}; choose from {', '.join(ALL_METHODS)}")

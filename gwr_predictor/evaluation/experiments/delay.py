@@ -28,6 +28,7 @@ NAME = "delay"
 RULES: dict[str, tuple[str, float | None]] = {
     "none": ("none", None),
     "fixed_600ms": ("fixed", 0.6),
+    "guarded_600ms": ("guarded", 0.6),
     "fixed_true": ("fixed", None),
     "variable": ("variable", 0.6),
 }

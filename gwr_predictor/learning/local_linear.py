@@ -1,0 +1,393 @@
+"""A P-GWR whose neurons carry local linear models (beyond the paper), learned online.
+
+Why: the paper's P-GWR predicts the output weights of the regressor's BMU (Eq. 10, VQTAM), so a
+prediction can only be one of the prototypes, and prototypes sit ~0.1-0.2 rad apart: a floor on
+the error however well the motion is known, and on steady motion worse than holding the pose. The
+local-linear-map extension of VQTAM/SOM that the paper cites (Walter et al. 1990; Vesanto 1997)
+gives every neuron i, besides its input weights w_i and output weights v_i, a matrix A_i, and
+predicts
+
+    y(r) = v_b + A_b^T (r - w_b)        (b = BMU of the regressor r)
+
+so the output varies continuously between prototypes. Here, in addition:
+
+- targets are displacements from the newest observed frame, y = [x(t+k) - x(t)]_{k=1..h} (vector
+  output, no recursive roll-out): a fresh neuron predicts "no movement", i.e. hold-last;
+- A_b learns by normalised LMS on the residual the neuron's constant output leaves,
+  A_b += mu (y - v_b - A_b^T d) d^T / (||d||^2 + delta) with d = r - w_b, taken before the usual GWR
+  step (Eqs. 8-9) moves w_b and v_b; a new neuron inherits its parent's A;
+- the insertion threshold follows the data instead of a constant a_T: a neuron is inserted when the
+  regressor's per-frame RMS distance to its BMU exceeds `insertion_scale` x the running RMS of
+  the frame-to-frame motion (never below `noise_floor` rad), so a neuron covers about the same
+  stretch of a movement whatever the speed, units or noise of the data.
+
+Everything else (counters, edges, ageing, removal, unbounded growth) is the GWR of `gwr.py`; the
+matrices move with their neurons in the same vectorised steps. `LocalLinearPredictor` is the
+online predictor around it (`step` / `reset_sequence` / checkpoints like the other predictors).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import os
+from collections import deque
+from dataclasses import dataclass, field
+from typing import Any, ClassVar
+
+import numpy as np
+
+from gwr_predictor.learning.checkpoint import CheckpointError, read_checkpoint, write_checkpoint
+from gwr_predictor.learning.gwr import InputError
+from gwr_predictor.learning.hierarchy import ErrorTracker
+from gwr_predictor.learning.params import GWRParams
+from gwr_predictor.learning.predictive_gwr import PredictiveGWR
+from gwr_predictor.learning.scaling import InputScaling
+from gwr_predictor.pipeline.conventions import DEFAULT_HORIZON
+
+
+class LocalLinearError(ValueError):
+    """Invalid local-linear P-GWR parameters or state."""
+
+
+class LocalLinearPGWR(PredictiveGWR):
+    """P-GWR over [regressor | output] whose neurons each also hold a (in_dim, out_dim) matrix."""
+
+    def __init__(self, in_dim: int, out_dim: int, params: GWRParams, rng: np.random.Generator, *,
+                 init_low: float | np.ndarray = -1.0, init_high: float | np.ndarray = 1.0,
+                 distance_factor: float = 1.0, rate: float = 0.5, delta: float = 1e-4) -> None:
+        self.rate, self.delta = float(rate), float(delta)
+        super().__init__(in_dim, out_dim, params, rng, init_low=init_low, init_high=init_high,
+                         distance_factor=distance_factor)
+
+    # --- the matrices follow their neurons (allocation, insertion, removal) ----------------------
+    def _alloc(self, cap: int) -> None:
+        old = getattr(self, "_A", None)
+        n = self._n
+        super()._alloc(cap)
+        a = np.zeros((cap, self.match_dim, self.dim - self.match_dim))
+        if old is not None and n:
+            a[:n] = old[:n]
+        self._A = a
+
+    def _append(self, x: np.ndarray, b: int) -> int:
+        r = super()._append(x, b)
+        self._A[r] = self._A[b]
+        return r
+
+    def _remove(self, i: int) -> int:
+        last = self._n - 1
+        if i != last:
+            self._A[i] = self._A[last]
+        self._A[last] = 0.0
+        return super()._remove(i)
+
+    @property
+    def matrices(self) -> np.ndarray:
+        """(n, in_dim, out_dim) view of the local linear models."""
+        return self._A[:self._n]
+
+    # --- learning and prediction -----------------------------------------------------------------
+    def learn_local(self, x_in: np.ndarray, y: np.ndarray, neighbour_rate: float = 0.0) -> int:
+        """One step on a trusted (x_in, y) pair: the BMU's local model by NLMS (and, with
+        `neighbour_rate`, its topological neighbours' at that rate, one gathered block), then the GWR
+        step (which reuses this search: `search_keep`). Returns the GWR step's BMU index."""
+        aff = self.search_keep(x_in)
+        b = int(aff.argmax())
+        if neighbour_rate > 0:
+            nb = (self._age[b, :self._n] >= 0).nonzero()[0]
+            block = np.concatenate([[b], nb])
+            rates = np.full(block.size, neighbour_rate)
+            rates[0] = self.rate
+        else:
+            block, rates = np.array([b]), np.array([self.rate])
+        d = x_in - self._w[block]  # (k, in)
+        a = self._A[block]
+        err = y - self._wo[block] - np.einsum("ki,kio->ko", d, a)
+        gain = rates / (np.vecdot(d, d) + self.delta)
+        a += gain[:, None, None] * d[:, :, None] * err[:, None, :]
+        self._A[block] = a
+        return self.learn_pair_unchecked(x_in, y)
+
+    def predict_local(self, x_in: np.ndarray, k: int = 1) -> np.ndarray:
+        """v_b + A_b^T (x - w_b) for the BMU b of a trusted regressor (a new array); with k > 1 the
+        local models of the k nearest neurons, averaged with weights 1 / distance."""
+        if k == 1 or self._n < 2:
+            b = self.match_unchecked(x_in)
+            return self._wo[b] + (x_in - self._w[b]) @ self._A[b]
+        aff = self._affinity(x_in)
+        k = min(k, self._n)
+        idx = np.argpartition(aff, self._n - k)[self._n - k:]
+        d = x_in - self._w[idx]  # (k, in)
+        ys = self._wo[idx] + np.einsum("ki,kio->ko", d, self._A[idx])
+        dist = np.sqrt(np.vecdot(d, d))
+        self.last_distance = float(dist.min())
+        if dist.min() <= 1e-12:
+            return ys[int(dist.argmin())]
+        wts = 1.0 / dist
+        return (wts / wts.sum()) @ ys
+
+    # --- persistence -------------------------------------------------------------------------------
+    @classmethod
+    def from_parts(cls, weights: np.ndarray, matrices: np.ndarray, params: GWRParams, *, edges: Any,
+                   counters: np.ndarray, match_dim: int, distance_factor: float, rate: float,
+                   delta: float) -> LocalLinearPGWR:
+        """A network from saved arrays (checkpoints)."""
+        net = cls.from_arrays(weights, params, edges=edges, counters=counters, match_dim=match_dim,
+                              distance_factor=distance_factor)
+        expected = (net.n_neurons, net.in_dim, net.out_dim)
+        if np.shape(matrices) != expected:
+            raise ValueError(f"local models have shape {np.shape(matrices)}, expected {expected}")
+        if not np.isfinite(matrices).all():
+            raise ValueError("local models contain NaN or infinite values")
+        net._A[:net.n_neurons] = matrices
+        net.rate, net.delta = float(rate), float(delta)
+        return net
+
+
+def _default_gwr() -> GWRParams:
+    return GWRParams(max_edge_age=100)
+
+
+@dataclass(frozen=True)
+class LocalLinearParams:
+    """Settings of `LocalLinearPredictor` (chosen by `gwr-predictor experiment tune`, see docs).
+
+    `order`: frames in the regressor (newest first). `horizon`: frames predicted. `insertion_scale`:
+    insert when the per-frame RMS distance to the BMU exceeds this x the running RMS frame-to-frame
+    motion. `noise_floor` (rad): lower bound of that motion scale (tracker jitter). `motion_decay`:
+    forgetting factor of the motion estimate per frame. `rate`: NLMS rate mu of the local models
+    (0 = plain VQTAM read-out, the ablation). `gwr`: the GWR step's parameters (its a_T only fixes
+    the constant -ln a_T the scaled distance is compared with).
+    """
+
+    order: int = 4
+    horizon: int = DEFAULT_HORIZON
+    n_joints: int = 8
+    insertion_scale: float = 2.0
+    noise_floor: float = 0.01
+    motion_decay: float = 0.999
+    rate: float = 0.1
+    readout_k: int = 3
+    neighbour_rate: float = 0.02
+    gwr: GWRParams = field(default_factory=_default_gwr)
+
+    def __post_init__(self) -> None:
+        checks = {"order": 1 <= self.order <= 32, "horizon": 1 <= self.horizon <= 64,
+                  "n_joints": self.n_joints >= 1, "insertion_scale": 0 < self.insertion_scale < 1e3,
+                  "noise_floor": 0 < self.noise_floor < 10, "motion_decay": 0 < self.motion_decay < 1,
+                  "rate": 0 <= self.rate <= 1.5, "readout_k": 1 <= self.readout_k <= 64,
+                  "neighbour_rate": 0 <= self.neighbour_rate <= 1.5}
+        for name, ok in checks.items():
+            if not ok:
+                raise LocalLinearError(f"LocalLinearParams.{name}={getattr(self, name)!r} is out of range")
+        if not isinstance(self.gwr, GWRParams):
+            raise LocalLinearError(f"LocalLinearParams.gwr must be GWRParams, got {type(self.gwr).__name__}")
+
+    def replace(self, **changes: Any) -> LocalLinearParams:
+        return dataclasses.replace(self, **changes)
+
+    def to_dict(self) -> dict[str, Any]:
+        return dataclasses.asdict(self)
+
+    @classmethod
+    def from_dict(cls, d: dict[str, Any]) -> LocalLinearParams:
+        d = dict(d)
+        return cls(**{**d, "gwr": GWRParams(**d["gwr"])}) if "gwr" in d else cls(**d)
+
+
+class LocalLinearPredictor:
+    """Online predictor: regressor = the last `order` frames (rad, newest first); output = the
+    displacements of the next `horizon` frames from the newest one, read out by `LocalLinearPGWR`.
+
+    The pair (r(t-h), x(t-h+1..t) - x(t-h)) is learned at frame t, once its targets are observed (no
+    peeking). A missing sample (None/NaN) clears the window and the queue, as in the hierarchy.
+    """
+
+    kind: ClassVar[str] = "LocalLinearPredictor"
+
+    def __init__(self, params: LocalLinearParams | None = None, seed: int | None = 0) -> None:
+        self.params = p = params or LocalLinearParams()
+        rng = np.random.default_rng(seed)
+        lo, hi = InputScaling(1.0, p.n_joints).window_bounds(p.order)
+        out_dim = p.horizon * p.n_joints
+        self.pgwr = LocalLinearPGWR(p.order * p.n_joints, out_dim, p.gwr, rng, init_low=np.concatenate(
+            [lo, np.zeros(out_dim)]), init_high=np.concatenate([hi, np.zeros(out_dim)]), rate=p.rate)
+        self._ln_at = -math.log(p.gwr.activation_threshold)
+        self._motion_ms = p.noise_floor ** 2  # running mean of ||x(t) - x(t-1)||^2
+        self._t = self._frames = self._missing = self._predictions = self._sequences = 0
+        self._errors = ErrorTracker(p.horizon, p.n_joints, self.layer_names)
+        self._clear_sequence()
+
+    # --- the online step --------------------------------------------------------------------------
+    def step(self, x: np.ndarray | None, learn: bool = True) -> np.ndarray | None:
+        """Observe x (rad; None/NaN = missing), learn if `learn`, return (horizon, J) or None."""
+        p = self.params
+        t = self._t
+        self._t += 1
+        frame = self._as_frame(x)
+        if frame is None:
+            self._missing += 1
+            self._errors.score(t, None, None)
+            self._clear_sequence()
+            return None
+        self._frames += 1
+        self._errors.score(t, frame, frame)  # no lower layers: P.E. = C.P.E.
+        win, hist = self._win, self._hist
+        if self._fill:
+            step = frame - win[0]
+            self._motion_ms += (1.0 - p.motion_decay) * (float(step @ step) - self._motion_ms)
+        win[1:] = win[:-1]
+        win[0] = frame
+        self._fill = min(self._fill + 1, p.order)
+        hist.append(frame)
+        if learn and len(self._regs) == p.horizon and self._regs[0] is not None:
+            self._learn(self._regs[0], hist)
+        reg = win.reshape(-1).copy() if self._fill == p.order else None
+        self._regs.append(reg)
+        self._last_reg = reg
+        if reg is None:
+            return None
+        self._predictions += 1
+        prediction = self._forecast(reg)
+        self._errors.expect(t, prediction)
+        return prediction
+
+    def predict(self) -> np.ndarray | None:
+        """The prediction of the last `step` with the current network; no state change."""
+        return None if self._last_reg is None else self._forecast(self._last_reg)
+
+    def _learn(self, reg: np.ndarray, hist: deque[np.ndarray]) -> None:
+        p = self.params
+        frames = np.asarray(hist)  # (horizon + 1, J): x(t-h) ... x(t)
+        target = (frames[1:] - frames[0]).reshape(-1)
+        scale = max(math.sqrt(self._motion_ms), p.noise_floor) * p.insertion_scale * math.sqrt(p.order)
+        self.pgwr.distance_factor = self._ln_at / scale
+        self.pgwr.learn_local(reg, target, p.neighbour_rate)
+
+    def _forecast(self, reg: np.ndarray) -> np.ndarray:
+        p = self.params
+        out = self.pgwr.predict_local(reg, p.readout_k).reshape(p.horizon, p.n_joints)
+        out += reg[:p.n_joints]
+        return out
+
+    def _as_frame(self, x: np.ndarray | None) -> np.ndarray | None:
+        if x is None:
+            return None
+        frame = np.asarray(x, dtype=float)
+        if frame.shape != (self.params.n_joints,):
+            raise InputError(f"a frame must have shape ({self.params.n_joints},), got {frame.shape}")
+        return frame if math.isfinite(frame.sum()) else None
+
+    def _clear_sequence(self) -> None:
+        p = self.params
+        self._win = np.zeros((p.order, p.n_joints))
+        self._fill = 0
+        self._hist: deque[np.ndarray] = deque(maxlen=p.horizon + 1)
+        self._regs: deque[np.ndarray | None] = deque(maxlen=p.horizon)
+        self._last_reg: np.ndarray | None = None
+
+    def reset_sequence(self) -> None:
+        """Sequence boundary: clear the window, the queue and pending predictions (never the network)."""
+        self._clear_sequence()
+        self._errors.forget_pending()
+        self._sequences += 1
+
+    def reset_errors(self) -> None:
+        """Zero the C.P.E. statistics (counters of frames stay)."""
+        self._errors.reset()
+
+    # --- introspection ------------------------------------------------------------------------------
+    @property
+    def neuron_counts(self) -> tuple[int, ...]:
+        return (self.pgwr.n_neurons,)
+
+    layer_names: ClassVar[tuple[str, ...]] = ("pgwr",)
+
+    @property
+    def frames_seen(self) -> int:
+        return self._frames
+
+    @property
+    def motion_rms(self) -> float:
+        """Running RMS frame-to-frame motion (rad, over all joints) the insertion threshold follows."""
+        return math.sqrt(self._motion_ms)
+
+    def errors(self) -> dict[str, Any]:
+        """Counts, neurons, the motion scale, and C.P.E. (= P.E.) per step as the hierarchy reports it."""
+        return {"steps": self._t, "frames": self._frames, "missing": self._missing,
+                "sequences": self._sequences, "predictions": self._predictions, "neurons": {"pgwr": self.pgwr.n_neurons},
+                "motion_rms_rad": self.motion_rms, **self._errors.summary()}
+
+    # --- persistence --------------------------------------------------------------------------------
+    ARRAYS: ClassVar[tuple[str, ...]] = ("weights", "matrices", "counters", "edges", "win", "hist", "regs",
+                                         *ErrorTracker.ARRAYS)
+
+    def state(self) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
+        """(JSON-able header, arrays) of the whole state; `from_state` continues bit for bit."""
+        g = self.pgwr
+        regs = list(self._regs)
+        reg_arr = np.array([np.zeros(g.in_dim) if r is None else r for r in regs]).reshape(len(regs), g.in_dim)
+        hist = np.array(list(self._hist)).reshape(len(self._hist), self.params.n_joints)
+        header = {"params": self.params.to_dict(), "distance_factor": g.distance_factor,
+                  "motion_ms": self._motion_ms, "fill": self._fill, "reg_present": [r is not None for r in regs],
+                  "last_reg": self._last_reg is not None,
+                  "counters": [self._t, self._frames, self._missing, self._predictions, self._sequences],
+                  "errors": self._errors.header()}
+        arrays = {"weights": g.weights, "matrices": g.matrices.copy(), "counters": g.counters.copy(),
+                  "edges": g.edge_array(), "win": self._win.copy(), "hist": hist, "regs": reg_arr,
+                  **{k: v.copy() for k, v in self._errors.arrays().items()}}
+        return header, arrays
+
+    @classmethod
+    def from_state(cls, header: dict[str, Any], arrays: dict[str, np.ndarray],
+                   source: str | os.PathLike[str] = "<state>") -> LocalLinearPredictor:
+        """The predictor of a `state()`; CheckpointError naming `source` if it does not fit."""
+        missing = sorted(set(cls.ARRAYS) - arrays.keys())
+        if missing:
+            raise CheckpointError(f"{source}: missing arrays {missing}")
+        try:
+            params = LocalLinearParams.from_dict(header["params"])
+            model = cls.__new__(cls)
+            model.params = params
+            model._ln_at = -math.log(params.gwr.activation_threshold)
+            model.pgwr = LocalLinearPGWR.from_parts(
+                arrays["weights"], arrays["matrices"], params.gwr, edges=arrays["edges"],
+                counters=arrays["counters"], match_dim=params.order * params.n_joints,
+                distance_factor=float(header["distance_factor"]), rate=params.rate, delta=1e-4)
+            if model.pgwr.out_dim != params.horizon * params.n_joints:
+                raise ValueError(f"outputs are {model.pgwr.out_dim}-d, parameters say "
+                                 f"{params.horizon * params.n_joints}")
+            model._motion_ms = float(header["motion_ms"])
+            (model._t, model._frames, model._missing, model._predictions,
+             model._sequences) = (int(v) for v in header["counters"])
+            model._errors = ErrorTracker(params.horizon, params.n_joints, cls.layer_names)
+            model._errors.restore(header["errors"], arrays)
+            model._clear_sequence()
+            if np.shape(arrays["win"]) != model._win.shape:
+                raise ValueError(f"array 'win' has shape {np.shape(arrays['win'])}, expected {model._win.shape}")
+            model._win[...] = arrays["win"]
+            model._fill = int(header["fill"])
+            for row in np.asarray(arrays["hist"], dtype=float).reshape(-1, params.n_joints):
+                model._hist.append(row.copy())
+            present = header["reg_present"]
+            regs = np.asarray(arrays["regs"], dtype=float)
+            if len(present) != len(regs) or len(regs) > params.horizon:
+                raise ValueError(f"regressor queue of {len(regs)} entries does not fit the parameters")
+            for flag, reg in zip(present, regs, strict=True):
+                model._regs.append(reg.copy() if flag else None)
+            model._last_reg = model._regs[-1] if header["last_reg"] else None
+        except CheckpointError:
+            raise
+        except (KeyError, ValueError, TypeError, IndexError) as exc:
+            raise CheckpointError(f"{source}: inconsistent local-linear checkpoint: {type(exc).__name__}: {exc}") from exc
+        return model
+
+    def save(self, path: str | os.PathLike[str]) -> None:
+        header, arrays = self.state()
+        write_checkpoint(path, self.kind, header, arrays)
+
+    @classmethod
+    def load(cls, path: str | os.PathLike[str]) -> LocalLinearPredictor:
+        header, arrays = read_checkpoint(path, cls.kind, list(cls.ARRAYS))
+        return cls.from_state(header, arrays, path)

@@ -1,0 +1,230 @@
+"""A confidence gate: shrink a model's prediction towards the newest pose by how well it has done.
+
+The robot executes the prediction, so a prediction worse than "the person stays where they are"
+makes the robot worse than no compensation. `GatedPredictor` wraps any online predictor m and
+returns, per horizon step k (and per joint, by default),
+
+    p_k = x(t) + alpha_k (m_k - x(t)),   alpha_k = clip(S_xy,k / (S_xx,k + prior), 0, 1)
+
+with S_xy = sum of (y - x(t)) (m_k - x(t)) and S_xx = sum of (m_k - x(t))^2 over the predictions
+already scored against their observed targets y, decayed by `decay` per scored frame. alpha_k is
+the least-squares shrinkage of the model's step towards hold-last: 0 (hold-last) until the model
+has shown anything, 1 where it is reliably right, in between where it is right on average but
+noisy. Its expected error is at most hold-last's (alpha = 0 is a candidate) and at most the
+model's (alpha = 1 is), up to the estimate's lag. The gate only counts observed errors (no
+peeking): a prediction made at frame t for step k is scored when frame t + k is observed, and
+dropped if that frame is missing or the sequence is reset first. The statistics keep adapting when
+`step` is called with learn=False (they are running statistics, not a model).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+from dataclasses import dataclass
+from typing import Any, ClassVar
+
+import numpy as np
+
+from gwr_predictor.learning.checkpoint import CheckpointError, read_checkpoint, write_checkpoint
+from gwr_predictor.pipeline.conventions import DEFAULT_HORIZON
+from gwr_predictor.predictors.baselines import N_JOINTS, observation
+
+
+class GateError(ValueError):
+    """Invalid gate parameters, or a wrapped model's output of the wrong shape."""
+
+
+@dataclass(frozen=True)
+class GateParams:
+    """`decay`: forgetting per scored frame (0.99 ~ the last 100 frames). `prior` (rad^2): added to
+    S_xx, so alpha stays near 0 until the model's steps have some weight of evidence. `per_joint`:
+    one alpha per (step, joint) instead of per step."""
+
+    decay: float = 0.99
+    prior: float = 0.01
+    per_joint: bool = True
+    horizon: int = DEFAULT_HORIZON
+    joints: int = N_JOINTS
+
+    def __post_init__(self) -> None:
+        if not 0.0 < self.decay <= 1.0:
+            raise GateError(f"GateParams.decay must be in (0, 1], got {self.decay}")
+        if not (np.isfinite(self.prior) and self.prior > 0):
+            raise GateError(f"GateParams.prior must be a finite number > 0, got {self.prior}")
+        if int(self.horizon) != self.horizon or self.horizon < 1 or self.joints < 1:
+            raise GateError(f"GateParams horizon and joints must be positive integers, got "
+                            f"{self.horizon!r}, {self.joints!r}")
+
+
+class GatedPredictor:
+    """`model`'s predictions shrunk towards hold-last per horizon step (see the module docstring)."""
+
+    kind: ClassVar[str] = "GatedPredictor"
+
+    def __init__(self, model: Any, params: GateParams | None = None) -> None:
+        if not (callable(getattr(model, "step", None)) and callable(getattr(model, "reset_sequence", None))):
+            raise GateError(f"{type(model).__name__} does not implement step/reset_sequence")
+        self.model = model
+        self.params = p = params or GateParams()
+        horizon = getattr(getattr(model, "params", None), "horizon", p.horizon)
+        if horizon < p.horizon:
+            raise GateError(f"the gate's horizon {p.horizon} exceeds the model's {horizon}")
+        shape = (p.horizon, p.joints)
+        self._sxy, self._sxx = np.zeros(shape), np.zeros(shape)
+        self._scored = np.zeros(p.horizon, dtype=np.int64)
+        self._steps = np.arange(p.horizon)
+        self._clear_sequence()
+
+    def _clear_sequence(self) -> None:
+        p = self.params
+        # row r: (newest pose, model step m - pose) of the prediction made r + 1 frames ago
+        self._pose = np.full((p.horizon, p.joints), np.nan)
+        self._diff = np.full((p.horizon, p.horizon, p.joints), np.nan)
+        self._last: np.ndarray | None = None
+        self._out_diff: np.ndarray | None = None
+
+    def reset_sequence(self) -> None:
+        """Sequence boundary: drop pending predictions and the last pose (not the statistics)."""
+        self.model.reset_sequence()
+        self._clear_sequence()
+
+    def step(self, x: np.ndarray | None, learn: bool = True) -> np.ndarray | None:
+        p = self.params
+        obs = observation(x, p.joints)
+        if obs is not None:
+            self._score(obs)
+            self._last = obs.copy()
+        out = self.model.step(obs, learn=learn)
+        diff = None
+        if out is not None and self._last is not None:
+            out = np.asarray(out, dtype=float)
+            if out.ndim != 2 or out.shape[0] < p.horizon or out.shape[1] != p.joints:
+                raise GateError(f"{type(self.model).__name__} returned shape {out.shape}; need at least "
+                                f"({p.horizon}, {p.joints})")
+            diff = out[:p.horizon] - self._last
+            if not np.isfinite(diff).all():
+                diff = None
+        self._pose[1:] = self._pose[:-1]
+        self._diff[1:] = self._diff[:-1]
+        self._pose[0] = np.nan if self._last is None else self._last
+        self._diff[0] = np.nan if diff is None else diff
+        self._out_diff = diff
+        return self._gated(diff)
+
+    def predict(self) -> np.ndarray | None:
+        """The last `step`'s gated prediction, with the current alphas; no state change."""
+        return self._gated(self._out_diff)
+
+    def _gated(self, diff: np.ndarray | None) -> np.ndarray | None:
+        if self._last is None:
+            return None
+        hold = np.repeat(self._last[None, :], self.params.horizon, axis=0)
+        return hold if diff is None else hold + self.alpha() * diff
+
+    def _score(self, obs: np.ndarray) -> None:
+        """Score the pending predictions that target this observed frame: row r's step r + 1."""
+        k = self._steps
+        diff = self._diff[k, k]  # (h, J)
+        resid = obs - self._pose  # y - newest pose at prediction time
+        ok = np.isfinite(diff).all(axis=1) & np.isfinite(resid).all(axis=1)
+        if not ok.any():
+            return
+        decay = np.where(ok, self.params.decay, 1.0)[:, None]
+        xy = np.where(ok[:, None], resid * diff, 0.0)
+        xx = np.where(ok[:, None], diff * diff, 0.0)
+        if not self.params.per_joint:
+            xy = np.broadcast_to(xy.sum(axis=1, keepdims=True), xy.shape)
+            xx = np.broadcast_to(xx.sum(axis=1, keepdims=True), xx.shape)
+        self._sxy = decay * self._sxy + xy
+        self._sxx = decay * self._sxx + xx
+        self._scored += ok
+
+    def alpha(self) -> np.ndarray:
+        """(horizon, joints) shrinkage factors in [0, 1] (0 = hold-last, 1 = the model as it is)."""
+        prior = self.params.prior if self.params.per_joint else self.params.prior * self.params.joints
+        return np.clip(self._sxy / (self._sxx + prior), 0.0, 1.0)
+
+    # --- introspection ------------------------------------------------------------------------------
+    @property
+    def neuron_counts(self) -> tuple[int, ...] | None:
+        counts = getattr(self.model, "neuron_counts", None)
+        return None if counts is None else tuple(counts)
+
+    def errors(self) -> dict[str, Any]:
+        a = self.alpha()
+        out: dict[str, Any] = {"gate_alpha_mean": a.mean(axis=1).tolist(), "gate_scored": self._scored.tolist()}
+        if callable(getattr(self.model, "errors", None)):
+            out["model"] = self.model.errors()
+        return out
+
+    # --- persistence --------------------------------------------------------------------------------
+    def state(self) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
+        """(header, arrays) of the gate and its model (which needs `state`, `kind`, `from_state`)."""
+        state = getattr(self.model, "state", None)
+        model_cls = _model_classes().get(getattr(self.model, "kind", None))
+        if not callable(state) or model_cls is None:
+            raise CheckpointError(f"a gate around {type(self.model).__name__} cannot be saved; supported "
+                                  f"models: {', '.join(_model_classes())}")
+        m_header, m_arrays = state()
+        header = {"gate": dataclasses.asdict(self.params), "model_kind": self.model.kind, "model": m_header,
+                  "last": None if self._last is None else self._last.tolist(),
+                  "out_diff": self._out_diff is not None}
+        arrays = {f"model:{k}": v for k, v in m_arrays.items()}
+        arrays.update({"gate:sxy": self._sxy, "gate:sxx": self._sxx, "gate:scored": self._scored,
+                       "gate:pose": self._pose, "gate:diff": self._diff})
+        if self._out_diff is not None:
+            arrays["gate:out_diff"] = self._out_diff
+        return header, arrays
+
+    @classmethod
+    def from_state(cls, header: dict[str, Any], arrays: dict[str, np.ndarray],
+                   source: str | os.PathLike[str] = "<state>") -> GatedPredictor:
+        try:
+            model_cls = _model_classes().get(header["model_kind"])
+            if model_cls is None:
+                raise CheckpointError(f"{source}: the gate wraps a {header['model_kind']!r}; this build "
+                                      f"restores {', '.join(_model_classes())}")
+            sub = {k[len("model:"):]: v for k, v in arrays.items() if k.startswith("model:")}
+            gate = cls(model_cls.from_state(header["model"], sub, f"{source} (gated model)"),
+                       GateParams(**header["gate"]))
+            for name in ("sxy", "sxx", "scored", "pose", "diff"):
+                dest = getattr(gate, f"_{name}")
+                src = arrays[f"gate:{name}"]
+                if np.shape(src) != dest.shape:
+                    raise ValueError(f"array gate:{name} has shape {np.shape(src)}, expected {dest.shape}")
+                dest[...] = src
+            gate._last = None if header["last"] is None else np.asarray(header["last"], dtype=float)
+            gate._out_diff = np.array(arrays["gate:out_diff"], dtype=float) if header["out_diff"] else None
+        except CheckpointError:
+            raise
+        except (KeyError, ValueError, TypeError, IndexError) as exc:
+            raise CheckpointError(f"{source}: inconsistent gate checkpoint: {type(exc).__name__}: {exc}") from exc
+        return gate
+
+    def save(self, path: str | os.PathLike[str]) -> None:
+        """One atomic, versioned checkpoint of the gate and its model."""
+        header, arrays = self.state()
+        write_checkpoint(path, self.kind, header, arrays)
+
+    @classmethod
+    def load(cls, path: str | os.PathLike[str]) -> GatedPredictor:
+        header, arrays = read_checkpoint(path, cls.kind, ["gate:sxy", "gate:sxx", "gate:scored"])
+        return cls.from_state(header, arrays, path)
+
+
+def _model_classes() -> dict[str, type]:
+    from gwr_predictor.learning.hierarchy import FlatPredictor, Hierarchy
+    from gwr_predictor.learning.local_linear import LocalLinearPredictor
+
+    return {c.kind: c for c in (LocalLinearPredictor, Hierarchy, FlatPredictor)}
+
+
+def make_gated_llm(horizon: int = DEFAULT_HORIZON, joints: int = N_JOINTS, seed: int = 0,
+                   params: Any = None, gate: GateParams | None = None) -> GatedPredictor:
+    """The default predictor: the local-linear P-GWR behind the confidence gate."""
+    from gwr_predictor.learning.local_linear import LocalLinearParams, LocalLinearPredictor
+
+    lp = params or LocalLinearParams(horizon=horizon, n_joints=joints)
+    gp = gate or GateParams(horizon=lp.horizon, joints=lp.n_joints)
+    return GatedPredictor(LocalLinearPredictor(lp, seed=seed), gp)
