@@ -291,7 +291,7 @@ def test_make_predictor_names_the_hierarchy_and_both_blends():
     assert isinstance(make_predictor("hierarchy"), Hierarchy)
     assert isinstance(gwr_member(make_predictor("blend_hierarchy_rls")), Hierarchy)
     assert isinstance(gwr_member(make_predictor("blend_flat_rls")), FlatPredictor)
-    assert set(PREDICTORS) == {"hierarchy", "blend_hierarchy_rls", "blend_flat_rls"}
+    assert set(PREDICTORS) == {"gated_llm_gwr", "hierarchy", "blend_hierarchy_rls", "blend_flat_rls"}
     with pytest.raises(BlendError, match="unknown predictor 'nope'"):
         make_predictor("nope")
 

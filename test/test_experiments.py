@@ -54,13 +54,13 @@ def test_report_helpers():
         load("nope")
 
 
-def _run(name, tmp_path):
+def _run(name, tmp_path, figures=True):
     out = tmp_path / name
     assert main(["experiment", name, "--quick", "--out", str(out), "--no-progress"]) == 0
     data = json.loads((out / "results.json").read_text())
     md = (out / "results.md").read_text()
     assert data["experiment"] == name and data["quick"] is True
-    assert data["figures"] and all((out / f).stat().st_size > 1000 for f in data["figures"])
+    assert bool(data["figures"]) == figures and all((out / f).stat().st_size > 1000 for f in data["figures"])
     assert all(f in md for f in data["figures"]) and "|---" in md
     return data["results"], data["config"]
 
@@ -146,6 +146,16 @@ def test_experiment_scale(tmp_path):
     assert fine > coarse  # a larger scale makes the same a_T insert at a smaller distance
 
 
+def test_experiment_tune(tmp_path):
+    r, cfg = _run("tune", tmp_path, figures=False)
+    for method, n in (("gated_llm_gwr", len(cfg["rates"]) * len(cfg["insertion_scales"]) * len(cfg["readout_ks"])),
+                      ("rls_ar", len(cfg["orders"]) * len(cfg["forgettings"]))):
+        res = r["methods"][method]
+        assert len(res["grid"]) == n
+        best = min(g["heldout_repetitions"]["mae"] for g in res["grid"])
+        assert res["chosen_scores"]["heldout_repetitions"]["mae"] == best  # chosen on held-out repetitions only
+
+
 def test_evaluate_prints_a_json_last_line(tmp_path, capsys):
     from gwr_predictor.data.angle_files import save_angles_csv
     from gwr_predictor.data.datasets import demo_angle_sequences
@@ -157,7 +167,8 @@ def test_evaluate_prints_a_json_last_line(tmp_path, capsys):
     last = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
     assert {"horizon", "mae_rad", "frames", "neurons"} <= set(last)
     assert last["horizon"] == 4
-    assert set(last["mae_rad"]) == {"hold", "const_velocity", "rls_ar", "hierarchy"}
+    assert set(last["mae_rad"]) == {"hold", "const_velocity", "rls_ar", "hierarchy", "gated_llm_gwr"}
+    assert last["default_method"] == "gated_llm_gwr"
     assert all(len(v) == 4 for v in last["mae_rad"].values())
     assert last["frames"] == 2 * sum(len(s) for s in demo_angle_sequences(["wave_one"], 1, 2))
     assert len(last["neurons"]["hierarchy"]) == 3

@@ -22,6 +22,8 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--param", action="append", default=[], metavar="KEY=VALUE",
                         help="hierarchy parameter override in flat form, e.g. input_scale=0.2 or "
                              "pgwr.activation_threshold=0.95 (repeatable)")
+    parser.add_argument("--method", default=None,
+                        help="predictor to run (experiments with one method, e.g. incremental: gated_llm_gwr)")
     parser.add_argument("--no-progress", action="store_true", help="no progress bars")
 
 
@@ -59,6 +61,14 @@ def run(args: argparse.Namespace) -> int:
                 print(f"experiment {args.name} has no --orders", file=sys.stderr)
                 return 2
             config = dataclasses.replace(config, orders=args.orders)
+        if args.method is not None:
+            from gwr_predictor.evaluation.experiments.common import ALL_METHODS
+
+            if not hasattr(config, "method") or args.method not in ALL_METHODS:
+                print(f"experiment {args.name} has no --method {args.method!r} (methods: {', '.join(ALL_METHODS)})",
+                      file=sys.stderr)
+                return 2
+            config = dataclasses.replace(config, method=args.method)
     except ValueError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
@@ -68,6 +78,7 @@ def run(args: argparse.Namespace) -> int:
     output.elapsed_s = time.perf_counter() - start
     command = " ".join(["gwr-predictor", "experiment", args.name, *(["--quick"] if args.quick else []),
                         "--seed", str(args.seed), *(["--orders", str(args.orders)] if args.orders else []),
+                        *(["--method", args.method] if args.method else []),
                         *[f"--param {p}" for p in args.param]])
     json_path, md_path = write_output(out, output, seed=args.seed, quick=args.quick, command=command)
     print(md_path.read_text())

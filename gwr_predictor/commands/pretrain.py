@@ -3,7 +3,8 @@
 The live pipeline then starts from this checkpoint (gwr_hierarchy's `checkpoint` parameter) and
 keeps learning: pretraining only front-loads what the paper's online training would learn over
 many demonstrations. The learning parameters and the `predictor` (the default gated local-linear
-P-GWR, the paper's hierarchy or a blend with RLS-AR) come from the node's YAML (`--params-file`) unless `--predictor` is given, so the
+P-GWR, the paper's hierarchy or a blend with RLS-AR) come from the node's YAML (`--params-file`)
+unless `--predictor` is given, so the
 checkpoint and the node agree. Each epoch presents every sequence once, in a shuffled order, with
 a sequence reset between them; the summary line per epoch is neurons and C.P.E. per horizon step.
 """
@@ -42,7 +43,8 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--seed", type=int, default=None, help="model seed (default: the params file's, else 0)")
     parser.add_argument("--data-seed", type=int, default=0, help="demonstrator seed (default 0, as the live source)")
     parser.add_argument("--predictor", choices=tuple(PREDICTORS), default=None,
-                        help=f"model to train (default: the params file's 'predictor', else {DEFAULT_PREDICTOR}); must match "
+                        help=f"model to train (default: the params file's 'predictor', else {DEFAULT_PREDICTOR}); "
+                             "must match "
                              "the node's 'predictor' parameter")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
 

@@ -103,9 +103,9 @@ class LocalLinearPGWR(PredictiveGWR):
             block, rates = np.array([b]), np.array([self.rate])
         d = x_in - self._w[block]  # (k, in)
         a = self._A[block]
-        err = y - self._wo[block] - np.einsum("ki,kio->ko", d, a)
+        err = y - self._wo[block] - np.matmul(d[:, None, :], a)[:, 0]
         gain = rates / (np.vecdot(d, d) + self.delta)
-        a += gain[:, None, None] * d[:, :, None] * err[:, None, :]
+        a += np.einsum("ki,ko->kio", gain[:, None] * d, err)  # rank-1 NLMS step per neuron
         self._A[block] = a
         return self.learn_pair_unchecked(x_in, y)
 
@@ -119,7 +119,7 @@ class LocalLinearPGWR(PredictiveGWR):
         k = min(k, self._n)
         idx = np.argpartition(aff, self._n - k)[self._n - k:]
         d = x_in - self._w[idx]  # (k, in)
-        ys = self._wo[idx] + np.einsum("ki,kio->ko", d, self._A[idx])
+        ys = self._wo[idx] + np.matmul(d[:, None, :], self._A[idx])[:, 0]
         dist = np.sqrt(np.vecdot(d, d))
         self.last_distance = float(dist.min())
         if dist.min() <= 1e-12:
@@ -164,7 +164,7 @@ class LocalLinearParams:
     order: int = 4
     horizon: int = DEFAULT_HORIZON
     n_joints: int = 8
-    insertion_scale: float = 2.0
+    insertion_scale: float = 1.5
     noise_floor: float = 0.01
     motion_decay: float = 0.999
     rate: float = 0.1
@@ -316,7 +316,8 @@ class LocalLinearPredictor:
     def errors(self) -> dict[str, Any]:
         """Counts, neurons, the motion scale, and C.P.E. (= P.E.) per step as the hierarchy reports it."""
         return {"steps": self._t, "frames": self._frames, "missing": self._missing,
-                "sequences": self._sequences, "predictions": self._predictions, "neurons": {"pgwr": self.pgwr.n_neurons},
+                "sequences": self._sequences, "predictions": self._predictions,
+                "neurons": {"pgwr": self.pgwr.n_neurons},
                 "motion_rms_rad": self.motion_rms, **self._errors.summary()}
 
     # --- persistence --------------------------------------------------------------------------------
@@ -380,7 +381,8 @@ class LocalLinearPredictor:
         except CheckpointError:
             raise
         except (KeyError, ValueError, TypeError, IndexError) as exc:
-            raise CheckpointError(f"{source}: inconsistent local-linear checkpoint: {type(exc).__name__}: {exc}") from exc
+            raise CheckpointError(f"{source}: inconsistent local-linear checkpoint: "
+                                  f"{type(exc).__name__}: {exc}") from exc
         return model
 
     def save(self, path: str | os.PathLike[str]) -> None:

@@ -245,11 +245,16 @@ class RLSAutoregressive:
         return model
 
 
+#: RLS-AR's settings in every report, chosen by `gwr-predictor experiment tune` with the same split and
+#: grid size as the default predictor's (docs/results/tune): order 12, no forgetting.
+TUNED_RLS = RLSParams(order=12, forgetting=1.0)
+
+
 def make_baselines(horizon: int = DEFAULT_HORIZON, order: int = 5) -> dict[str, object]:
     """Fresh instances of every baseline, keyed by the names used in reports. The constant-velocity
-    slope and the RLS regressor both span `order` frames, the hierarchy's regressor length."""
+    slope spans `order` frames (the hierarchy's regressor length); RLS-AR uses `TUNED_RLS`."""
     return {
         "hold": HoldLast(horizon),
         "const_velocity": ConstantVelocity(horizon, window=max(order, 2)),
-        "rls_ar": RLSAutoregressive(RLSParams(order=order), horizon),
+        "rls_ar": RLSAutoregressive(TUNED_RLS, horizon),
     }

@@ -103,12 +103,19 @@ class GatedPredictor:
                 raise GateError(f"{type(self.model).__name__} returned shape {out.shape}; need at least "
                                 f"({p.horizon}, {p.joints})")
             diff = out[:p.horizon] - self._last
-            if not np.isfinite(diff).all():
+            if not np.isfinite(diff.sum()):
                 diff = None
+        # ring of pending predictions: row r was made r + 1 frames ago (a shift of a few hundred values)
         self._pose[1:] = self._pose[:-1]
         self._diff[1:] = self._diff[:-1]
-        self._pose[0] = np.nan if self._last is None else self._last
-        self._diff[0] = np.nan if diff is None else diff
+        if self._last is None:
+            self._pose[0] = np.nan
+        else:
+            self._pose[0] = self._last
+        if diff is None:
+            self._diff[0] = np.nan
+        else:
+            self._diff[0] = diff
         self._out_diff = diff
         return self._gated(diff)
 
@@ -119,31 +126,44 @@ class GatedPredictor:
     def _gated(self, diff: np.ndarray | None) -> np.ndarray | None:
         if self._last is None:
             return None
-        hold = np.repeat(self._last[None, :], self.params.horizon, axis=0)
-        return hold if diff is None else hold + self.alpha() * diff
+        if diff is None:
+            return np.repeat(self._last[None, :], self.params.horizon, axis=0)
+        out = self.alpha()
+        out *= diff
+        out += self._last
+        return out
 
     def _score(self, obs: np.ndarray) -> None:
         """Score the pending predictions that target this observed frame: row r's step r + 1."""
-        k = self._steps
-        diff = self._diff[k, k]  # (h, J)
+        diff = self._diff[self._steps, self._steps]  # (h, J); a row is all NaN or all finite
         resid = obs - self._pose  # y - newest pose at prediction time
-        ok = np.isfinite(diff).all(axis=1) & np.isfinite(resid).all(axis=1)
-        if not ok.any():
+        ok = ~(np.isnan(diff[:, 0]) | np.isnan(resid[:, 0]))
+        n_ok = int(ok.sum())
+        if n_ok == 0:
             return
-        decay = np.where(ok, self.params.decay, 1.0)[:, None]
-        xy = np.where(ok[:, None], resid * diff, 0.0)
-        xx = np.where(ok[:, None], diff * diff, 0.0)
+        d = self.params.decay
+        xy, xx = resid * diff, diff * diff
         if not self.params.per_joint:
-            xy = np.broadcast_to(xy.sum(axis=1, keepdims=True), xy.shape)
-            xx = np.broadcast_to(xx.sum(axis=1, keepdims=True), xx.shape)
-        self._sxy = decay * self._sxy + xy
-        self._sxx = decay * self._sxx + xx
-        self._scored += ok
+            xy[:] = xy.sum(axis=1, keepdims=True)
+            xx[:] = xx.sum(axis=1, keepdims=True)
+        if n_ok == len(ok):  # the common case: every step has a scored prediction
+            self._sxy *= d
+            self._sxy += xy
+            self._sxx *= d
+            self._sxx += xx
+            self._scored += 1
+            return
+        rows = ok.nonzero()[0]
+        self._sxy[rows] = d * self._sxy[rows] + xy[rows]
+        self._sxx[rows] = d * self._sxx[rows] + xx[rows]
+        self._scored[rows] += 1
 
     def alpha(self) -> np.ndarray:
-        """(horizon, joints) shrinkage factors in [0, 1] (0 = hold-last, 1 = the model as it is)."""
+        """(horizon, joints) shrinkage factors in [0, 1] (0 = hold-last, 1 = the model as it is); a new array."""
         prior = self.params.prior if self.params.per_joint else self.params.prior * self.params.joints
-        return np.clip(self._sxy / (self._sxx + prior), 0.0, 1.0)
+        out = self._sxx + prior
+        np.divide(self._sxy, out, out=out)
+        return np.clip(out, 0.0, 1.0, out=out)
 
     # --- introspection ------------------------------------------------------------------------------
     @property

@@ -5,12 +5,12 @@ P(t+0). Every rule executes P(t+k) for one step k in [0, h]:
 
 - ``none``: k = 0, the newest observation (the uncompensated baseline);
 - ``fixed``: k = round(delay_s / frame_period), the configured delay (clamped to [0, h]);
-- ``guarded`` (the default): as ``fixed``, but per command the largest k' <= k whose recent
-  scored error beats holding still: the compensator scores every prediction it was given against
-  the observation that later arrives for its target frame (running MSE with `guard_decay` per
-  scored frame, for P(t+i) and for the pose held since t), and steps back to the longest lead at
-  which the predictor currently does better than no prediction; k' = 0 (the observation) when it
-  does better nowhere. So a predictor that is failing right now costs nothing;
+- ``guarded`` (the default): as ``fixed``, but per command the largest step k' <= k whose pose
+  has recently been closer than holding still (k' = 0) to where the person was k frames later:
+  the compensator scores every prediction set it was given against the observations that later
+  arrive for its target frames (running MSE with `guard_decay` per scored frame, for every
+  candidate P(t+j), j = 0..h); k' = 0 until the lead has been scored. So a predictor that is
+  failing right now costs nothing;
 - ``variable``: k = round(xi / frame_period) for a delay estimate xi that the robot's own joint
   state keeps up to date through the paper's Eq. 11, P* = argmin_i ||J_xi(t) - P(t+i)||.
 
@@ -266,58 +266,61 @@ class DelayCompensator:
 
 
 class _Guard:
-    """Running MSE per step of the predictions the compensator was given and of holding still.
+    """Running MSE of executing P(t+j) (j = 0: the pose held since t) when the person is at t + k.
 
-    A prediction set made at t is kept until its targets t + i * frame_period have been observed;
-    each target frame scores ||P(t+i) - x||^2 and ||x(t) - x||^2 (mean over joints). Only
-    observations that arrive count (no peeking), and a prediction set is scored once.
+    A prediction set made at t is kept until its targets t + k * frame_period (k = 1..h) have been
+    observed; each observed target frame scores every candidate j = 0..h against it (mean over
+    joints), so `allowed(k)` can pick the candidate that has recently been closest to where the
+    person was k frames later. Only observations that arrive count (no peeking); each prediction
+    set is scored once per target.
     """
 
     def __init__(self, decay: float, frame_period: float) -> None:
         self.decay, self.period = decay, frame_period
-        self._pending: dict[int, tuple[np.ndarray, np.ndarray]] = {}  # frame index -> (preds, base)
-        self._sse = np.zeros((2, 0))  # rows: predictor, hold
-        self._weight = np.zeros((2, 0))
+        self._pending: dict[int, np.ndarray] = {}  # frame index -> candidates (h + 1, J): [base, P(t+1..t+h)]
+        self._sse = np.zeros((0, 1))  # (target step k - 1, candidate j)
+        self._weight = np.zeros(0)
 
     def _index(self, t: float) -> int:
-        return int(math.floor(t / self.period + 0.5))
+        return math.floor(t / self.period + 0.5)
 
     def expect(self, t: float, preds: np.ndarray, base: np.ndarray) -> None:
         i = self._index(t)
         if i not in self._pending:
-            self._pending[i] = (preds.copy(), base.copy())
+            self._pending[i] = np.vstack([base[None, :], preds])
         h = preds.shape[0]
-        if self._sse.shape[1] < h:
-            pad = h - self._sse.shape[1]
-            self._sse = np.pad(self._sse, ((0, 0), (0, pad)))
-            self._weight = np.pad(self._weight, ((0, 0), (0, pad)))
+        if self._sse.shape[0] < h:
+            self._sse = np.zeros((h, h + 1))
+            self._weight = np.zeros(h)
 
     def observe(self, t: float, obs: np.ndarray) -> None:
         j = self._index(t)
         for i in list(self._pending):
-            preds, base = self._pending[i]
+            cands = self._pending[i]
+            h = cands.shape[0] - 1
             k = j - i
-            if k > preds.shape[0] or k < 0:
-                if k > preds.shape[0]:
+            if k < 1 or k > min(h, self._weight.shape[0]):
+                if k > h:
                     del self._pending[i]
                 continue
-            if k == 0:
-                continue
-            err = np.array([np.mean((preds[k - 1] - obs) ** 2), np.mean((base - obs) ** 2)])
-            self._sse[:, k - 1] = self.decay * self._sse[:, k - 1] + err
-            self._weight[:, k - 1] = self.decay * self._weight[:, k - 1] + 1.0
-            if k == preds.shape[0]:
+            err = np.mean((cands - obs) ** 2, axis=1)
+            self._sse[k - 1] = self.decay * self._sse[k - 1] + err
+            self._weight[k - 1] = self.decay * self._weight[k - 1] + 1.0
+            if k == h:
                 del self._pending[i]
 
     def mse(self) -> tuple[np.ndarray, np.ndarray]:
+        """(MSE of P(t+k) at step k, MSE of holding still at step k), k = 1..h; NaN before any score."""
         with np.errstate(invalid="ignore", divide="ignore"):
-            m = np.where(self._weight > 0, self._sse / np.where(self._weight > 0, self._weight, 1.0), np.nan)
-        return m[0], m[1]
+            m = np.where(self._weight[:, None] > 0, self._sse / np.maximum(self._weight, 1e-300)[:, None], np.nan)
+        k = np.arange(m.shape[0])
+        return m[k, k + 1], m[:, 0]
 
     def allowed(self, step: int) -> int:
-        """The largest k <= step at which the predictions have beaten holding still (0 if none)."""
-        model, hold = self.mse()
-        for k in range(min(step, model.shape[0]), 0, -1):
-            if model[k - 1] < hold[k - 1]:  # False while unscored (NaN)
-                return k
-        return 0
+        """The largest j <= step whose recent error at target step `step` beats holding still (j = 0);
+        0 (the observation) until that step has been scored."""
+        if step < 1 or step > self._weight.shape[0] or self._weight[step - 1] <= 0:
+            return 0
+        row = self._sse[step - 1, :step + 1]
+        better = (row[1:] < row[0]).nonzero()[0]
+        return int(better[-1]) + 1 if better.size else 0

@@ -34,7 +34,7 @@ class Config:
     test_repetitions: int = 1  # further repetitions per subject, never trained on
     epochs: int = 20
     chunk: int = CHUNK_FRAMES
-    methods: tuple[str, ...] = ("hold", "rls_ar", common.HIERARCHY)
+    methods: tuple[str, ...] = ("hold", "rls_ar", common.HIERARCHY, common.DEFAULT)
     overrides: tuple[tuple[str, object], ...] = ()
 
 
@@ -95,16 +95,18 @@ def run(config: Config, out: Path, seed: int = 0, progress: bool = True) -> Expe
         value = level[kind][m]["mse"][-1]
         return np.nan if value is None else value
 
-    def change(level: dict[str, Any], kind: str) -> str:
-        ratio = mse(level, kind, hier) / mse(levels[0], kind, hier)
+    def change(level: dict[str, Any], kind: str, m: str = hier) -> str:
+        ratio = mse(level, kind, m) / mse(levels[0], kind, m)
         return "–" if not np.isfinite(ratio) else f"{100 * (ratio - 1):+.1f} %"
 
-    shown = [m for m in (hier, "rls_ar") if m in config.methods]
+    shown = [m for m in (hier, "rls_ar", common.DEFAULT) if m in config.methods]
     rows = [[f"{lv['loss']:.0%}", lv["kept_fraction"], lv["coverage"][hier],
              *[mse(lv, k, m) for k in ("online", "clean", "heldout") for m in shown],
-             change(lv, "online"), change(lv, "clean")] for lv in levels]
+             change(lv, "online"), change(lv, "clean"),
+             *([change(lv, "online", common.DEFAULT)] if common.DEFAULT in config.methods else [])] for lv in levels]
     heads = ["loss", "kept", "hierarchy coverage", *[f"{k} {common.LABELS[m]}" for k in ("online", "clean", "heldout")
-                                                     for m in shown], "hier. online vs 0 %", "hier. clean vs 0 %"]
+                                                     for m in shown], "hier. online vs 0 %", "hier. clean vs 0 %",
+             *(["default online vs 0 %"] if common.DEFAULT in config.methods else [])]
     within = [lv["loss"] for lv in levels
               if lv["loss"] <= 0.3 and mse(lv, "online", hier) <= 1.1 * mse(levels[0], "online", hier)]
     md = [f"MSE (rad²) at the {h}-frame horizon. *online*: while learning with the loss, on the frames that "

@@ -30,6 +30,7 @@ RULES: dict[str, tuple[str, float | None]] = {
     "fixed_600ms": ("fixed", 0.6),
     "guarded_600ms": ("guarded", 0.6),
     "fixed_true": ("fixed", None),
+    "guarded_true": ("guarded", None),
     "variable": ("variable", 0.6),
 }
 
@@ -38,7 +39,7 @@ RULES: dict[str, tuple[str, float | None]] = {
 class Config:
     delays: tuple[float, ...] = (0.1, 0.2, 0.3, 0.4, 0.5, 0.6)
     rules: tuple[str, ...] = tuple(RULES)
-    predictors: tuple[str, ...] = (common.HIERARCHY, "rls_ar")
+    predictors: tuple[str, ...] = (common.HIERARCHY, "rls_ar", common.DEFAULT)
     patterns: tuple[str, ...] | None = None
     subjects: int = 3
     repetitions: int = 10
@@ -110,7 +111,7 @@ def run(config: Config, out: Path, seed: int = 0, progress: bool = True) -> Expe
 def _plot(r: dict[str, Any], config: Config, out: Path) -> str:
     fig, axes = figure(1, 2, size=(10.0, 3.8))
     d = np.array(config.delays) * 1000
-    for name, style in zip(config.predictors, ("-", "--"), strict=False):
+    for name, style in zip(config.predictors, ("-", "--", ":"), strict=False):
         for i, rule in enumerate(config.rules):
             sel = [x for x in r["runs"] if x["predictor"] == name and x["rule"] == rule]
             label = f"{rule} ({common.LABELS[name]})"

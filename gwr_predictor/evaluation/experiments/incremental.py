@@ -21,7 +21,7 @@ from gwr_predictor.evaluation.experiments.output import ExperimentOutput, figure
 from gwr_predictor.evaluation.online import compare_online
 
 NAME = "incremental"
-LAYER_NAMES = ("GWR1", "GWR2", "P-GWR")
+LAYER_LABELS = {"gwr1": "GWR1", "gwr2": "GWR2", "pgwr": "P-GWR"}
 
 
 @dataclass(frozen=True)
@@ -33,6 +33,7 @@ class Config:
     orders: int = 3
     eval_every: int = 10
     eval_repetitions: int = 1  # per subject and learned pattern, for the C.P.E./P.E.
+    method: str = common.HIERARCHY  # or common.DEFAULT, the node's default (`--method`)
     overrides: tuple[tuple[str, object], ...] = ()
 
 
@@ -43,8 +44,11 @@ FULL = Config()
 
 def one_order(config: Config, order: list[str], by_pattern: dict[str, list[Any]], seed: int,
               progress: bool) -> dict[str, Any]:
+    from gwr_predictor.predictors.blend import gwr_member
+
     params = common.make_params(config.overrides)
-    model = common.make_model(common.HIERARCHY, params, seed)
+    model = common.make_model(config.method, params, seed)
+    learner = gwr_member(model)  # the GWR learner keeping the P.E. bookkeeping
     rng = np.random.default_rng([seed, 1])
     neurons, online, cpe, pe, evaluated_at = [], [], [], [], []
     learned: list[Any] = []
@@ -59,14 +63,14 @@ def one_order(config: Config, order: list[str], by_pattern: dict[str, list[Any]]
             neurons.append(list(model.neuron_counts))
             epoch += 1
             if (e + 1) % config.eval_every == 0 or e + 1 == config.epochs_per_pattern:
-                model.reset_errors()
+                learner.reset_errors()
                 ev = compare_online({"h": model}, learned, learn=False, horizon=params.horizon, progress=False)["h"]
-                errs = model.errors()
+                errs = learner.errors()
                 cpe.append(ev.stats.mse[-1])
                 pe.append(errs["pe"][-1])
                 evaluated_at.append(epoch)
     return {"order": order, "neurons": neurons, "online_mse": online, "cpe": cpe, "pe": pe,
-            "evaluated_at": evaluated_at}
+            "evaluated_at": evaluated_at, "layers": [LAYER_LABELS.get(n, n) for n in learner.layer_names]}
 
 
 def growth_share(neurons: np.ndarray, block: int) -> np.ndarray:
@@ -100,7 +104,9 @@ def run(config: Config, out: Path, seed: int = 0, progress: bool = True) -> Expe
     cpe = np.array([r["cpe"] for r in runs], float)
     pe = np.array([r["pe"] for r in runs], float)
     share = growth_share(neurons.mean(axis=0), config.epochs_per_pattern)
-    results = {"runs": runs, "neurons_mean": neurons.mean(axis=0), "neurons_std": neurons.std(axis=0),
+    layer_names = runs[0]["layers"]
+    results = {"runs": runs, "layers": layer_names, "neurons_mean": neurons.mean(axis=0),
+               "neurons_std": neurons.std(axis=0),
                "cpe_mean": cpe.mean(axis=0), "pe_mean": pe.mean(axis=0), "late_growth_share": share,
                "evaluated_at": runs[0]["evaluated_at"]}
     e = config.epochs_per_pattern
@@ -110,10 +116,11 @@ def run(config: Config, out: Path, seed: int = 0, progress: bool = True) -> Expe
     md = [f"{len(names)} patterns x {e} epochs ({config.subjects * config.repetitions} demonstrations per epoch), "
           f"averaged over {config.orders} random presentation orders. C.P.E./P.E.: MSE (rad²) at the "
           f"{common.make_params(config.overrides).horizon}-frame horizon on all patterns learned so far, frozen.",
-          "", markdown_table(["patterns learned", *LAYER_NAMES, "C.P.E.", "P.E."], rows, digits=4), "",
+          f"Method: {common.LABELS[config.method]}.",
+          "", markdown_table(["patterns learned", *layer_names, "C.P.E.", "P.E."], rows, digits=4), "",
           "Share of each pattern's neuron growth that happened in the second half of its epochs "
           f"(0 = levelled off, {steady_share(e):.2f} = growing steadily): "
-          + ", ".join(f"{n} {s:.2f}" for n, s in zip(LAYER_NAMES, share, strict=True)) + "."]
+          + ", ".join(f"{n} {s:.2f}" for n, s in zip(layer_names, share, strict=True)) + "."]
     return ExperimentOutput(NAME, "Incremental learning of the patterns", asdict(config), results, md,
                             [_plot(results, config, len(names), Path(out))])
 
@@ -129,7 +136,7 @@ def _plot(r: dict[str, Any], config: Config, n_patterns: int, out: Path) -> str:
     ax = axes[1][0]
     mean, std = np.asarray(r["neurons_mean"]), np.asarray(r["neurons_std"])
     epochs = np.arange(1, mean.shape[0] + 1)
-    for k, name in enumerate(LAYER_NAMES):
+    for k, name in enumerate(r["layers"]):
         ax.plot(epochs, mean[:, k], label=name)
         ax.fill_between(epochs, mean[:, k] - std[:, k], mean[:, k] + std[:, k], alpha=0.2)
     ax.set_ylabel("neurons")

@@ -37,7 +37,7 @@ class Config:
     window: int = 30  # smoothing window of the settling rule (frames)
     tolerance: float = 0.2
     floor: float = 0.02  # rad added to the settling band
-    methods: tuple[str, ...] = ("hold", "rls_ar", common.HIERARCHY)
+    methods: tuple[str, ...] = ("hold", "rls_ar", common.HIERARCHY, common.DEFAULT)
     overrides: tuple[tuple[str, object], ...] = ()
 
 

@@ -1,0 +1,188 @@
+"""The default predictor (gated local-linear P-GWR) and the guarded compensator: behaviour and bands
+on the figures the README claims, at quick sizes."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from gwr_predictor.evaluation.experiments import common
+from gwr_predictor.evaluation.experiments.splits import make_splits
+from gwr_predictor.evaluation.online import compare_online
+from gwr_predictor.learning.checkpoint import CheckpointError
+from gwr_predictor.learning.local_linear import LocalLinearParams, LocalLinearPredictor
+from gwr_predictor.predictors.baselines import HoldLast
+from gwr_predictor.predictors.blend import DEFAULT_PREDICTOR, load_predictor, make_predictor
+from gwr_predictor.predictors.gate import GatedPredictor, GateError, GateParams, make_gated_llm
+from gwr_predictor.robot.closed_loop import run_closed_loop
+from gwr_predictor.robot.compensator import DelayCompensator
+
+
+def _walk(n: int = 600, seed: int = 0) -> np.ndarray:
+    """An unpredictable random walk (nothing repeats): hold-last is the best one can do."""
+    return 0.3 + np.cumsum(np.random.default_rng(seed).normal(scale=0.03, size=(n, 8)), axis=0)
+
+
+def _periodic(n: int = 600) -> np.ndarray:
+    t = np.arange(n)[:, None] * 0.1
+    return 0.5 * np.sin(2 * np.pi * 0.4 * t + np.arange(8)[None, :])
+
+
+def test_the_default_is_registered_everywhere():
+    assert DEFAULT_PREDICTOR == common.DEFAULT == "gated_llm_gwr"
+    model = make_predictor(DEFAULT_PREDICTOR)
+    assert isinstance(model, GatedPredictor) and isinstance(model.model, LocalLinearPredictor)
+
+
+def test_never_worse_than_hold_where_nothing_repeats():
+    res = compare_online({"hold": HoldLast(), "gated": make_gated_llm()}, [_walk(800)], progress=False)
+    assert np.all(np.array(res["gated"].stats.mae) <= 1.02 * np.array(res["hold"].stats.mae))
+
+
+def test_wins_where_motion_repeats_and_learns_from_nothing():
+    res = compare_online({"hold": HoldLast(), "gated": make_gated_llm()}, [_periodic(600)], progress=False)
+    gated, hold = np.array(res["gated"].stats.mae), np.array(res["hold"].stats.mae)
+    assert gated[-1] < 0.3 * hold[-1]  # one online pass from scratch on a sine
+
+
+def test_demonstrator_held_out_band():
+    """Quick-size version of the README's claim: >= 10 % below hold-last at 600 ms on held-out
+    repetitions and a held-out person, and never above 1.02 x hold-last at any step."""
+    data = common.demo_data(("wave_one", "raise_front_both", "rotate_cw_both"), 3, 4, 0)
+    splits = make_splits(data, 1, 1)
+    models = {"hold": HoldLast(), "gated": make_gated_llm()}
+    rng = np.random.default_rng(0)
+    for _ in range(3):
+        compare_online(models, common.shuffled(splits.train, rng), progress=False)
+    for seqs, learn in ((splits.heldout_repetitions, False), (splits.heldout_subjects, True)):
+        res = compare_online(common.clone(models), seqs, learn=learn, progress=False)
+        gated, hold = np.array(res["gated"].stats.mae), np.array(res["hold"].stats.mae)
+        assert np.all(gated <= 1.02 * hold)
+        assert gated[-1] <= 0.9 * hold[-1]
+        assert res["gated"].stats.mse[-1] <= 0.9 * res["hold"].stats.mse[-1]
+
+
+def test_neurons_level_off_while_a_pattern_repeats():
+    seq = common.demo_data(("wave_one",), 1, 3, 0)
+    model = LocalLinearPredictor()
+    counts = []
+    for _ in range(30):
+        compare_online({"m": model}, seq, progress=False)
+        counts.append(model.neuron_counts[0])
+    early, late = counts[9] - counts[0], counts[-1] - counts[19]
+    assert counts[0] > 2 and late <= max(2, early // 4)
+
+
+def test_the_insertion_threshold_follows_the_data_scale():
+    """The same motion in degrees instead of radians grows about the same network."""
+    x = _periodic(400)
+    a, b = LocalLinearPredictor(), LocalLinearPredictor(LocalLinearParams(noise_floor=0.01 * 57.3))
+    for f in x:
+        a.step(f)
+        b.step(f * 57.3)
+    assert abs(a.neuron_counts[0] - b.neuron_counts[0]) <= max(3, 0.2 * a.neuron_counts[0])
+
+
+def test_no_peeking():
+    x = _periodic(200)
+    y = x.copy()
+    y[120:] += 1.0  # a different future
+    ma, mb = make_gated_llm(), make_gated_llm()
+    for t in range(120):
+        pa, pb = ma.step(x[t]), mb.step(y[t])
+    np.testing.assert_array_equal(pa, pb)
+
+
+def test_gaps_fall_back_to_hold_and_recover():
+    model = make_gated_llm()
+    x = _periodic(100)
+    for f in x[:50]:
+        model.step(f)
+    out = model.step(None)
+    assert out.shape == (6, 8) and np.isfinite(out).all()
+    out = model.step(x[51])  # the window is refilling: the newest pose is held
+    np.testing.assert_allclose(out, np.repeat(x[51][None], 6, axis=0))
+
+
+def test_checkpoint_continues_bit_for_bit(tmp_path):
+    model = make_gated_llm()
+    x = _periodic(300)
+    for f in x[:200]:
+        model.step(f)
+    path = tmp_path / "m.npz"
+    model.save(path)
+    again = load_predictor(DEFAULT_PREDICTOR, path)
+    for f in x[200:]:
+        np.testing.assert_array_equal(model.step(f), again.step(f))
+    assert again.neuron_counts == model.neuron_counts
+
+
+def test_bad_checkpoint_and_bad_output_are_named(tmp_path):
+    path = tmp_path / "m.npz"
+    make_gated_llm().save(path)
+    from gwr_predictor.learning.checkpoint import read_checkpoint, write_checkpoint
+
+    header, arrays = read_checkpoint(path, "GatedPredictor", [])
+    arrays["model:matrices"] = np.zeros((1, 2, 3))
+    write_checkpoint(path, "GatedPredictor", {k: v for k, v in header.items()
+                                              if k not in ("magic", "kind", "format_version")}, arrays)
+    with pytest.raises(CheckpointError, match="local models"):
+        GatedPredictor.load(path)
+
+    class Bad:
+        def step(self, x, learn=True):
+            return np.zeros((2, 8))
+
+        def reset_sequence(self):
+            pass
+
+    with pytest.raises(GateError, match="shape"):
+        GatedPredictor(Bad(), GateParams()).step(np.zeros(8))
+
+
+class _Wrong:
+    """A predictor that is confidently wrong: it predicts the opposite of the motion."""
+
+    def __init__(self) -> None:
+        self.last = None
+
+    def step(self, x, learn=True):
+        prev, self.last = self.last, x
+        if prev is None:
+            return None
+        v = x - prev
+        return x[None, :] - 3 * np.arange(1, 7)[:, None] * v[None, :]
+
+    def reset_sequence(self) -> None:
+        self.last = None
+
+
+def test_guarded_compensation_cannot_hurt():
+    person = _periodic(300)
+    none = run_closed_loop(person, _Wrong(), delay_s=0.6, compensation="none").errors(skip_s=2.0)["mae"]
+    fixed = run_closed_loop(person, _Wrong(), delay_s=0.6, compensation="fixed").errors(skip_s=2.0)["mae"]
+    guarded = run_closed_loop(person, _Wrong(), delay_s=0.6, compensation="guarded").errors(skip_s=2.0)["mae"]
+    assert fixed > 1.5 * none  # the wrong predictor hurts when executed blindly
+    assert guarded <= 1.02 * none
+
+
+def test_guarded_uses_the_full_lead_of_a_good_predictor():
+    person = _periodic(300)
+
+    class Oracle:
+        def __init__(self) -> None:
+            self.t = -1
+
+        def step(self, x, learn=True):
+            self.t += 1
+            idx = np.minimum(self.t + np.arange(1, 7), len(person) - 1)
+            return person[idx]
+
+        def reset_sequence(self) -> None:
+            self.t = -1
+
+    res = run_closed_loop(person, Oracle(), delay_s=0.6, compensation="guarded")
+    assert np.median(res.steps_used[50:]) == 6
+    comp = DelayCompensator("guarded")
+    model, hold = comp.guard_mse
+    assert model.size == hold.size == 0  # nothing scored before the first command
