@@ -59,5 +59,5 @@ def test_blend_predictor_runs_publishes_and_checkpoints(ros, tmp_path):
     # the same checkpoint with the default predictor: refused, not moved aside
     code, out = ros.run("gwr_hierarchy", timeout=30, params={"checkpoint": str(checkpoint)}, label="wrong_kind")
     assert code == 1, out
-    assert "does not fit parameter predictor='hierarchy'" in out
+    assert "does not fit parameter predictor='gated_llm_gwr'" in out
     assert checkpoint.exists() and not list(tmp_path.glob("blend.npz.corrupt-*"))

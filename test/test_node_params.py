@@ -61,7 +61,7 @@ def test_out_of_range_value_is_refused_by_the_shared_check():
 
 BAD_VALUES = [
     ("nao_sim", {"delay_s": -0.5}, "'delay_s' = -0.5 is outside the allowed range [0.0, 60.0]"),
-    ("delay_compensator", {"mode": "sideways"}, "'mode' = 'sideways' is not allowed: must be one of 'none', 'fixed'"),
+    ("delay_compensator", {"mode": "sideways"}, "'mode' = 'sideways' is not allowed: must be one of 'none', 'guarded', 'fixed'"),
     ("gwr_hierarchy", {"gwr1.activation_threshold": 1.5}, "'gwr1.activation_threshold' = 1.5 is outside"),
     ("skeleton_source", {"rate_hz": 0.0}, "'rate_hz' = 0.0 is outside the allowed range [1.0, 1000.0]"),
     ("angle_extractor", {"max_gap_s": "soon"}, "'max_gap_s' must be a number"),
@@ -89,10 +89,19 @@ def test_pretrain_uses_the_nodes_yaml_and_writes_a_checkpoint_the_node_can_load(
     assert params.to_flat() == {k: v for k, v in yaml_parameters(yaml_path, "gwr_hierarchy").items()
                                 if k in params.to_flat()}
     custom = tmp_path / "custom.yaml"
-    custom.write_text("/**/gwr_hierarchy:\n  ros__parameters:\n    horizon: 4\n    pgwr:\n      max_edge_age: 50\n")
+    custom.write_text("/**/gwr_hierarchy:\n  ros__parameters:\n    predictor: hierarchy\n    horizon: 4\n"
+                      "    pgwr:\n      max_edge_age: 50\n")
     out = tmp_path / "model.npz"
     assert main(["pretrain", "-o", str(out), "--params-file", str(custom), "--patterns", "wave_one",
                  "--subjects", "1", "--repetitions", "1", "--epochs", "1", "--quiet"]) == 0
     model = Hierarchy.load(out)
     assert model.params.horizon == 4 and model.params.pgwr.max_edge_age == 50
     assert model.frames_seen > 30
+    # without 'predictor' the node's default is trained; it takes the horizon from the YAML
+    from gwr_predictor.predictors.gate import GatedPredictor
+
+    custom.write_text("/**/gwr_hierarchy:\n  ros__parameters:\n    horizon: 4\n")
+    assert main(["pretrain", "-o", str(out), "--params-file", str(custom), "--patterns", "wave_one",
+                 "--subjects", "1", "--repetitions", "1", "--epochs", "1", "--quiet"]) == 0
+    gated = GatedPredictor.load(out)
+    assert gated.params.horizon == 4 and gated.model.frames_seen > 30
