@@ -146,6 +146,15 @@ def test_experiment_scale(tmp_path):
     assert fine > coarse  # a larger scale makes the same a_T insert at a smaller distance
 
 
+def test_experiment_ablation(tmp_path):
+    r, cfg = _run("ablation", tmp_path, figures=False)
+    worst = r["worst_ratio_to_hold"]
+    assert set(worst) == set(cfg["base"]["methods"])
+    # the gate keeps the default and the paper's hierarchy within 2 % of hold-last at every step
+    for m in ("gated_llm_gwr", "gated_hierarchy"):
+        assert max(worst[m].values()) <= 1.02, worst[m]
+
+
 def test_experiment_tune(tmp_path):
     r, cfg = _run("tune", tmp_path, figures=False)
     for method, n in (("gated_llm_gwr", len(cfg["rates"]) * len(cfg["insertion_scales"]) * len(cfg["readout_ks"])),

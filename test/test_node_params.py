@@ -61,7 +61,8 @@ def test_out_of_range_value_is_refused_by_the_shared_check():
 
 BAD_VALUES = [
     ("nao_sim", {"delay_s": -0.5}, "'delay_s' = -0.5 is outside the allowed range [0.0, 60.0]"),
-    ("delay_compensator", {"mode": "sideways"}, "'mode' = 'sideways' is not allowed: must be one of 'none', 'guarded', 'fixed'"),
+    ("delay_compensator", {"mode": "sideways"},
+     "'mode' = 'sideways' is not allowed: must be one of 'none', 'guarded', 'fixed'"),
     ("gwr_hierarchy", {"gwr1.activation_threshold": 1.5}, "'gwr1.activation_threshold' = 1.5 is outside"),
     ("skeleton_source", {"rate_hz": 0.0}, "'rate_hz' = 0.0 is outside the allowed range [1.0, 1000.0]"),
     ("angle_extractor", {"max_gap_s": "soon"}, "'max_gap_s' must be a number"),

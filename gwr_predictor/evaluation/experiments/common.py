@@ -29,10 +29,16 @@ GATED = "gated_llm_gwr"
 #: The predictor the gwr_hierarchy node, demo.sh and pretrain run by default.
 DEFAULT = GATED
 ALL_METHODS = (*BASELINES, FLAT, HIERARCHY, BLEND, BLEND_FLAT, LLM, GATED)
+#: Ablation variants of the default (experiment ablation): the gate around the paper's hierarchy, and
+#: the gate around the P-GWR with displacement targets but without local models (rate 0).
+GATED_HIERARCHY = "gated_hierarchy"
+GATED_VQTAM = "gated_vqtam"
+ABLATIONS = (GATED_HIERARCHY, GATED_VQTAM)
 LABELS = {"hold": "hold last", "const_velocity": "constant velocity", "rls_ar": "RLS-AR",
           FLAT: "P-GWR alone", HIERARCHY: "GWR hierarchy", BLEND: "blend hierarchy + RLS-AR",
           BLEND_FLAT: "blend P-GWR alone + RLS-AR", LLM: "local-linear P-GWR (ungated)",
-          GATED: "gated local-linear P-GWR (default)"}
+          GATED: "gated local-linear P-GWR (default)", GATED_HIERARCHY: "gate around the GWR hierarchy",
+          GATED_VQTAM: "gated P-GWR, displacements, no local models"}
 
 
 def make_params(overrides: Iterable[tuple[str, object]] = (), **changes: Any) -> HierarchyParams:
@@ -55,15 +61,23 @@ def make_model(name: str, params: HierarchyParams, seed: int) -> Predictor:
         from gwr_predictor.predictors.blend import make_blend
 
         return make_blend(BLENDS[name], params, seed=seed)
-    if name in (LLM, GATED):
+    if name in (LLM, GATED, GATED_VQTAM):
         from gwr_predictor.learning.local_linear import LocalLinearParams, LocalLinearPredictor
         from gwr_predictor.predictors.gate import make_gated_llm
 
         lp = LocalLinearParams(horizon=params.horizon, n_joints=params.n_joints)
+        if name == GATED_VQTAM:
+            lp = lp.replace(rate=0.0, neighbour_rate=0.0, readout_k=1)
         return LocalLinearPredictor(lp, seed=seed) if name == LLM else make_gated_llm(params=lp, seed=seed)
+    if name == GATED_HIERARCHY:
+        from gwr_predictor.learning.hierarchy import Hierarchy
+        from gwr_predictor.predictors.gate import GatedPredictor, GateParams
+
+        return GatedPredictor(Hierarchy(params, seed=seed), GateParams(horizon=params.horizon,
+                                                                       joints=params.n_joints))
     baselines = make_baselines(params.horizon, params.span)
     if name not in baselines:
-        raise KeyError(f"unknown method {name!r}; choose from {', '.join(ALL_METHODS)}")
+        raise KeyError(f"unknown method {name!r}; choose from {', '.join(ALL_METHODS + ABLATIONS)}")
     return baselines[name]  # type: ignore[return-value]
 
 
