@@ -186,3 +186,16 @@ def test_guarded_uses_the_full_lead_of_a_good_predictor():
     comp = DelayCompensator("guarded")
     model, hold = comp.guard_mse
     assert model.size == hold.size == 0  # nothing scored before the first command
+
+
+def test_data_loss_does_not_hurt_what_is_learned():
+    """30 % of the training frames lost in 1 s chunks: the error on complete unseen repetitions stays
+    within 10 % of the loss-free one (the flat data-loss curve)."""
+    from gwr_predictor.evaluation.experiments import dataloss
+
+    cfg = dataloss.Config(losses=(0.0, 0.3), patterns=("wave_one", "raise_front_both"), subjects=2,
+                          train_repetitions=2, epochs=6, methods=("hold", common.DEFAULT))
+    data = common.demo_data(cfg.patterns, cfg.subjects, cfg.train_repetitions + cfg.test_repetitions, 0)
+    clean, lossy = (dataloss.one_level(cfg, loss, data, 0, False)["heldout"] for loss in cfg.losses)
+    assert lossy[common.DEFAULT]["mse"][-1] <= 1.1 * clean[common.DEFAULT]["mse"][-1]
+    assert clean[common.DEFAULT]["mse"][-1] <= 0.5 * clean["hold"]["mse"][-1]
