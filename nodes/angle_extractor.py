@@ -13,17 +13,18 @@ import numpy as np
 from gwr_predictor.data.angles import skeleton_to_angles
 from gwr_predictor.data.skeleton_files import MAX_PLAUSIBLE_METRES
 from gwr_predictor.data.smoothing import MedianOf3
+from gwr_predictor.parameter_spec import ParamSpec
 from gwr_predictor.pipeline import conventions
 from gwr_predictor.pipeline.conventions import SKELETON_JOINTS, LayoutError
 from gwr_predictor.robot.nao import ARM_JOINTS, clip_to_limits
 
 from . import messages
-from .node_base import Param, PipelineNode, run_node, stream_qos
+from .node_base import PipelineNode, run_node, stream_qos
 
 PARAMS = (
-    Param("max_gap_s", conventions.MAX_GAP_S,
+    ParamSpec("max_gap_s", conventions.MAX_GAP_S,
           "a stamp gap larger than this starts a new sequence (the smoothing group restarts)", 0.0, 3600.0),
-    Param("input_reliability", "reliable", "QoS of the skeleton subscription; best_effort also matches "
+    ParamSpec("input_reliability", "reliable", "QoS of the skeleton subscription; best_effort also matches "
           "trackers that publish best-effort", choices=("reliable", "best_effort")),
 )
 

@@ -10,21 +10,22 @@ from __future__ import annotations
 
 import numpy as np
 
+from gwr_predictor.parameter_spec import ParamSpec
 from gwr_predictor.pipeline import conventions
 from gwr_predictor.pipeline.conventions import LayoutError
 from gwr_predictor.robot import compensator
 from gwr_predictor.robot.nao import ARM_JOINTS
 
 from . import messages
-from .node_base import ArmAnglesGate, Param, PipelineNode, run_node, stream_qos
+from .node_base import ArmAnglesGate, PipelineNode, run_node, stream_qos
 
 PARAMS = (
-    Param("mode", "fixed", "none: forward observations; fixed: the prediction delay_s ahead; "
+    ParamSpec("mode", "fixed", "none: forward observations; fixed: the prediction delay_s ahead; "
           "variable: Eq. 11 against the robot's reported state", choices=compensator.MODES),
-    Param("delay_s", 0.6, "robot delay to compensate (s); sets the step in fixed mode", 0.0, 60.0),
-    Param("frame_period_s", 0.1, "spacing of the predicted frames (s)", 0.001, 10.0),
-    Param("stale_after_s", 0.5, "predictions older than this (now - their stamp) are not used", 0.0, 3600.0),
-    Param("robot_state_timeout_s", 0.5, "a robot state older than this is ignored (variable mode)", 0.0, 3600.0),
+    ParamSpec("delay_s", 0.6, "robot delay to compensate (s); sets the step in fixed mode", 0.0, 60.0),
+    ParamSpec("frame_period_s", 0.1, "spacing of the predicted frames (s)", 0.001, 10.0),
+    ParamSpec("stale_after_s", 0.5, "predictions older than this (now - their stamp) are not used", 0.0, 3600.0),
+    ParamSpec("robot_state_timeout_s", 0.5, "a robot state older than this is ignored (variable mode)", 0.0, 3600.0),
 )
 
 
@@ -57,7 +58,7 @@ class DelayCompensatorNode(PipelineNode):
 
     def on_observation(self, msg: messages.JointState) -> None:
         """Store the newest pose; command it directly in mode none or when no usable prediction exists."""
-        accepted = self.observations.accept(msg)
+        accepted = self.observations.accept(*messages.joint_state_fields(msg))
         if accepted is None:
             return
         self.obs_stamp, self.observation = accepted
@@ -99,7 +100,7 @@ class DelayCompensatorNode(PipelineNode):
         self.publish_command()
 
     def on_robot_state(self, msg: messages.JointState) -> None:
-        accepted = self.robot_states.accept(msg)
+        accepted = self.robot_states.accept(*messages.joint_state_fields(msg))
         if accepted is not None:
             self.robot_state, self.robot_state_time = accepted[1], self.now_s()
 

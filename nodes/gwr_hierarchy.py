@@ -23,6 +23,7 @@ import numpy as np
 from gwr_predictor.learning.checkpoint import CheckpointError, KindMismatchError
 from gwr_predictor.learning.hierarchy import Hierarchy
 from gwr_predictor.learning.params import HierarchyParams, hierarchy_parameter_specs
+from gwr_predictor.parameter_spec import ParamSpec
 from gwr_predictor.pipeline import conventions
 from gwr_predictor.predictors.blend import PREDICTORS, BlendedPredictor, gwr_member, load_predictor, make_predictor
 from gwr_predictor.robot.nao import ARM_JOINTS
@@ -31,7 +32,6 @@ from . import messages
 from .node_base import (
     ArmAnglesGate,
     NodeFatalError,
-    Param,
     ParameterError,
     PipelineNode,
     run_node,
@@ -40,17 +40,17 @@ from .node_base import (
 )
 
 PARAMS = (
-    Param("predictor", "hierarchy", "model: 'hierarchy' (GWR1 -> GWR2 -> P-GWR, the paper) or an online "
+    ParamSpec("predictor", "hierarchy", "model: 'hierarchy' (GWR1 -> GWR2 -> P-GWR, the paper) or an online "
           "per-step inverse-MSE blend with RLS-AR ('blend_hierarchy_rls', 'blend_flat_rls'; beyond the paper)",
           choices=tuple(PREDICTORS)),
-    Param("seed", 0, "seed of the networks' initial random neurons", 0, 2**31 - 1),
-    Param("learn", True, "learn from every frame (false: predict with the networks as they are)"),
-    Param("frame_period_s", 1.0 / conventions.ANGLE_FPS, "spacing of the angle frames (s)", 0.001, 10.0),
-    Param("max_gap_s", conventions.MAX_GAP_S, "a stamp gap larger than this ends the sequence", 0.0, 3600.0),
-    Param("checkpoint", "", "model file: loaded at start if it exists, saved periodically and at shutdown; "
+    ParamSpec("seed", 0, "seed of the networks' initial random neurons", 0, 2**31 - 1),
+    ParamSpec("learn", True, "learn from every frame (false: predict with the networks as they are)"),
+    ParamSpec("frame_period_s", 1.0 / conventions.ANGLE_FPS, "spacing of the angle frames (s)", 0.001, 10.0),
+    ParamSpec("max_gap_s", conventions.MAX_GAP_S, "a stamp gap larger than this ends the sequence", 0.0, 3600.0),
+    ParamSpec("checkpoint", "", "model file: loaded at start if it exists, saved periodically and at shutdown; "
           "empty: none"),
-    Param("checkpoint_interval_s", 60.0, "save the checkpoint this often (s); 0: only at shutdown", 0.0, 86400.0),
-    Param("status_period_s", 1.0, "period of the learner status (neurons, errors) (s)", 0.05, 3600.0),
+    ParamSpec("checkpoint_interval_s", 60.0, "save the checkpoint this often (s); 0: only at shutdown", 0.0, 86400.0),
+    ParamSpec("status_period_s", 1.0, "period of the learner status (neurons, errors) (s)", 0.05, 3600.0),
 )
 
 
@@ -124,7 +124,7 @@ class GwrHierarchyNode(PipelineNode):
     def on_angles(self, msg: messages.JointState) -> None:
         """One frame: bridge a short gap with missing samples or end the sequence, learn, predict, publish."""
         last = self.gate.last_stamp
-        accepted = self.gate.accept(msg)
+        accepted = self.gate.accept(*messages.joint_state_fields(msg))
         if accepted is None:
             return
         stamp, angles = accepted
