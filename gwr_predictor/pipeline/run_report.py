@@ -25,6 +25,7 @@ from typing import Any
 
 import numpy as np
 
+from gwr_predictor.json_safe import to_jsonable
 from gwr_predictor.pipeline import bags, conventions
 from gwr_predictor.pipeline.conventions import LayoutError
 from gwr_predictor.robot.nao import ARM_JOINTS
@@ -78,7 +79,7 @@ class PipelineReport:
     rejected: dict[str, int] = field(default_factory=dict)
 
     def to_json(self) -> str:
-        return json.dumps(finite_json(asdict(self)), indent=2, sort_keys=False)
+        return json.dumps(to_jsonable(asdict(self)), indent=2, sort_keys=False)
 
     def summary_lines(self) -> list[str]:
         h_ms = round(self.horizon * self.frame_period_s * 1000)
@@ -99,17 +100,6 @@ class PipelineReport:
         if self.rejected:
             lines.append("rejected inputs: " + ", ".join(f"{k} {v}" for k, v in self.rejected.items()))
         return lines
-
-
-def finite_json(obj: Any) -> Any:
-    """NaN/inf -> None (recursively) so that the JSON files written are strict JSON."""
-    if isinstance(obj, float):
-        return obj if math.isfinite(obj) else None
-    if isinstance(obj, dict):
-        return {k: finite_json(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [finite_json(v) for v in obj]
-    return obj
 
 
 # --- reading -------------------------------------------------------------------------------------
