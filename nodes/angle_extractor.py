@@ -1,8 +1,8 @@
 """angle_extractor: skeletons (30 fps) -> median of 3 -> the 8 Nao arm angles (10 fps) as JointState.
 
 The paper's vision module: every 3 skeleton frames are smoothed into one by their median
-(`gwr_predictor.data.smoothing.MedianOf3`), then mapped to the Nao's arm joints
-(`gwr_predictor.data.angles.skeleton_to_angles`). The JointState is stamped with the smoothed frame's
+(`gwr_predictor.data.smoothing.MedianOf3`), then mapped to the Nao's arm joints and clipped
+(`gwr_predictor.data.extraction.frame_angles`). The JointState is stamped with the smoothed frame's
 stamp (its middle frame), so downstream timing refers to when the person was in that pose.
 """
 
@@ -10,13 +10,14 @@ from __future__ import annotations
 
 import numpy as np
 
-from gwr_predictor.data.angles import skeleton_to_angles
+from gwr_predictor.data.extraction import frame_angles
 from gwr_predictor.data.skeleton_files import MAX_PLAUSIBLE_METRES
 from gwr_predictor.data.smoothing import MedianOf3
 from gwr_predictor.parameter_spec import ParamSpec
 from gwr_predictor.pipeline import conventions
 from gwr_predictor.pipeline.conventions import SKELETON_JOINTS, LayoutError
-from gwr_predictor.robot.nao import ARM_JOINTS, clip_to_limits
+from gwr_predictor.pipeline.gates import SkeletonReorder
+from gwr_predictor.robot.nao import ARM_JOINTS
 
 from . import messages
 from .node_base import PipelineNode, run_node, stream_qos
@@ -36,7 +37,7 @@ class AngleExtractorNode(PipelineNode):
         super().__init__(self.NODE_NAME, PARAMS)
         self.smoother = MedianOf3()
         self.last_stamp: float | None = None
-        self._order: dict[tuple[str, ...], tuple[np.ndarray, np.ndarray, int]] = {}
+        self.reorder = SkeletonReorder(self.counters)
         self.angles_pub = self.create_publisher(messages.JointState, conventions.TOPIC_ANGLES, stream_qos())
         reliable = self.params["input_reliability"] == "reliable"
         self.create_subscription(messages.Float64MultiArray, conventions.TOPIC_SKELETON, self.on_skeleton,
@@ -74,32 +75,13 @@ class AngleExtractorNode(PipelineNode):
             self.counters.reject("skeleton.out_of_range", f"coordinates beyond {MAX_PLAUSIBLE_METRES} m "
                                  "(millimetres instead of metres?)")
             return None
-        return stamp, self.reordered(names, positions)
-
-    def reordered(self, names: tuple[str, ...], positions: np.ndarray) -> np.ndarray:
-        """Positions in SKELETON_JOINTS order: unknown joints dropped, missing ones NaN (both counted)."""
-        if names == SKELETON_JOINTS:
-            return positions
-        if names not in self._order:
-            index = {n: i for i, n in enumerate(names)}
-            dst = np.array([k for k, n in enumerate(SKELETON_JOINTS) if n in index], dtype=int)
-            src = np.array([index[SKELETON_JOINTS[k]] for k in dst], dtype=int)
-            self._order[names] = (dst, src, len(set(names) - set(SKELETON_JOINTS)))
-        dst, src, unknown = self._order[names]
-        if unknown:
-            self.counters.count("skeleton.unknown_joints_ignored")
-        if dst.size < len(SKELETON_JOINTS):
-            self.counters.count("skeleton.missing_joints_filled_nan")
-        out = np.full((len(SKELETON_JOINTS), 3), np.nan)
-        out[dst] = positions[src]
-        return out
+        return stamp, self.reorder(names, positions)
 
     def publish_angles(self, stamp: float, positions: np.ndarray) -> None:
-        raw = skeleton_to_angles(positions, SKELETON_JOINTS, clip=False)
+        angles, raw = frame_angles(positions, SKELETON_JOINTS)
         if not np.all(np.isfinite(raw)):
             self.counters.reject("frame.missing_joints", "a smoothed frame lacks joints the arm angles need; dropped")
             return
-        angles = clip_to_limits(raw)
         if np.any(angles != raw):
             self.counters.count("angles.clipped_to_limits")
         self.angles_pub.publish(messages.joint_state(stamp, ARM_JOINTS, angles))

@@ -94,7 +94,7 @@ class DelayCompensatorNode(PipelineNode):
         once per observation, so that the robot does not hold a pose that was only predicted."""
         if self.observation is None or self.fallback_sent_for == self.obs_stamp:
             return
-        if self.pred_stamp is not None and self.now_s() - self.pred_stamp <= self.params["stale_after_s"]:
+        if not self.compensator.stale(self.now_s(), self.pred_stamp):
             return
         self.fallback_sent_for = self.obs_stamp
         self.publish_command()
@@ -113,7 +113,8 @@ class DelayCompensatorNode(PipelineNode):
             self.counters.count("commands.skipped_no_observation")
             return
         now = self.now_s()
-        state = self.robot_state if now - self.robot_state_time <= self.params["robot_state_timeout_s"] else None
+        state = compensator.recent_state(self.robot_state, self.robot_state_time, now,
+                                         self.params["robot_state_timeout_s"])
         out = self.compensator.command(now, self.observation, self.predictions, self.pred_stamp, state)
         if out.fallback_reason is not None:
             self.counters.count(f"fallback.{out.fallback_reason}")

@@ -14,17 +14,17 @@ A checkpoint of another kind than `predictor` stops the node (it is neither used
 
 from __future__ import annotations
 
-import os
 import time
 from pathlib import Path
 
 import numpy as np
 
-from gwr_predictor.learning.checkpoint import CheckpointError, KindMismatchError
+from gwr_predictor.learning.checkpoint import CheckpointError, KindMismatchError, set_aside
 from gwr_predictor.learning.hierarchy import Hierarchy
 from gwr_predictor.learning.params import HierarchyParams, hierarchy_parameter_specs
 from gwr_predictor.parameter_spec import ParamSpec
 from gwr_predictor.pipeline import conventions
+from gwr_predictor.pipeline.gates import missing_frames
 from gwr_predictor.predictors.blend import PREDICTORS, BlendedPredictor, gwr_member, load_predictor, make_predictor
 from gwr_predictor.robot.nao import ARM_JOINTS
 
@@ -102,9 +102,8 @@ class GwrHierarchyNode(PipelineNode):
                                  f"{self.params['predictor']!r} ({exc}); set 'predictor' to match it or use "
                                  "another checkpoint path") from None
         except CheckpointError as exc:
-            aside = path.with_name(f"{path.name}.corrupt-{time.strftime('%Y%m%d-%H%M%S')}")
             try:
-                os.replace(path, aside)
+                aside = set_aside(path)
             except OSError as move_exc:
                 raise NodeFatalError(f"unreadable checkpoint {path} ({exc}) could not be moved aside: {move_exc}; "
                                      "not starting, to avoid overwriting it") from None
@@ -145,12 +144,12 @@ class GwrHierarchyNode(PipelineNode):
 
     def handle_gap(self, dt: float) -> None:
         """Missing frames (dt of several periods) keep the learner's step count in time; a long gap resets."""
-        if dt > self.params["max_gap_s"]:
+        missing = missing_frames(dt, self.params["frame_period_s"], self.params["max_gap_s"])
+        if missing is None:
             self.model.reset_sequence()
             self.counters.count("sequences.reset_on_gap")
             return
-        missing = round(dt / self.params["frame_period_s"]) - 1
-        for _ in range(max(0, missing)):
+        for _ in range(missing):
             self.model.step(None)
         if missing > 0:
             self.counters.count("frames.missing", missing)

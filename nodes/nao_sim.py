@@ -9,12 +9,11 @@ periods (the physics runs at 240 Hz inside) and publishes what the robot reports
 
 from __future__ import annotations
 
-import math
 from pathlib import Path
 
 from gwr_predictor.parameter_spec import ParamSpec
 from gwr_predictor.pipeline import conventions
-from gwr_predictor.robot.delayed_arm import RobotError, SimulatedRobot
+from gwr_predictor.robot.delayed_arm import RobotError, SimulatedRobot, sine_delay
 from gwr_predictor.robot.nao import ARM_JOINTS
 
 from . import messages
@@ -78,8 +77,7 @@ class NaoSimNode(PipelineNode):
         p = self.params
         t = self.now_s() - self.t0
         if p["delay_amplitude_s"] > 0.0:
-            self.robot.delay_s = max(0.0, p["delay_s"] + p["delay_amplitude_s"]
-                                     * math.sin(2.0 * math.pi * t / p["delay_period_s"]))
+            self.robot.delay_s = sine_delay(t, p["delay_s"], p["delay_amplitude_s"], p["delay_period_s"])
         if t > self.robot.t:
             self.robot.advance(t - self.robot.t)
 

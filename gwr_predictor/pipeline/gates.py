@@ -2,6 +2,8 @@
 
 - `RejectionCounter`: named counters; rejections are counted per reason and warned about at most
   once per `throttle_s` per reason, so a flood of bad input cannot flood the log.
+- `missing_frames`: the gap rule, how many frames a stamp gap stands for (or a new sequence);
+- `SkeletonReorder`: skeleton joints in any order -> `SKELETON_JOINTS` order;
 - `ArmAnglesGate`: checks one stream of arm joint angles (layout, missing joints, non-finite values,
   stamps, joint limits) and counts every rejection under its reason.
 Nodes convert the message (`gwr_predictor.nodes.messages.joint_state_fields`) and pass the fields.
@@ -15,7 +17,7 @@ from typing import Any
 
 import numpy as np
 
-from gwr_predictor.pipeline.conventions import LayoutError, select_joints
+from gwr_predictor.pipeline.conventions import SKELETON_JOINTS, LayoutError, select_joints
 from gwr_predictor.robot.nao import ARM_JOINTS, limits_array
 
 # --- counters and throttled warnings ---------------------------------------------------------------
@@ -122,3 +124,42 @@ class ArmAnglesGate:
             self._counters.count(f"{self._input}.clipped")
         self.last_stamp = stamp
         return stamp, clipped
+
+
+# --- gaps and order -------------------------------------------------------------------------------
+
+
+def missing_frames(dt: float, frame_period_s: float, max_gap_s: float) -> int | None:
+    """Frames lost between two accepted frames `dt` s apart: 0 for the regular spacing, n for a gap of
+    n + 1 periods (the learner steps over them so its windows stay in time), None when the gap is
+    longer than `max_gap_s` (the sequence ended: start a new one)."""
+    if dt > max_gap_s:
+        return None
+    return max(0, round(dt / frame_period_s) - 1)
+
+
+class SkeletonReorder:
+    """Positions of a skeleton message with joints in any order -> `SKELETON_JOINTS` order: unknown
+    joints dropped, missing ones NaN (an untracked joint), each counted; index maps cached per layout."""
+
+    def __init__(self, counters: RejectionCounter, wanted: tuple[str, ...] = SKELETON_JOINTS) -> None:
+        self._counters = counters
+        self._wanted = wanted
+        self._order: dict[tuple[str, ...], tuple[np.ndarray, np.ndarray, int]] = {}
+
+    def __call__(self, names: tuple[str, ...], positions: np.ndarray) -> np.ndarray:
+        if names == self._wanted:
+            return positions
+        if names not in self._order:
+            index = {n: i for i, n in enumerate(names)}
+            dst = np.array([k for k, n in enumerate(self._wanted) if n in index], dtype=int)
+            src = np.array([index[self._wanted[k]] for k in dst], dtype=int)
+            self._order[names] = (dst, src, len(set(names) - set(self._wanted)))
+        dst, src, unknown = self._order[names]
+        if unknown:
+            self._counters.count("skeleton.unknown_joints_ignored")
+        if dst.size < len(self._wanted):
+            self._counters.count("skeleton.missing_joints_filled_nan")
+        out = np.full((len(self._wanted), 3), np.nan)
+        out[dst] = positions[src]
+        return out

@@ -236,7 +236,7 @@ def resample(series: Series, grid: np.ndarray, max_gap_s: float) -> np.ndarray:
     return out
 
 
-def robot_lag(run: RunData, ns: str, dt: float, max_lag_s: float, max_gap_s: float) -> dict[str, Any]:
+def robot_summary(run: RunData, ns: str, dt: float, max_lag_s: float, max_gap_s: float) -> dict[str, Any]:
     """Lag (s) and tracking MAE (rad) of one robot against the person, on a `dt` grid."""
     robot = run.robots[ns]
     result: dict[str, Any] = {"mode": run.modes.get(ns, "unknown"), "states": int(robot.t.size),
@@ -269,7 +269,7 @@ def compute_report(run: RunData, period: float = 1.0 / conventions.ANGLE_FPS, dt
         bag=str(run.bag), duration_s=run.duration_s, message_counts=run.counts, horizon=int(mae.size),
         frame_period_s=period, scored_predictions=scored, prediction_mae_rad=float(mae[-1]),
         prediction_mae_per_step_rad=[float(v) for v in mae], hold_mae_rad=hold,
-        robots={ns: robot_lag(run, ns, dt, max_lag_s, max_gap_s) for ns in run.robots},
+        robots={ns: robot_summary(run, ns, dt, max_lag_s, max_gap_s) for ns in run.robots},
         neurons=neurons, learner=run.learner, rejected=run.rejected)
 
 

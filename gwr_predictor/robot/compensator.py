@@ -95,6 +95,12 @@ class CompensatorOutput(NamedTuple):
     fallback_reason: str | None
 
 
+def recent_state(state: np.ndarray | None, received_at: float, now: float, timeout_s: float) -> np.ndarray | None:
+    """The robot's reported state if it arrived at most `timeout_s` before `now`, else None: an old
+    state says nothing about the robot's current lag (``variable`` then keeps its delay estimate)."""
+    return state if state is not None and now - received_at <= timeout_s else None
+
+
 def fixed_step(lead_s: float, frame_period: float, horizon: int) -> int:
     """k = round(lead / frame_period) clamped to [0, horizon] (0 means the observation itself)."""
     return int(min(max(math.floor(lead_s / frame_period + 0.5), 0), horizon))
@@ -217,9 +223,14 @@ class DelayCompensator:
             raise CompensatorError(f"predictions must be (horizon >= 1, {len(self.joint_names)}), got {preds.shape}")
         if not np.all(np.isfinite(preds)):
             return NO_PREDICTIONS
-        if latest - pred_stamp > self.params.stale_after_s:
+        if self.stale(latest, pred_stamp):
             return STALE_PREDICTIONS
         return None
+
+    def stale(self, latest: float, pred_stamp: float | None) -> bool:
+        """True when there are no predictions or they are more than `stale_after_s` older than `latest`
+        (the newest observation's stamp, or the clock): then the observation is commanded instead."""
+        return pred_stamp is None or latest - pred_stamp > self.params.stale_after_s
 
     def _vector(self, values: np.ndarray, name: str) -> np.ndarray:
         arr = np.asarray(values, dtype=float)

@@ -35,6 +35,13 @@ def _check_range(owner: str, name: str, value: float, low: float, high: float = 
     return float(value)
 
 
+def sine_delay(t: float, delay_s: float, amplitude_s: float, period_s: float) -> float:
+    """The variable delay of Sec. VI-D: delay_s + amplitude_s * sin(2 pi t / period_s), never below 0."""
+    if amplitude_s <= 0.0:
+        return delay_s
+    return max(0.0, delay_s + amplitude_s * math.sin(2.0 * math.pi * t / period_s))
+
+
 class DelayLine:
     """Time-stamped FIFO: what was pushed at time t comes out at t + delay (delay may change).
 
