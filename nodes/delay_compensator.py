@@ -20,11 +20,10 @@ from . import messages
 from .node_base import ArmAnglesGate, PipelineNode, run_node, stream_qos
 
 PARAMS = (
-    ParamSpec("mode", "fixed", "none: forward observations; fixed: the prediction delay_s ahead; "
-          "variable: Eq. 11 against the robot's reported state", choices=compensator.MODES),
-    ParamSpec("delay_s", 0.6, "robot delay to compensate (s); sets the step in fixed mode", 0.0, 60.0),
+    compensator.PARAM_SPECS["mode"],
+    compensator.PARAM_SPECS["delay_s"],
     ParamSpec("frame_period_s", 0.1, "spacing of the predicted frames (s)", 0.001, 10.0),
-    ParamSpec("stale_after_s", 0.5, "predictions older than this (now - their stamp) are not used", 0.0, 3600.0),
+    compensator.PARAM_SPECS["stale_after_s"],
     ParamSpec("robot_state_timeout_s", 0.5, "a robot state older than this is ignored (variable mode)", 0.0, 3600.0),
 )
 

@@ -13,7 +13,7 @@ from pathlib import Path
 
 from gwr_predictor.parameter_spec import ParamSpec
 from gwr_predictor.pipeline import conventions
-from gwr_predictor.robot.delayed_arm import RobotError, SimulatedRobot, sine_delay
+from gwr_predictor.robot.delayed_arm import ROBOT_SPECS, RobotError, SimulatedRobot, sine_delay
 from gwr_predictor.robot.nao import ARM_JOINTS
 
 from . import messages
@@ -22,11 +22,11 @@ from .node_base import ArmAnglesGate, NodeFatalError, ParameterError, PipelineNo
 PARAMS = (
     ParamSpec("backend", "pybullet", "robot model", choices=("pybullet", "kinematic")),
     ParamSpec("gui", False, "open the PyBullet window (needs a display); default DIRECT, headless"),
-    ParamSpec("delay_s", 0.6, "transport + sensing delay of every command (s)", 0.0, 60.0),
+    ROBOT_SPECS["delay_s"],
     ParamSpec("delay_amplitude_s", 0.0, "variable delay: delay_s + amplitude * sin(2 pi t / delay_period_s)",
               0.0, 30.0),
     ParamSpec("delay_period_s", 20.0, "period of the delay variation (s)", 0.1, 3600.0),
-    ParamSpec("latency_s", 0.035, "motor response latency (s); the real Nao: 30-40 ms", 0.0, 10.0),
+    ROBOT_SPECS["latency_s"],
     ParamSpec("control_period_s", 0.01, "robot control period; physics steps at 240 Hz within it (s)", 0.001, 0.1),
     ParamSpec("state_rate_hz", 50.0, "rate of joint_states", 1.0, 1000.0),
     ParamSpec("render_dir", "", "write offscreen PNG pictures of the robot here (pybullet backend); empty: none"),

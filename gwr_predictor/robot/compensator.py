@@ -33,6 +33,7 @@ from typing import Literal, NamedTuple
 
 import numpy as np
 
+from gwr_predictor.parameter_spec import ParameterError, ParamSpec
 from gwr_predictor.robot.nao import ARM_JOINTS, clip_to_limits
 
 MODES = ("none", "fixed", "variable")
@@ -48,15 +49,19 @@ class CompensatorError(ValueError):
     """Invalid compensator parameters or input shapes; the message names the field and range."""
 
 
-_RANGES = {
-    "delay_s": (0.0, 60.0),
-    "frame_period": (1e-4, 10.0),
-    "stale_after_s": (0.0, 3600.0),
-    "tracking_gain": (0.0, 1.0),
-    "deadband": (0.0, 10.0),
-    "history_frames": (1, 10_000),
-    "min_motion": (0.0, 10.0),
-}
+#: The compensator's parameters, declared once: `CompensatorParams` validates with them and the
+#: delay_compensator node declares its ROS parameters from them.
+PARAM_SPECS: dict[str, ParamSpec] = {s.name: s for s in (
+    ParamSpec("mode", "fixed", "none: forward observations; fixed: the prediction delay_s ahead; "
+              "variable: Eq. 11 against the robot's reported state", choices=MODES),
+    ParamSpec("delay_s", 0.6, "robot delay to compensate (s); sets the step in fixed mode", 0.0, 60.0),
+    ParamSpec("frame_period", 0.1, "spacing of the predicted frames (s)", 1e-4, 10.0),
+    ParamSpec("stale_after_s", 0.5, "predictions older than this (now - their stamp) are not used", 0.0, 3600.0),
+    ParamSpec("tracking_gain", 0.15, "variable: share of the measured lag added to the delay estimate", 0.0, 1.0),
+    ParamSpec("deadband", 0.6, "variable: lags below this many frames leave the estimate alone", 0.0, 10.0),
+    ParamSpec("history_frames", 20, "variable: observations searched for the robot's pose", 1, 10_000),
+    ParamSpec("min_motion", 0.03, "variable: rad per frame below which the arm counts as still", 0.0, 10.0),
+)}
 
 
 @dataclass(frozen=True)
@@ -68,23 +73,21 @@ class CompensatorParams:
     estimate is left alone) matter to ``variable`` only.
     """
 
-    mode: Mode = "fixed"
-    delay_s: float = 0.6
-    frame_period: float = 0.1
-    stale_after_s: float = 0.5
-    tracking_gain: float = 0.15
-    deadband: float = 0.6
-    history_frames: int = 20
-    min_motion: float = 0.03
+    mode: Mode = PARAM_SPECS["mode"].default
+    delay_s: float = PARAM_SPECS["delay_s"].default
+    frame_period: float = PARAM_SPECS["frame_period"].default
+    stale_after_s: float = PARAM_SPECS["stale_after_s"].default
+    tracking_gain: float = PARAM_SPECS["tracking_gain"].default
+    deadband: float = PARAM_SPECS["deadband"].default
+    history_frames: int = PARAM_SPECS["history_frames"].default
+    min_motion: float = PARAM_SPECS["min_motion"].default
 
     def __post_init__(self) -> None:
-        if self.mode not in MODES:
-            raise CompensatorError(f"CompensatorParams.mode must be one of {MODES}, got {self.mode!r}")
-        for name, (low, high) in _RANGES.items():
-            value = getattr(self, name)
-            kind = int if name == "history_frames" else (int, float)
-            if isinstance(value, bool) or not isinstance(value, kind) or not (low <= value <= high):
-                raise CompensatorError(f"CompensatorParams.{name} must be in [{low:g}, {high:g}], got {value!r}")
+        for name, spec in PARAM_SPECS.items():
+            try:
+                spec.check(getattr(self, name), "CompensatorParams")
+            except ParameterError as exc:
+                raise CompensatorError(str(exc)) from None
 
 
 class CompensatorOutput(NamedTuple):
