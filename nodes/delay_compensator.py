@@ -13,11 +13,12 @@ import numpy as np
 from gwr_predictor.parameter_spec import ParamSpec
 from gwr_predictor.pipeline import conventions
 from gwr_predictor.pipeline.conventions import LayoutError
+from gwr_predictor.pipeline.gates import ArmAnglesGate
 from gwr_predictor.robot import compensator
 from gwr_predictor.robot.nao import ARM_JOINTS
 
 from . import messages
-from .node_base import ArmAnglesGate, PipelineNode, run_node, stream_qos
+from .node_base import PipelineNode, run_node, stream_qos
 
 PARAMS = (
     compensator.PARAM_SPECS["mode"],

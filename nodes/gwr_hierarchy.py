@@ -24,13 +24,12 @@ from gwr_predictor.learning.hierarchy import Hierarchy
 from gwr_predictor.learning.params import HierarchyParams, hierarchy_parameter_specs
 from gwr_predictor.parameter_spec import ParamSpec
 from gwr_predictor.pipeline import conventions
-from gwr_predictor.pipeline.gates import missing_frames
+from gwr_predictor.pipeline.gates import ArmAnglesGate, missing_frames
 from gwr_predictor.predictors.blend import PREDICTORS, BlendedPredictor, gwr_member, load_predictor, make_predictor
 from gwr_predictor.robot.nao import ARM_JOINTS
 
 from . import messages
 from .node_base import (
-    ArmAnglesGate,
     NodeFatalError,
     ParameterError,
     PipelineNode,

@@ -13,11 +13,12 @@ from pathlib import Path
 
 from gwr_predictor.parameter_spec import ParamSpec
 from gwr_predictor.pipeline import conventions
+from gwr_predictor.pipeline.gates import ArmAnglesGate
 from gwr_predictor.robot.delayed_arm import ROBOT_SPECS, RobotError, SimulatedRobot, sine_delay
 from gwr_predictor.robot.nao import ARM_JOINTS
 
 from . import messages
-from .node_base import ArmAnglesGate, NodeFatalError, ParameterError, PipelineNode, run_node, stream_qos
+from .node_base import NodeFatalError, ParameterError, PipelineNode, run_node, stream_qos
 
 PARAMS = (
     ParamSpec("backend", "pybullet", "robot model", choices=("pybullet", "kinematic")),

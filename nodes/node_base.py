@@ -2,7 +2,7 @@
 
 - `declare_parameters`: `gwr_predictor.parameter_spec.ParamSpec`s as described ROS parameters; a bad
   value stops the node with a `ParameterError` naming the parameter and what is allowed.
-- counters and input gates are library code (`gwr_predictor.pipeline.gates`), re-exported here.
+- the counters and input gates are library code (`gwr_predictor.pipeline.gates`).
 - `PipelineNode`: a Node with the above plus a periodic DiagnosticArray on /diagnostics carrying
   every counter, a `done` future for nodes that finish on their own, and an `on_shutdown` hook.
 - `run_node`: init, build, spin, quiet exit on Ctrl-C / SIGTERM, final hook, destroy, shutdown.
@@ -27,11 +27,9 @@ from rclpy.task import Future
 
 from gwr_predictor.parameter_spec import ParameterError, ParamSpec
 from gwr_predictor.pipeline import conventions
-from gwr_predictor.pipeline.gates import ArmAnglesGate, RejectionCounter
+from gwr_predictor.pipeline.gates import RejectionCounter
 
 from . import messages
-
-__all__ = ["ArmAnglesGate", "ParamSpec", "ParameterError", "RejectionCounter"]
 
 EXIT_OK = 0
 EXIT_FATAL = 1
