@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from gwr_predictor.commands.experiment import parse_overrides
+from gwr_predictor.errors import GwrPredictorError
 from gwr_predictor.evaluation.experiments import common
 from gwr_predictor.evaluation.experiments.output import markdown_table, to_jsonable
 from gwr_predictor.evaluation.online import EvaluationError, compare_online
@@ -24,7 +25,7 @@ from gwr_predictor.robot.nao import ARM_JOINTS
 DEFAULT_METHODS = ("hold", "const_velocity", "rls_ar", common.HIERARCHY)
 
 
-class RecordingError(ValueError):
+class RecordingError(GwrPredictorError, ValueError):
     """A file that is neither an angle CSV nor a skeleton recording; the message says why."""
 
 

@@ -18,11 +18,12 @@ from typing import Any, Protocol, runtime_checkable
 import numpy as np
 from tqdm import tqdm
 
+from gwr_predictor.errors import GwrPredictorError
 from gwr_predictor.evaluation.metrics import HorizonStats, future_windows, horizon_stats
 from gwr_predictor.pipeline.conventions import DEFAULT_HORIZON
 
 
-class EvaluationError(ValueError):
+class EvaluationError(GwrPredictorError, ValueError):
     """Inputs the evaluation loop cannot use (shapes, horizons); the message names the culprit."""
 
 

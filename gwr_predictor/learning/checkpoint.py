@@ -21,6 +21,8 @@ from typing import Any
 
 import numpy as np
 
+from gwr_predictor.errors import GwrPredictorError
+
 MAGIC = "gwr_predictor.checkpoint"
 #: 2: HierarchyParams gained `target` and `readout_k`, and the frame buffer `xbuf` keeps one frame
 #: more (the base of delta targets). Version 1 files are refused: their parameters lack the new keys.
@@ -28,7 +30,7 @@ FORMAT_VERSION = 2
 HEADER_KEY = "__header__"
 
 
-class CheckpointError(Exception):
+class CheckpointError(GwrPredictorError):
     """A checkpoint that cannot be written or read; the message names the file and the cause."""
 
 

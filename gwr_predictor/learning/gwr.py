@@ -35,13 +35,14 @@ from typing import Any
 
 import numpy as np
 
+from gwr_predictor.errors import GwrPredictorError
 from gwr_predictor.learning.params import MAX_EDGE_AGE_LIMIT, GWRParams
 
 _NO_EDGE = -1
 _MIN_CAPACITY = 64
 
 
-class InputError(ValueError):
+class InputError(GwrPredictorError, ValueError):
     """An input vector of the wrong shape or with non-finite values."""
 
 

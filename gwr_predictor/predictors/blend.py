@@ -25,12 +25,13 @@ from typing import Any
 
 import numpy as np
 
+from gwr_predictor.errors import GwrPredictorError
 from gwr_predictor.evaluation.online import Predictor
 from gwr_predictor.learning.checkpoint import CheckpointError, read_checkpoint, write_checkpoint
 from gwr_predictor.pipeline.conventions import DEFAULT_HORIZON
 
 
-class BlendError(ValueError):
+class BlendError(GwrPredictorError, ValueError):
     """Invalid blend parameters or members, or a member output of the wrong shape."""
 
 
