@@ -393,8 +393,12 @@ class GWR:
         return last
 
     # --- persistence ----------------------------------------------------------------------------
+    #: The array members of `state()`; the others are plain JSON-able values.
+    STATE_ARRAYS = ("weights", "counters", "edges")
+
     def state(self) -> dict[str, Any]:
-        """Arrays and plain values that reproduce this network exactly (see `from_state`)."""
+        """Arrays and plain values that reproduce this network exactly (see `from_state`); the one
+        persistence format of a network, used by every checkpoint that holds one."""
         return {
             "weights": self.weights.copy(),
             "counters": self.counters.copy(),
