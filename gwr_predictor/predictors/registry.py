@@ -65,6 +65,9 @@ def names() -> tuple[str, ...]:
     return tuple(_REGISTRY)
 
 
+predictor_names = names  # the name exported at the package's top level
+
+
 def learner_names() -> tuple[str, ...]:
     """The names that can be saved and loaded: what the learner node and `pretrain` accept."""
     return tuple(n for n, e in _REGISTRY.items() if e.loader is not None)
