@@ -533,18 +533,9 @@ class Hierarchy(_OnlinePredictor):
         a2, x2, o2, w2 = self.gwr2.search_views()
         q1, q2 = x1[:-1], x2[:-1]  # where the queries go ([query | -1/2] is the product's operand)
         dot = np.dot
-        if self._readout_k == 1:  # the BMU read-out (Eq. 10), inlined as well
-            a3, x3, o3, _ = self.pgwr.search_views()
-            q3 = x3[:-1]
-            wo, delta = self.pgwr.weights_out, self._delta
-
-            def readout(reg: np.ndarray, prev: np.ndarray, cur: np.ndarray) -> None:
-                q3[...] = reg
-                cur[...] = wo[dot(a3, x3, out=o3).argmax()]
-                if delta:
-                    cur += prev
-        else:
-            readout = self._readout
+        bmu_readout = self._readout_k == 1  # the BMU read-out (Eq. 10), inlined as well
+        a3, x3, o3, _ = self.pgwr.search_views() if bmu_readout else (None, None, None, None)
+        q3, wo, delta, readout = x3[:-1] if bmu_readout else None, self.pgwr.weights_out, self._delta, self._readout
         prev = out[0]
         for k in range(1, h):  # predicted frame -> GWR1 BMU -> GWR2 BMU -> P-GWR read-out
             s -= 1
@@ -553,7 +544,13 @@ class Hierarchy(_OnlinePredictor):
             q2[...] = wins1[s]
             rows2[s][...] = w2[dot(a2, x2, out=o2).argmax()]
             cur = out[k]
-            readout(wins2[s], prev, cur)
+            if bmu_readout:
+                q3[...] = wins2[s]
+                cur[...] = wo[dot(a3, x3, out=o3).argmax()]
+                if delta:
+                    cur += prev
+            else:
+                readout(wins2[s], prev, cur)
             prev = cur
 
     def _window_arrays(self) -> dict[str, np.ndarray]:
