@@ -9,8 +9,10 @@ from typing import Any
 
 import numpy as np
 
+from gwr_predictor.errors import GwrPredictorError
 
-class NotJsonError(TypeError):
+
+class NotJsonError(GwrPredictorError, TypeError):
     """An object with no JSON form; the message names its type."""
 
 

@@ -15,10 +15,12 @@ import math
 from dataclasses import dataclass
 from typing import Any
 
+from gwr_predictor.errors import GwrPredictorError
+
 KINDS = ("bool", "integer", "double", "string", "string list", "double list")
 
 
-class ParameterError(ValueError):
+class ParameterError(GwrPredictorError, ValueError):
     """A parameter value that cannot be used; the message names the parameter and the allowed values."""
 
 

@@ -26,6 +26,7 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPo
 from rclpy.signals import SignalHandlerOptions
 from rclpy.task import Future
 
+from gwr_predictor.errors import GwrPredictorError
 from gwr_predictor.parameter_spec import ParameterError, ParamSpec
 from gwr_predictor.pipeline import conventions
 from gwr_predictor.pipeline.gates import RejectionCounter
@@ -37,7 +38,7 @@ EXIT_FATAL = 1
 EXIT_BAD_PARAMETER = 2
 
 
-class NodeFatalError(Exception):
+class NodeFatalError(GwrPredictorError):
     """A condition that stops the node (unwritable path, full disk, unreadable file); the message says which."""
 
 
