@@ -12,8 +12,8 @@ from gwr_predictor.evaluation.online import compare_online
 from gwr_predictor.learning.checkpoint import CheckpointError
 from gwr_predictor.learning.local_linear import LocalLinearParams, LocalLinearPredictor
 from gwr_predictor.predictors.baselines import HoldLast
-from gwr_predictor.predictors.blend import DEFAULT_PREDICTOR, load_predictor, make_predictor
 from gwr_predictor.predictors.gate import GatedPredictor, GateError, GateParams, make_gated_llm
+from gwr_predictor.predictors.registry import DEFAULT_PREDICTOR, load_predictor, make_predictor
 from gwr_predictor.robot.closed_loop import run_closed_loop
 from gwr_predictor.robot.compensator import DelayCompensator
 

@@ -62,10 +62,10 @@ def run(args: argparse.Namespace) -> int:
                 return 2
             config = dataclasses.replace(config, orders=args.orders)
         if args.method is not None:
-            from gwr_predictor.evaluation.experiments.common import ALL_METHODS
+            from gwr_predictor.evaluation.experiments.common import all_methods
 
-            if not hasattr(config, "method") or args.method not in ALL_METHODS:
-                print(f"experiment {args.name} has no --method {args.method!r} (methods: {', '.join(ALL_METHODS)})",
+            if not hasattr(config, "method") or args.method not in all_methods():
+                print(f"experiment {args.name} has no --method {args.method!r} (methods: {', '.join(all_methods())})",
                       file=sys.stderr)
                 return 2
             config = dataclasses.replace(config, method=args.method)

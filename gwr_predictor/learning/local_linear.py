@@ -37,6 +37,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
+from gwr_predictor.errors import GwrPredictorError
 from gwr_predictor.learning.checkpoint import CheckpointError, read_checkpoint, write_checkpoint
 from gwr_predictor.learning.gwr import InputError
 from gwr_predictor.learning.hierarchy import ErrorTracker
@@ -46,7 +47,7 @@ from gwr_predictor.learning.scaling import InputScaling
 from gwr_predictor.pipeline.conventions import DEFAULT_HORIZON
 
 
-class LocalLinearError(ValueError):
+class LocalLinearError(GwrPredictorError, ValueError):
     """Invalid local-linear P-GWR parameters or state."""
 
 

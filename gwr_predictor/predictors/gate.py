@@ -26,12 +26,13 @@ from typing import Any, ClassVar
 
 import numpy as np
 
+from gwr_predictor.errors import GwrPredictorError
 from gwr_predictor.learning.checkpoint import CheckpointError, read_checkpoint, write_checkpoint
 from gwr_predictor.pipeline.conventions import DEFAULT_HORIZON
 from gwr_predictor.predictors.baselines import N_JOINTS, observation
 
 
-class GateError(ValueError):
+class GateError(GwrPredictorError, ValueError):
     """Invalid gate parameters, or a wrapped model's output of the wrong shape."""
 
 

@@ -42,7 +42,7 @@ def run(config: Config, out: Path, seed: int = 0, progress: bool = True) -> Expe
     rows = []
     worst: dict[str, dict[str, float]] = {}
     for m in base.methods:
-        cells: list[Any] = [common.LABELS[m]]
+        cells: list[Any] = [common.label(m)]
         worst[m] = {}
         for c in SPLITS:
             v, hold = r["conditions"][c][m], r["conditions"][c]["hold"]

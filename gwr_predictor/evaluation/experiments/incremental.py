@@ -116,7 +116,7 @@ def run(config: Config, out: Path, seed: int = 0, progress: bool = True) -> Expe
     md = [f"{len(names)} patterns x {e} epochs ({config.subjects * config.repetitions} demonstrations per epoch), "
           f"averaged over {config.orders} random presentation orders. C.P.E./P.E.: MSE (rad²) at the "
           f"{common.make_params(config.overrides).horizon}-frame horizon on all patterns learned so far, frozen.",
-          f"Method: {common.LABELS[config.method]}.",
+          f"Method: {common.label(config.method)}.",
           "", markdown_table(["patterns learned", *layer_names, "C.P.E.", "P.E."], rows, digits=4), "",
           "Share of each pattern's neuron growth that happened in the second half of its epochs "
           f"(0 = levelled off, {steady_share(e):.2f} = growing steadily): "

@@ -101,7 +101,7 @@ def run(config: Config, out: Path, seed: int = 0, progress: bool = True) -> Expe
         keys = list(res["grid"][0]["settings"])
         rows = [[*[g["settings"][k] for k in keys], g["heldout_repetitions"]["mae"], g["heldout_repetitions"]["mse"],
                  g["heldout_subjects"]["mae"], g["heldout_subjects"]["mse"]] for g in res["grid"]]
-        md += ["", f"**{common.LABELS[method]}**: chosen {res['chosen']}", "",
+        md += ["", f"**{common.label(method)}**: chosen {res['chosen']}", "",
                markdown_table([*keys, "new reps MAE", "new reps MSE", "new person MAE", "new person MSE"], rows,
                               digits=4)]
     return ExperimentOutput(NAME, "Settings of the default predictor and RLS-AR, one protocol", asdict(config), r, md,
