@@ -75,6 +75,6 @@ def test_installed_executables_run_from_the_install_space(installed, ros):
                      params_file=installed / "gwr_predictor" / "share" / "gwr_predictor" / "config" /
                      "delay_compensator.yaml")
     ros.wait_for_node(diagnostics, "/delay_compensator", timeout=60)
-    assert diagnostics["/delay_compensator"]["mode"] == "fixed"
+    assert diagnostics["/delay_compensator"]["mode"] == "guarded"
     code, killed = node.stop(signal.SIGINT)
     assert code == 0 and not killed
