@@ -109,23 +109,26 @@ def descriptor(spec: ParamSpec, value_type: int = 0) -> ParameterDescriptor:
 def declare_parameters(node: Node, specs: Iterable[ParamSpec]) -> dict[str, Any]:
     """Declare every spec and return {name: validated value}; a bad value raises ParameterError.
 
-    Declared first without range or read-only flag, so that a bad start value gets the spec's own
-    message (naming the value and the allowed range), then given its full descriptor."""
+    Numbers are declared first without range or read-only flag, so that a bad start value gets the
+    spec's own message (naming the value and the allowed range), then given their full descriptor."""
     values: dict[str, Any] = {}
     for spec in specs:
         kind = spec.kind
         default = spec.default
         if kind in _ARRAY_TYPES:  # an empty list has no type of its own
             default = list(spec.default) if spec.default else _ARRAY_TYPES[kind]
-        plain = ParameterDescriptor(description=spec.description, dynamic_typing=kind == "double")
+        ranged = bool(value_range(spec))
+        first = (ParameterDescriptor(description=spec.description, dynamic_typing=kind == "double") if ranged
+                 else descriptor(spec))
         try:
-            value = node.declare_parameter(spec.name, default, plain).value
+            value = node.declare_parameter(spec.name, default, first).value
         except InvalidParameterTypeException as exc:
             raise ParameterError(f"parameter '{spec.name}' must be of type {kind} ({spec.allowed()}): {exc}") from None
         except InvalidParameterValueException as exc:
             raise ParameterError(f"parameter '{spec.name}' ({spec.allowed()}): {exc}") from None
         values[spec.name] = spec.check(value)
-        node.set_descriptor(spec.name, descriptor(spec, node.describe_parameter(spec.name).type))
+        if ranged:
+            node.set_descriptor(spec.name, descriptor(spec, node.describe_parameter(spec.name).type))
     return values
 
 
