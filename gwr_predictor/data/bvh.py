@@ -136,17 +136,19 @@ def _parse_motion(path: Path, motion: str, n_channels: int) -> tuple[np.ndarray,
     lines = [ln.strip() for ln in motion.splitlines() if ln.strip()]
     frames = time = None
     body = 0
-    for body, ln in enumerate(lines):
-        key, _, value = ln.partition(":")
+    while body < len(lines) and ":" in lines[body]:
+        key, _, value = lines[body].partition(":")
         key = key.strip().lower()
-        if key == "frames":
-            frames = int(value)
-        elif key == "frame time":
-            time = float(value)
-        else:
-            break
-    else:
-        body = len(lines)
+        try:
+            if key == "frames":
+                frames = int(value)
+            elif key == "frame time":
+                time = float(value)
+            else:
+                break
+        except ValueError:
+            raise MocapError(f"{path}: MOTION header {lines[body]!r} needs a number") from None
+        body += 1
     if frames is None or time is None:
         raise MocapError(f"{path}: MOTION needs 'Frames:' and 'Frame Time:' lines")
     if not time > 0:

@@ -134,7 +134,7 @@ def read_map_file(path: str | Path) -> dict:
             data = yaml.safe_load(text)
         else:
             data = json.loads(text)
-    except Exception as exc:  # noqa: BLE001 - json and yaml raise several kinds
+    except Exception as exc:
         raise MocapError(f"{path}: not a readable joint-map file ({exc})") from None
     if not isinstance(data, dict):
         raise MocapError(f"{path}: a joint map is a mapping {{our joint: recording joint}}, got {type(data).__name__}")

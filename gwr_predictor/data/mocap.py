@@ -186,7 +186,7 @@ def is_mocap_file(path: str | Path) -> bool:
         try:
             with np.load(path, allow_pickle=False) as npz:
                 return "convention" not in npz.files
-        except Exception:  # noqa: BLE001 - unreadable: let the skeleton reader say why
+        except Exception:
             return False
     return suffix in SUFFIXES or suffix == ".asf"
 
@@ -199,6 +199,15 @@ def load_any_skeleton(path: str | Path, options: ImportOptions | None = None) ->
     from gwr_predictor.data.skeleton_files import load_skeleton
 
     return load_skeleton(path)
+
+
+def skeleton_angles(seq: SkeletonSequence, clip: bool = True) -> np.ndarray:
+    """The learner's input: median of 3 (30 -> 10 fps), then the 8 Nao arm angles (T, 8)."""
+    from gwr_predictor.data.angles import skeleton_to_angles
+    from gwr_predictor.data.smoothing import median_of_3
+
+    positions, _ = median_of_3(seq.positions, seq.timestamps)
+    return skeleton_to_angles(positions, seq.joint_names, clip=clip)
 
 
 # --- onto the skeleton stream ------------------------------------------------------------------
@@ -293,7 +302,7 @@ def resample(positions: np.ndarray, t: np.ndarray, fps: float = SKELETON_FPS) ->
     flat = positions.reshape(positions.shape[0], -1)
     ratio = src_fps / fps
     if ratio > 1.5:
-        width = int(round(ratio))
+        width = round(ratio)
         kernel = np.ones(width) / width
         pad = np.pad(flat, ((width // 2, width - 1 - width // 2), (0, 0)), mode="edge")
         flat = np.apply_along_axis(lambda col: np.convolve(col, kernel, mode="valid"), 0, pad)
