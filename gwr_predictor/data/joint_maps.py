@@ -7,11 +7,11 @@ the upper arm (`LeftArm`, `lhumerus`, `L_Shoulder`). Presets, tried in this orde
 
 | preset | shoulder / elbow / hand (wrist) | hip / knee / foot (ankle) |
 |---|---|---|
+| `skeleton` (ours, OpenNI) | left_shoulder / left_elbow / left_hand | left_hip / left_knee / left_foot |
 | `mixamo` (Mixamo, LAFAN, many BVH exports) | LeftArm / LeftForeArm / LeftHand | LeftUpLeg / LeftLeg / LeftFoot |
 | `mocapbank` (anatomical names) | LeftShoulder / LeftElbow / LeftWrist | LeftHip / LeftKnee / LeftAnkle |
 | `cmu` (ASF/AMC) | lhumerus / lradius / lwrist | lfemur / ltibia / lfoot |
 | `smpl` (SMPL, SMPL-H, SMPL-X) | L_Shoulder / L_Elbow / L_Wrist | L_Hip / L_Knee / L_Ankle |
-| `skeleton` (ours, OpenNI) | left_shoulder / left_elbow / left_hand | left_hip / left_knee / left_foot |
 
 Shoulders, elbows, hands and hips are required (the arm angles need them); head, neck, torso,
 knees and feet may be missing (NaN; a missing torso becomes the middle of hips and shoulders).
@@ -55,6 +55,7 @@ def _swap(name: str, right_of: dict[str, str]) -> str:
 
 
 PRESETS: dict[str, dict[str, tuple[str, ...]]] = {
+    "skeleton": {j: (j,) for j in SKELETON_JOINTS},
     "mixamo": _sides({"shoulder": ["LeftArm"], "elbow": ["LeftForeArm"], "hand": ["LeftHand"],
                       "hip": ["LeftUpLeg"], "knee": ["LeftLeg"], "foot": ["LeftFoot"]},
                      {"head": ["Head"], "neck": ["Neck", "Neck1"], "torso": ["Spine1", "Spine", "Spine2"]},
@@ -71,7 +72,6 @@ PRESETS: dict[str, dict[str, tuple[str, ...]]] = {
                     "hip": ["L_Hip"], "knee": ["L_Knee"], "foot": ["L_Ankle"]},
                    {"head": ["Head"], "neck": ["Neck"], "torso": ["Spine2", "Spine3", "Spine1"]},
                    {"L_": "R_"}),
-    "skeleton": {j: (j,) for j in SKELETON_JOINTS},
 }
 
 #: SMPL-H joint order (52): the body of SMPL without its two hand joints, then 15 + 15 finger joints.

@@ -302,7 +302,7 @@ def resample(positions: np.ndarray, t: np.ndarray, fps: float = SKELETON_FPS) ->
     flat = positions.reshape(positions.shape[0], -1)
     ratio = src_fps / fps
     if ratio > 1.5:
-        width = round(ratio)
+        width = 2 * int(ratio // 2) + 1  # odd: a centred window does not delay the motion
         kernel = np.ones(width) / width
         pad = np.pad(flat, ((width // 2, width - 1 - width // 2), (0, 0)), mode="edge")
         flat = np.apply_along_axis(lambda col: np.convolve(col, kernel, mode="valid"), 0, pad)
