@@ -306,7 +306,7 @@ def resample(positions: np.ndarray, t: np.ndarray, fps: float = SKELETON_FPS) ->
         kernel = np.ones(width) / width
         pad = np.pad(flat, ((width // 2, width - 1 - width // 2), (0, 0)), mode="edge")
         flat = np.apply_along_axis(lambda col: np.convolve(col, kernel, mode="valid"), 0, pad)
-    new_t = np.arange(0.0, t[-1] - t[0] + 1e-9, 1.0 / fps)
+    new_t = np.arange(0.0, t[-1] - t[0] + 1e-3 / fps, 1.0 / fps)  # tolerance: frame times in files are rounded
     pos = new_t * src_fps
     lo = np.clip(np.floor(pos).astype(int), 0, flat.shape[0] - 1)
     hi = np.clip(lo + 1, 0, flat.shape[0] - 1)
