@@ -8,6 +8,7 @@ import numpy as np
 
 from gwr_predictor.data.demonstrator import default_subjects, demonstrate_one
 from gwr_predictor.data.skeleton_files import SkeletonSequence
+from gwr_predictor.pipeline.conventions import SKELETON_JOINTS
 
 #: Our skeleton joint -> a Mixamo name, for arrays written in a "recording's" naming.
 MIXAMO_NAMES = {"head": "Head", "neck": "Neck", "torso": "Spine1", "left_shoulder": "LeftArm",
@@ -86,3 +87,31 @@ def write_bvh(path: Path, frames: int = 240, fps: float = 120.0, swing_deg: floa
         lines.append(" ".join(f"{v:.5f}" for v in values))
     path.write_text("\n".join(lines) + "\n")
     return path
+
+
+def fake_recording_cache(root: Path, seconds: float = 12.0) -> Path:
+    """A `real_motion` cache whose package archives hold small written recordings instead of the real
+    ones (climbing takes = the same demonstrator motion, a BVH), so `experiment real` runs without pip."""
+    import io
+    import tarfile
+    import zipfile
+
+    downloads = root / "downloads"
+    downloads.mkdir(parents=True, exist_ok=True)
+    names = [MIXAMO_NAMES[j] for j in SKELETON_JOINTS]
+    frames = {0: "f900-3700", 1: "f0-2422", 2: "f100-3110", 3: "f200-2600", 4: "f0-2303"}
+    take = person("wave_both", fps=120.0, noise=False)
+    keep = take.timestamps <= seconds
+    with zipfile.ZipFile(downloads / "holosoma_retargeting-0.1.0-py3-none-any.whl", "w") as z:
+        z.writestr("holosoma_retargeting/config_types/data_type.py", f"MOCAP_DEMO_JOINTS = {names!r}\n")
+        for i, f in frames.items():
+            buf = io.BytesIO()
+            np.save(buf, (as_zup_millimetres(take)[keep] / 1000).astype(np.float32))
+            z.writestr(f"holosoma_retargeting/demo_data/climb/mocap_climb_seq_{i}/mocap_climb_seq_{i}_joint_positions_"
+                       f"{f}.npy", buf.getvalue())
+    bvh = write_bvh(root / "kneel.bvh", frames=int(30 * seconds), fps=30.0).read_bytes()
+    with tarfile.open(downloads / "bvhtoolbox-0.1.3.tar.gz", "w:gz") as t:
+        info = tarfile.TarInfo("bvhtoolbox-0.1.3/tests/example_files/test_mocapbank.bvh")
+        info.size = len(bvh)
+        t.addfile(info, io.BytesIO(bvh))
+    return root

@@ -1,51 +1,22 @@
-"""Real-data path end to end on files the tests write: `experiment real` (one pass, leave-one-take-out,
-k-NN), `evaluate` on .bvh / .amc / .npy, the recording cache, and skeleton_source replaying a BVH."""
+"""The real-data path on files the tests write: the k-NN reference, `evaluate` on .bvh / .amc / .npy,
+the recording cache, and skeleton_source replaying a BVH (`experiment real`: test_experiments.py)."""
 
 from __future__ import annotations
 
-import io
 import json
-import tarfile
 import zipfile
 
 import numpy as np
 import pytest
-from mocap_files import MIXAMO_NAMES, as_zup_millimetres, person, write_bvh
+from mocap_files import MIXAMO_NAMES, as_zup_millimetres, fake_recording_cache, person, write_bvh
 
 from gwr_predictor.commands.cli import main
 from gwr_predictor.data import real_motion
 from gwr_predictor.data.mocap import load_any_skeleton
-from gwr_predictor.evaluation.experiments import real
-from gwr_predictor.evaluation.experiments.output import write_output
 from gwr_predictor.nodes import messages
 from gwr_predictor.nodes.messages import Float64MultiArray
 from gwr_predictor.pipeline.conventions import SKELETON_JOINTS
 from gwr_predictor.predictors.knn import KnnPredictor
-
-
-def test_experiment_real_runs_one_pass_and_leave_one_take_out(tmp_path):
-    takes = [write_bvh(tmp_path / f"swing_{i}.bvh", frames=300, fps=30.0) for i in range(3)]  # the same task
-    other = write_bvh(tmp_path / "other.bvh", frames=300, fps=30.0, swing_deg=25.0, phase=1.0)
-    config = real.Config(files=(*[(str(p), "swing") for p in takes], (str(other), "")),
-                         methods=("hold", "rls_ar", "hierarchy"))
-    output = real.run(config, tmp_path / "out", progress=False)
-    json_path, md_path = write_output(tmp_path / "out", output, seed=0, quick=True)
-    r = json.loads(json_path.read_text())["results"]
-    assert r["default_method"] in r["one_pass"]["pooled"]
-    assert sorted(r["one_pass"]["per_clip"]) == ["other", "swing_0", "swing_1", "swing_2"]
-    assert sorted(r["leave_one_take_out"]["per_take"]) == ["swing_0", "swing_1", "swing_2"]
-    pooled = r["leave_one_take_out"]["pooled"]
-    assert all(len(pooled[m]["mae"]) == 6 and len(pooled[m]["mse"]) == 6 for m in ("hold", "rls_ar", "hierarchy",
-                                                                                    "knn"))
-    # identical takes: the other takes hold this one's future exactly, so k-NN is far better than holding
-    assert pooled["knn"]["mae"][-1] < 0.2 * pooled["hold"]["mae"][-1]
-    # one pass from scratch on a clip never seen: every method scored on the same frames, errors grow with h
-    per = r["one_pass"]["per_clip"]["other"]
-    assert per["hold"]["scored_frames"] == per["hierarchy"]["scored_frames"] > 50
-    assert per["hold"]["mae"][0] < per["hold"]["mae"][-1]
-    md = md_path.read_text()
-    assert "Leave one take out" in md and "k-NN" in md and "(node default)" in md
-    assert (tmp_path / "out" / "real_mae_vs_horizon.png").stat().st_size > 1000
 
 
 def test_knn_reference_predicts_a_repeated_motion_and_needs_enough_windows():
@@ -129,34 +100,27 @@ def test_amc_with_cmu_names_maps_onto_the_skeleton(tmp_path):
 
 
 def test_recordings_come_from_the_cache_and_never_need_pip_when_cached(tmp_path, monkeypatch):
-    """fetch_clips unpacks the motion files from archives already in the cache (no download)."""
-    downloads = tmp_path / "downloads"
-    downloads.mkdir()
-    names = [MIXAMO_NAMES[j] for j in SKELETON_JOINTS]
-    wheel = downloads / "holosoma_retargeting-0.1.0-py3-none-any.whl"
-    arr = as_zup_millimetres(person(fps=120.0)) / 1000
-    buf = io.BytesIO()
-    np.save(buf, arr.astype(np.float32))
+    """fetch_clips unpacks the motion files from archives already in the cache (no download); the
+    joint names are parsed from the package's source, never run."""
+    cache = fake_recording_cache(tmp_path)
+    wheel = cache / "downloads" / "holosoma_retargeting-0.1.0-py3-none-any.whl"
+    with zipfile.ZipFile(wheel) as z:
+        members = {n: z.read(n) for n in z.namelist()}
+    members["holosoma_retargeting/config_types/data_type.py"] = (  # code beside the list must not run
+        "raise SystemExit('ran')\nMOCAP_DEMO_JOINTS = " + repr([MIXAMO_NAMES[j] for j in SKELETON_JOINTS])).encode()
     with zipfile.ZipFile(wheel, "w") as z:
-        z.writestr("holosoma_retargeting/config_types/data_type.py",
-                   f"import os\nos.system('exit 1')\nMOCAP_DEMO_JOINTS = {names!r}\n")
-        z.writestr("holosoma_retargeting/demo_data/climb/mocap_climb_seq_1/mocap_climb_seq_1_joint_positions_"
-                   "f0-2422.npy", buf.getvalue())
-    sdist = downloads / "bvhtoolbox-0.1.3.tar.gz"
-    bvh = write_bvh(tmp_path / "k.bvh", frames=60, fps=30.0).read_bytes()
-    with tarfile.open(sdist, "w:gz") as t:
-        info = tarfile.TarInfo("bvhtoolbox-0.1.3/tests/example_files/test_mocapbank.bvh")
-        info.size = len(bvh)
-        t.addfile(info, io.BytesIO(bvh))
+        for name, data in members.items():
+            z.writestr(name, data)
     monkeypatch.setattr(real_motion.subprocess, "run", lambda *a, **k: pytest.fail("pip must not run"))
-    clips = real_motion.fetch_clips(("climb_1", "kneel"), cache=tmp_path)
+    clips = real_motion.fetch_clips(("climb_1", "kneel"), cache=cache)
     assert [c.name for c in clips] == ["climb_1", "kneel"] and clips[0].group == "climb"
-    assert clips[0].options.joint_names == tuple(names) and clips[0].options.up == "z"
+    assert clips[0].options.joint_names == tuple(MIXAMO_NAMES[j] for j in SKELETON_JOINTS)
+    assert clips[0].options.up == "z" and clips[0].options.fps == 120.0
     seq = load_any_skeleton(clips[0].path, clips[0].options)
     assert seq.metadata["joint_map"] == "mixamo" and seq.fps == pytest.approx(30.0)
-    assert load_any_skeleton(clips[1].path, clips[1].options).positions.shape[0] == 60
+    assert load_any_skeleton(clips[1].path, clips[1].options).metadata["joint_map"] == "mixamo"
     with pytest.raises(real_motion.RealDataError, match="unknown clips"):
-        real_motion.fetch_clips(("nope",), cache=tmp_path)
+        real_motion.fetch_clips(("nope",), cache=cache)
 
 
 @pytest.mark.ros

@@ -32,7 +32,6 @@ LABELS = {**common.LABELS, KNN: "k-NN on windows (offline, other takes)"}
 @dataclass(frozen=True)
 class Config:
     clips: tuple[str, ...] | None = None  # catalogue names (None = all)
-    files: tuple[tuple[str, str], ...] = ()  # (path, group) to use instead of the catalogue
     methods: tuple[str, ...] = common.ALL_METHODS
     train_passes: int = 1  # leave-one-take-out: passes over the other takes before the held-out one
     knn_k: int = 5
@@ -54,17 +53,11 @@ def default_method() -> str:
 def load_clips(config: Config) -> list[dict[str, Any]]:
     """Each clip as {name, group, description, angles (T, 8) at 10 fps, raw (unclipped), seconds, ...}."""
     from gwr_predictor.data.angles import clip_fractions
-    from gwr_predictor.data.mocap import ImportOptions, load_any_skeleton, skeleton_angles
+    from gwr_predictor.data.mocap import load_any_skeleton, skeleton_angles
+    from gwr_predictor.data.real_motion import fetch_clips
     from gwr_predictor.robot.nao import clip_to_limits
 
-    if config.files:
-        from gwr_predictor.data.real_motion import RealClip
-
-        clips = [RealClip(Path(p).stem, Path(p), ImportOptions(), group) for p, group in config.files]
-    else:
-        from gwr_predictor.data.real_motion import fetch_clips
-
-        clips = fetch_clips(config.clips)
+    clips = fetch_clips(config.clips)
     out = []
     for clip in clips:
         seq = load_any_skeleton(clip.path, clip.options)
