@@ -126,7 +126,7 @@ def test_npz_positions_with_names_and_rate_and_a_user_map_by_index(tmp_path):
     seq = person(fps=60.0)
     odd = [f"J{i}" for i in range(len(SKELETON_JOINTS))]
     np.savez(tmp_path / "a.npz", joints=seq.positions, names=np.array(odd), mocap_framerate=np.array(60.0))
-    with pytest.raises(MocapError, match="cannot find left_shoulder, left_elbow") as err:
+    with pytest.raises(MocapError, match=r"fit no preset.*lacks left_shoulder") as err:
         load_any_skeleton(tmp_path / "a.npz")
     assert "--joint-map" in str(err.value) and "a.npz" in str(err.value)
     (tmp_path / "map.json").write_text(json.dumps({j: i for i, j in enumerate(SKELETON_JOINTS)}))
@@ -165,6 +165,14 @@ def test_npy_without_a_rate_or_with_the_wrong_shape_is_refused(tmp_path):
 ])
 def test_presets_are_detected_from_the_names(names, preset):
     assert detect_preset(names) == preset
+
+
+def test_a_recording_that_misses_one_arm_joint_names_it(tmp_path):
+    text = write_bvh(tmp_path / "a.bvh", frames=3, fps=30.0).read_text().replace("LeftForeArm", "LeftFore")
+    (tmp_path / "b.bvh").write_text(text)
+    with pytest.raises(MocapError, match=r"b\.bvh: joint names fit no preset; the closest, mixamo, lacks "
+                                         r"left_elbow \(LeftForeArm\); give a joint-map file"):
+        load_any_skeleton(tmp_path / "b.bvh")
 
 
 def test_mixamo_shoulder_is_the_upper_arm_not_the_clavicle():

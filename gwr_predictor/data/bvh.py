@@ -153,6 +153,8 @@ def _parse_motion(path: Path, motion: str, n_channels: int) -> tuple[np.ndarray,
         raise MocapError(f"{path}: MOTION needs 'Frames:' and 'Frame Time:' lines")
     if not time > 0:
         raise MocapError(f"{path}: Frame Time must be positive, got {time}")
+    if frames < 1:
+        raise MocapError(f"{path}: no motion frames (Frames: {frames})")
     rows = lines[body:]
     if len(rows) < frames:
         raise MocapError(f"{path}: header says {frames} frames, file has {len(rows)} (truncated?)")

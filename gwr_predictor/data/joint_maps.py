@@ -159,6 +159,12 @@ def resolve_map(names: Sequence[str], map_file: str | Path | None = None, source
                              f"lacks (it has {len(names)} joints: {', '.join(list(names)[:12])}...)")
         indices[joint] = idx
     missing = [j for j in REQUIRED if indices[j] < 0]
+    if missing and not preset and not user:  # name the closest preset and exactly what it lacks
+        closest = max(PRESETS, key=lambda p: sum(i >= 0 for i in preset_map(names, p).indices.values()))
+        found = preset_map(names, closest).indices
+        lacks = [f"{j} ({'/'.join(PRESETS[closest][j])})" for j in REQUIRED if found[j] < 0]
+        raise MocapError(f"{source}: joint names fit no preset; the closest, {closest}, lacks {', '.join(lacks)}; "
+                         "give a joint-map file (--joint-map)")
     if missing:
         hint = (f"no preset ({', '.join(PRESETS)}) fits its names" if not preset else f"preset {preset}")
         raise MocapError(f"{source}: cannot find {', '.join(missing)} ({hint}; joints: "
