@@ -332,3 +332,28 @@ def test_resampling_keeps_the_motion_and_marks_gaps():
     out, stamps = resample(x, t, 30.0)
     gap = np.isnan(out[:, 0])
     assert gap.any() and not gap[:20].any() and not gap[-20:].any()
+
+
+def test_our_npz_files_are_not_taken_for_mocap_positions(tmp_path):
+    from gwr_predictor.data.mocap import is_mocap_file
+    from gwr_predictor.data.skeleton_files import save_skeleton
+
+    seq = person()
+    ours = save_skeleton(tmp_path / "ours.npz", seq)
+    np.savez(tmp_path / "bare.npz", positions=seq.positions, joint_names=np.array(SKELETON_JOINTS),
+             fps=np.array(30.0))  # our format without the optional fields: already camera frame
+    np.savez(tmp_path / "theirs.npz", positions=seq.positions, joint_names=np.array(list(MIXAMO_NAMES.values())),
+             fps=np.array(30.0))
+    assert not is_mocap_file(ours) and not is_mocap_file(tmp_path / "bare.npz")
+    assert is_mocap_file(tmp_path / "theirs.npz")
+    np.testing.assert_array_equal(load_any_skeleton(tmp_path / "bare.npz").positions, seq.positions)
+
+
+def test_angles_command_reads_a_bvh(tmp_path, capsys):
+    from gwr_predictor.commands.cli import main
+
+    bvh = write_bvh(tmp_path / "swing.bvh", frames=90, fps=30.0)
+    assert main(["angles", str(bvh), "-o", str(tmp_path / "a.csv")]) == 0
+    assert "30 frames (0 missing)" in capsys.readouterr().err
+    assert main(["angles", str(bvh), "--units", "furlong"]) == 2
+    assert "units 'furlong'" in capsys.readouterr().err

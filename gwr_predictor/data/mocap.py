@@ -14,6 +14,10 @@ command and `skeleton_source` accept all of them.
 
 from __future__ import annotations
 
+import warnings
+import zipfile
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -166,28 +170,28 @@ def _extent(positions: np.ndarray) -> float:
         return float(np.nanmedian(np.nanmax(side, axis=1)))
 
 
-class _quiet_nan:
-    def __enter__(self) -> None:
-        import warnings
-
-        self._w = warnings.catch_warnings()
-        self._w.__enter__()
+@contextmanager
+def _quiet_nan() -> Iterator[None]:
+    """Silence numpy's all-NaN slice warnings: untracked joints are expected, NaN is the answer."""
+    with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)
-
-    def __exit__(self, *exc: object) -> None:
-        self._w.__exit__(*exc)
+        yield
 
 
 def is_mocap_file(path: str | Path) -> bool:
-    """True for files `load_clip` reads rather than our own skeleton format (.npz checks its keys)."""
+    """True for files `load_clip` reads rather than our own skeleton format. An `.npz` is ours when
+    it has a `convention` or `timestamps` field or names all 15 skeleton joints (already camera frame)."""
     path = Path(path)
     suffix = path.suffix.lower()
     if suffix == ".npz":
         try:
             with np.load(path, allow_pickle=False) as npz:
-                return "convention" not in npz.files
-        except Exception:
-            return False
+                if "convention" in npz.files or "timestamps" in npz.files:
+                    return False
+                names = {str(n) for n in np.atleast_1d(npz["joint_names"])} if "joint_names" in npz.files else set()
+                return not set(SKELETON_JOINTS) <= names
+        except (OSError, ValueError, EOFError, zipfile.BadZipFile):
+            return False  # unreadable: the skeleton reader says why
     return suffix in SUFFIXES or suffix == ".asf"
 
 
