@@ -14,10 +14,11 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from gwr_predictor.errors import GwrPredictorError
 from gwr_predictor.pipeline.conventions import DEFAULT_HORIZON
 
 
-class KnnError(ValueError):
+class KnnError(GwrPredictorError, ValueError):
     """Training data or parameters the k-NN reference cannot use."""
 
 

@@ -23,16 +23,18 @@ from gwr_predictor.evaluation.experiments import common
 from gwr_predictor.evaluation.experiments.output import ExperimentOutput, figure, markdown_table, save_figure
 from gwr_predictor.evaluation.metrics import HorizonStats
 from gwr_predictor.evaluation.online import compare_online, train_online
+from gwr_predictor.predictors import registry
 
 NAME = "real"
 KNN = "knn"
-LABELS = {**common.LABELS, KNN: "k-NN on windows (offline, other takes)"}
+KNN_LABEL = "k-NN on windows (offline, other takes)"
 
 
 @dataclass(frozen=True)
 class Config:
     clips: tuple[str, ...] | None = None  # catalogue names (None = all)
-    methods: tuple[str, ...] = common.ALL_METHODS
+    methods: tuple[str, ...] = ("hold", "const_velocity", "rls_ar", common.FLAT, common.HIERARCHY, common.BLEND,
+                                common.BLEND_FLAT)
     train_passes: int = 1  # leave-one-take-out: passes over the other takes before the held-out one
     knn_k: int = 5
     max_seconds: float = 0.0  # > 0: only the first seconds of each clip
@@ -42,12 +44,6 @@ class Config:
 QUICK = Config(clips=("climb_0", "climb_1", "climb_4", "kneel"), max_seconds=20.0,
                methods=("hold", "const_velocity", "rls_ar", common.HIERARCHY, common.BLEND_FLAT))
 FULL = Config()
-
-
-def default_method() -> str:
-    from gwr_predictor.commands.evaluate import default_method as node_default
-
-    return node_default()
 
 
 def load_clips(config: Config) -> list[dict[str, Any]]:
@@ -126,7 +122,7 @@ def leave_one_out(clips: list[dict[str, Any]], methods: tuple[str, ...], params:
 def run(config: Config, out: Path, seed: int = 0, progress: bool = True) -> ExperimentOutput:
     params = common.make_params(config.overrides)
     methods = tuple(config.methods)
-    default = default_method()
+    default = registry.default_name()
     if default not in methods:
         methods = (*methods, default)
     clips = load_clips(config)
@@ -147,8 +143,12 @@ def run(config: Config, out: Path, seed: int = 0, progress: bool = True) -> Expe
                             md, figs)
 
 
+def _name(m: str) -> str:
+    return KNN_LABEL if m == KNN else common.label(m)
+
+
 def _label(m: str, default: str) -> str:
-    return LABELS.get(m, m) + (" (node default)" if m == default else "")
+    return _name(m) + (" (node default)" if m == default else "")
 
 
 def _horizon_tables(pooled: dict[str, dict[str, Any]], names: tuple[str, ...], horizon: int, default: str
@@ -228,7 +228,7 @@ def _plot_horizons(r: dict[str, Any], methods: tuple[str, ...], out: Path) -> st
             ax = axes[row][col]
             for m in names:
                 vals = np.array([np.nan if v is None else v for v in pooled[m][metric]])
-                ax.plot(np.arange(1, len(vals) + 1) * 100, vals, marker="o", ms=3, label=LABELS.get(m, m),
+                ax.plot(np.arange(1, len(vals) + 1) * 100, vals, marker="o", ms=3, label=_name(m),
                         ls="--" if m in ("hold", KNN) else "-")
             ax.grid(alpha=0.3)
             if row == 0:
@@ -250,7 +250,7 @@ def _plot_clips(r: dict[str, Any], clips: list[dict[str, Any]], methods: tuple[s
     width = 0.8 / len(methods)
     for i, m in enumerate(methods):
         vals = [np.nan if per[n][m]["mae"][-1] is None else per[n][m]["mae"][-1] for n in names]
-        ax.bar(np.arange(len(names)) + (i - (len(methods) - 1) / 2) * width, vals, width, label=LABELS.get(m, m))
+        ax.bar(np.arange(len(names)) + (i - (len(methods) - 1) / 2) * width, vals, width, label=_name(m))
     ax.set_xticks(np.arange(len(names)), names, rotation=30, ha="right", fontsize=8)
     ax.set_ylabel(f"MAE at {100 * horizon} ms (rad)")
     ax.set_title("one pass from scratch, per clip")
