@@ -1,9 +1,11 @@
 """`gwr-predictor evaluate FILE...`: online evaluation of recordings, hierarchy against baselines.
 
-Files are skeleton recordings (NPZ/CSV, 30 fps: median of 3 -> 10 fps -> angles) or angle CSVs
-(10 fps). All methods learn online on the recordings in the given order (optionally several
-passes) and are scored on the same frames; the table goes to stdout and its numbers again as one
-JSON object on the last line (keys horizon, mae_rad, frames, neurons, ...), for scripts.
+Files are skeleton recordings (NPZ/CSV, 30 fps: median of 3 -> 10 fps -> angles), mocap
+recordings (.bvh, .amc, .npy/.npz joint positions, .pt: mapped and resampled to the same 30 fps
+stream, see `data.mocap`) or angle CSVs (10 fps). All methods learn online on the recordings in
+the given order (optionally several passes) and are scored on the same frames; the table goes to
+stdout and its numbers again as one JSON object on the last line (keys horizon, mae_rad, frames,
+neurons, default_method: the key of the learner node's default predictor, always evaluated).
 """
 
 from __future__ import annotations
