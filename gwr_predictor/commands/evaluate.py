@@ -19,7 +19,7 @@ import numpy as np
 
 from gwr_predictor.commands.experiment import parse_overrides
 from gwr_predictor.commands.import_options import add_import_options, import_options
-from gwr_predictor.data.mocap import ImportOptions, is_mocap_file, load_any_skeleton, skeleton_angles
+from gwr_predictor.data.mocap import ImportOptions, load_any_skeleton
 from gwr_predictor.errors import GwrPredictorError
 from gwr_predictor.evaluation.experiments import common
 from gwr_predictor.evaluation.experiments.output import markdown_table, to_jsonable
@@ -61,9 +61,6 @@ def load_recording(path: Path, options: ImportOptions | None = None) -> np.ndarr
     from gwr_predictor.data.angle_files import AngleFileError, load_angles_csv
     from gwr_predictor.data.skeleton_files import SkeletonFileError
 
-    if is_mocap_file(path):
-        return skeleton_angles(load_any_skeleton(path, options))
-
     angle_error = None
     if path.suffix.lower() == ".csv":
         try:
@@ -80,7 +77,9 @@ def load_recording(path: Path, options: ImportOptions | None = None) -> np.ndarr
     except SkeletonFileError as exc:
         raise RecordingError(f"{path}: not an angle CSV ({angle_error}) nor a skeleton file ({exc})"
                              if angle_error else str(exc)) from exc
-    return skeleton_angles(seq)
+    from gwr_predictor.data.extraction import extract_angles
+
+    return extract_angles(seq.positions, seq.timestamps, seq.joint_names).angles
 
 
 def run(args: argparse.Namespace) -> int:

@@ -205,15 +205,6 @@ def load_any_skeleton(path: str | Path, options: ImportOptions | None = None) ->
     return load_skeleton(path)
 
 
-def skeleton_angles(seq: SkeletonSequence, clip: bool = True) -> np.ndarray:
-    """The learner's input: median of 3 (30 -> 10 fps), then the 8 Nao arm angles (T, 8)."""
-    from gwr_predictor.data.angles import skeleton_to_angles
-    from gwr_predictor.data.smoothing import median_of_3
-
-    positions, _ = median_of_3(seq.positions, seq.timestamps)
-    return skeleton_to_angles(positions, seq.joint_names, clip=clip)
-
-
 # --- onto the skeleton stream ------------------------------------------------------------------
 
 def clip_to_skeleton(clip: MocapClip, options: ImportOptions | None = None,

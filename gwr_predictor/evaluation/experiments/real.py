@@ -49,7 +49,8 @@ FULL = Config()
 def load_clips(config: Config) -> list[dict[str, Any]]:
     """Each clip as {name, group, description, angles (T, 8) at 10 fps, raw (unclipped), seconds, ...}."""
     from gwr_predictor.data.angles import clip_fractions
-    from gwr_predictor.data.mocap import load_any_skeleton, skeleton_angles
+    from gwr_predictor.data.extraction import extract_angles
+    from gwr_predictor.data.mocap import load_any_skeleton
     from gwr_predictor.data.real_motion import fetch_clips
     from gwr_predictor.robot.nao import clip_to_limits
 
@@ -60,7 +61,7 @@ def load_clips(config: Config) -> list[dict[str, Any]]:
         if config.max_seconds > 0:
             keep = seq.timestamps - seq.timestamps[0] <= config.max_seconds
             seq.positions, seq.timestamps = seq.positions[keep], seq.timestamps[keep]
-        raw = skeleton_angles(seq, clip=False)
+        raw = extract_angles(seq.positions, seq.timestamps, seq.joint_names).raw
         clipped = clip_fractions(raw)
         out.append({"name": clip.name, "group": clip.group, "description": clip.description,
                     "package": clip.package, "joint_map": seq.metadata.get("joint_map", ""),
