@@ -68,6 +68,17 @@ def names() -> tuple[str, ...]:
 predictor_names = names  # the name exported at the package's top level
 
 
+#: What the gwr_hierarchy node, pretrain and demo.sh run unless told otherwise (`-p predictor:=...`):
+#: the gated local-linear P-GWR (registered below); `evaluate` and `experiment real` always score it
+#: and name it (`default_method`).
+DEFAULT_PREDICTOR = "gated_llm_gwr"
+
+
+def default_name() -> str:
+    """The learner node's default predictor (one of `learner_names()`)."""
+    return DEFAULT_PREDICTOR
+
+
 def learner_names() -> tuple[str, ...]:
     """The names that can be saved and loaded: what the learner node and `pretrain` accept."""
     return tuple(n for n, e in _REGISTRY.items() if e.loader is not None)
@@ -149,10 +160,6 @@ for _name, _label in (("blend_hierarchy_rls", "blend hierarchy + RLS-AR"),
 
 
 # --- the default predictor (beyond the paper) and its ablation variants ------------------------------
-#: What the gwr_hierarchy node, pretrain, demo.sh and evaluate's `default_method` run unless told otherwise.
-DEFAULT_PREDICTOR = "gated_llm_gwr"
-
-
 def _local_linear_params(params: Any, **changes: Any) -> Any:
     """The default's own settings (`LocalLinearParams()`); only horizon and joints come from `params`."""
     from gwr_predictor.learning.local_linear import LocalLinearParams
