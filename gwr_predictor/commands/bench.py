@@ -11,7 +11,7 @@ Prints readable lines, then one JSON object as the last line:
                     products (timed alone on the same networks; 6 per layer in recursive mode, see
                     `products_per_frame`); the rest is numpy call overhead, learning updates, copies
   frames_per_s_default  the same for the node's default predictor (gated local-linear P-GWR, grown
-                    on the stream to its own size; `_default_fine`: a finer insertion threshold)
+                    on the stream to the size the data asks for, `neurons_default`)
   peak_rss_mb       peak resident memory with the benchmark models (before the loop/BMU probes)
   bmu_overhead_us / bmu_ns_per_value  fit of one BMU search time = overhead + n * dim * cost,
                     to tell call overhead from memory bandwidth
@@ -86,15 +86,12 @@ def measure_throughput(h: Hierarchy, stream: np.ndarray, chunk: int = 1000) -> t
     return float(np.median(rates)), float(np.max(rates))
 
 
-def measure_default(stream: np.ndarray, frames: int, chunk: int, insertion_scale: float | None
-                    ) -> tuple[float, float, int]:
+def measure_default(stream: np.ndarray, frames: int, chunk: int) -> tuple[float, float, int]:
     """(median, best) frames/s of the default predictor (gate + local-linear P-GWR) and its neurons,
     after learning the rest of `stream` first (it grows to the size the data asks for)."""
-    from gwr_predictor.learning.local_linear import LocalLinearParams
     from gwr_predictor.predictors.gate import make_gated_llm
 
-    lp = LocalLinearParams() if insertion_scale is None else LocalLinearParams(insertion_scale=insertion_scale)
-    model = make_gated_llm(params=lp)
+    model = make_gated_llm()
     for x in stream[frames:]:
         model.step(x)
     fps, best = measure_throughput(model, stream[:frames], chunk)  # type: ignore[arg-type]
@@ -215,12 +212,10 @@ def run(args: argparse.Namespace) -> int:
                          f"{1e6 / fps:.0f} us, of which {search:.0f} us in {sum(counts)} BMU products "
                          f"{counts}, {1e6 / fps - search:.0f} us the rest")
     result["frames_per_s"] = result[f"frames_per_s_{HierarchyParams().mode}"]
-    for label, scale in (("default", None), ("default_fine", 0.25)):
-        fps, best, neurons = measure_default(stream, frames, chunk, scale)
-        result[f"frames_per_s_{label}"], result[f"neurons_{label}"] = round(fps, 1), neurons
-        _log(args.quiet, f"{label:9s}: {fps:9.0f} frames/s learn+predict, gated_llm_gwr (the node's default) "
-                         f"{'with its defaults' if scale is None else f'with insertion_scale {scale}'}, "
-                         f"{neurons} P-GWR neurons after the warm-up (best {best:.0f})")
+    fps, best, neurons = measure_default(stream, frames, chunk)
+    result["frames_per_s_default"], result["neurons_default"] = round(fps, 1), neurons
+    _log(args.quiet, f"default  : {fps:9.0f} frames/s learn+predict, gated_llm_gwr (the node's default), "
+                     f"{neurons} P-GWR neurons after the warm-up (best {best:.0f})")
 
     mode = HierarchyParams().mode
     params = bench_params(size, pgwr_size, mode, args.input_scale)
