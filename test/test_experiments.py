@@ -181,7 +181,7 @@ def test_experiment_real(tmp_path, monkeypatch):
         assert len({v["scored_frames"] for v in per.values()}) == 1  # every method on the same frames
     loo = r["leave_one_take_out"]
     assert sorted(loo["per_take"]) == ["climb_0", "climb_1", "climb_4"]
-    assert set(loo["pooled"]) == {*cfg["methods"], "knn"}
+    assert set(loo["pooled"]) == {*cfg["methods"], r["default_method"], "knn"}  # the default is always scored
     # the takes are the same motion: the other takes hold this one's future (2 of the 5 neighbours are
     # exact copies), so k-NN beats holding by far
     assert loo["pooled"]["knn"]["mae"][-1] < 0.5 * loo["pooled"]["hold"]["mae"][-1]
