@@ -8,6 +8,8 @@ stamp (its middle frame), so downstream timing refers to when the person was in 
 
 from __future__ import annotations
 
+from collections import OrderedDict
+
 import numpy as np
 
 from gwr_predictor.data.angles import skeleton_to_angles
@@ -19,6 +21,9 @@ from gwr_predictor.robot.nao import ARM_JOINTS, clip_to_limits
 
 from . import messages
 from .node_base import Param, PipelineNode, run_node, stream_qos
+
+#: Joint-name orders whose index maps are kept (least recently used dropped): trackers use one or two.
+ORDER_CACHE_SIZE = 16
 
 PARAMS = (
     Param("max_gap_s", conventions.MAX_GAP_S,
@@ -34,8 +39,8 @@ class AngleExtractorNode(PipelineNode):
     def __init__(self) -> None:
         super().__init__(self.NODE_NAME, PARAMS)
         self.smoother = MedianOf3()
-        self.last_stamp: float | None = None
-        self._order: dict[tuple[str, ...], tuple[np.ndarray, np.ndarray, int]] = {}
+        self.stamps = self.stamp_check()
+        self._order: OrderedDict[tuple[str, ...], tuple[np.ndarray, np.ndarray, int]] = OrderedDict()
         self.angles_pub = self.create_publisher(messages.JointState, conventions.TOPIC_ANGLES, stream_qos())
         reliable = self.params["input_reliability"] == "reliable"
         self.create_subscription(messages.Float64MultiArray, conventions.TOPIC_SKELETON, self.on_skeleton,
@@ -47,10 +52,12 @@ class AngleExtractorNode(PipelineNode):
         if frame is None:
             return
         stamp, positions = frame
-        if self.last_stamp is not None and stamp - self.last_stamp > self.params["max_gap_s"]:
-            self.smoother.reset()
+        previous = self.last_stamp
+        if not self.check_stamp(self.stamps, "skeleton", stamp):
+            return
+        if previous is not None and not 0.0 < stamp - previous <= self.params["max_gap_s"]:
+            self.smoother.reset()  # a gap, or a new sequence after stamps went back
             self.counters.count("sequence_gaps")
-        self.last_stamp = stamp
         self.counters.count("skeleton.accepted")
         smoothed = self.smoother.push(stamp, positions)
         if smoothed is not None:
@@ -63,9 +70,6 @@ class AngleExtractorNode(PipelineNode):
         except LayoutError as exc:
             self.counters.reject("skeleton.layout", str(exc))
             return None
-        if not np.isfinite(stamp) or stamp <= 0.0 or (self.last_stamp is not None and stamp <= self.last_stamp):
-            self.counters.reject("skeleton.stamp", f"stamp {stamp} not after the previous {self.last_stamp}")
-            return None
         if np.any(np.isinf(positions)):
             self.counters.reject("skeleton.non_finite", "infinite coordinates (NaN marks an untracked joint)")
             return None
@@ -75,11 +79,20 @@ class AngleExtractorNode(PipelineNode):
             return None
         return stamp, self.reordered(names, positions)
 
+    @property
+    def last_stamp(self) -> float | None:
+        return self.stamps.last
+
     def reordered(self, names: tuple[str, ...], positions: np.ndarray) -> np.ndarray:
         """Positions in SKELETON_JOINTS order: unknown joints dropped, missing ones NaN (both counted)."""
         if names == SKELETON_JOINTS:
             return positions
-        if names not in self._order:
+        if names in self._order:
+            self._order.move_to_end(names)
+        else:
+            if len(self._order) >= ORDER_CACHE_SIZE:  # a stream of ever new name lists must not grow memory
+                self._order.popitem(last=False)
+                self.counters.count("skeleton.name_cache_evictions")
             index = {n: i for i, n in enumerate(names)}
             dst = np.array([k for k, n in enumerate(SKELETON_JOINTS) if n in index], dtype=int)
             src = np.array([index[SKELETON_JOINTS[k]] for k in dst], dtype=int)

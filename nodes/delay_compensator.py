@@ -36,11 +36,12 @@ class DelayCompensatorNode(PipelineNode):
         p = self.params
         self.compensator = compensator.DelayCompensator(p["mode"], p["delay_s"], p["frame_period_s"],
                                                         p["stale_after_s"])
-        self.observations = ArmAnglesGate(self.counters, "arm_angles")
+        self.observations = ArmAnglesGate(self.counters, "arm_angles", node=self)
         self.robot_states = ArmAnglesGate(self.counters, "joint_states", check_stamps=False)
         self.observation: np.ndarray | None = None
         self.predictions: np.ndarray | None = None
         self.pred_stamp: float | None = None
+        self.pred_stamps = self.stamp_check()
         self.robot_state: np.ndarray | None = None
         self.robot_state_time = -np.inf
         self.obs_stamp: float | None = None
@@ -79,8 +80,7 @@ class DelayCompensatorNode(PipelineNode):
         if not np.all(np.isfinite(preds)):
             self.counters.reject("predictions.non_finite", "NaN or inf in the predictions")
             return
-        if self.pred_stamp is not None and stamp <= self.pred_stamp:
-            self.counters.reject("predictions.stamp", f"stamp {stamp:.3f} not after {self.pred_stamp:.3f}")
+        if not self.check_stamp(self.pred_stamps, "predictions", stamp):
             return
         self.predictions, self.pred_stamp = preds, stamp
         self.counters.count("predictions.received")

@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from gwr_predictor.learning.checkpoint import CheckpointError, KindMismatchError
+from gwr_predictor.learning.checkpoint import CheckpointError, KindMismatchError, prepare_checkpoint_place
 from gwr_predictor.learning.hierarchy import Hierarchy
 from gwr_predictor.learning.params import HierarchyParams, hierarchy_parameter_specs
 from gwr_predictor.pipeline import conventions
@@ -65,16 +65,23 @@ class GwrHierarchyNode(PipelineNode):
             params = HierarchyParams.from_flat(flat)
         except ValueError as exc:
             raise ParameterError(str(exc)) from None
+        if params.n_joints != len(ARM_JOINTS):  # the node's input and output are the Nao's arm joints
+            raise ParameterError(f"parameter 'n_joints' = {params.n_joints}: this node learns the "
+                                 f"{len(ARM_JOINTS)} arm joints {', '.join(ARM_JOINTS)}; it must be {len(ARM_JOINTS)}")
         self.checkpoint = Path(p["checkpoint"]) if p["checkpoint"] else None
         if self.checkpoint is not None:
             try:
-                self.checkpoint.parent.mkdir(parents=True, exist_ok=True)
-            except OSError as exc:
-                raise NodeFatalError(f"parameter 'checkpoint': cannot create {self.checkpoint.parent}: {exc}") from None
+                removed = prepare_checkpoint_place(self.checkpoint)
+            except CheckpointError as exc:
+                raise NodeFatalError(f"parameter 'checkpoint': {exc}") from None
+            if removed:
+                self.counters.count("checkpoint.stale_temp_removed", len(removed))
+                self.get_logger().info(f"removed {len(removed)} temporary files of interrupted saves: "
+                                       + ", ".join(str(f) for f in removed))
         self.model = self.load_or_create(params)
         self.gwr = gwr_member(self.model)  # the GWR learner (the model itself, or the blend's GWR member)
         self.horizon = self.model.params.horizon
-        self.gate = ArmAnglesGate(self.counters, "arm_angles")
+        self.gate = ArmAnglesGate(self.counters, "arm_angles", node=self)
         self.step_times: list[float] = []
         self.step_max = 0.0
         self.pred_pub = self.create_publisher(messages.Float64MultiArray, conventions.TOPIC_PREDICTIONS, stream_qos())
@@ -145,7 +152,7 @@ class GwrHierarchyNode(PipelineNode):
 
     def handle_gap(self, dt: float) -> None:
         """Missing frames (dt of several periods) keep the learner's step count in time; a long gap resets."""
-        if dt > self.params["max_gap_s"]:
+        if dt > self.params["max_gap_s"] or dt <= 0.0:  # a long gap, or stamps went back (a new sequence)
             self.model.reset_sequence()
             self.counters.count("sequences.reset_on_gap")
             return
@@ -181,8 +188,10 @@ class GwrHierarchyNode(PipelineNode):
         except (CheckpointError, OSError) as exc:
             self.counters.count("checkpoint.save_failed")
             self.counters.warn_throttled("checkpoint", f"could not save the checkpoint: {exc}")
+            self.error = f"checkpoint save failed: {exc}"
             return False
         self.counters.count("checkpoint.saved")
+        self.error = None
         return True
 
     def on_shutdown(self) -> None:

@@ -57,7 +57,7 @@ class NaoSimNode(PipelineNode):
         except RobotError as exc:
             raise ParameterError(str(exc)) from None
         self.t0 = self.now_s()
-        self.gate = ArmAnglesGate(self.counters, "joint_commands")
+        self.gate = ArmAnglesGate(self.counters, "joint_commands", node=self)
         self.state_pub = self.create_publisher(messages.JointState, conventions.TOPIC_ROBOT_STATE, stream_qos())
         self.create_subscription(messages.JointState, conventions.TOPIC_COMMAND, self.on_command, stream_qos())
         self.create_timer(1.0 / p["state_rate_hz"], self.on_tick)

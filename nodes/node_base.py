@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import math
 import signal
+import sys
 import time
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
@@ -22,7 +23,13 @@ import numpy as np
 import rclpy
 from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.duration import Duration
-from rclpy.exceptions import InvalidParameterTypeException, InvalidParameterValueException
+from rclpy.exceptions import (
+    InvalidNamespaceException,
+    InvalidNodeNameException,
+    InvalidParameterTypeException,
+    InvalidParameterValueException,
+    InvalidTopicNameException,
+)
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
@@ -30,7 +37,7 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPo
 from rclpy.signals import SignalHandlerOptions
 from rclpy.task import Future
 
-from gwr_predictor.pipeline import conventions
+from gwr_predictor.pipeline import conventions, params_file, stamps
 from gwr_predictor.pipeline.conventions import LayoutError
 from gwr_predictor.robot.nao import ARM_JOINTS, limits_array
 
@@ -229,6 +236,8 @@ class RejectionCounter:
 COMMON_PARAMS = (
     Param("diagnostics_period_s", 1.0, "period of the counters on /diagnostics (s)", 0.05, 60.0),
     Param("warn_throttle_s", 5.0, "at most one warning per rejection reason per this many seconds", 0.0, 3600.0),
+    Param("max_stamp_ahead_s", stamps.MAX_STAMP_AHEAD_S, "input stamps further ahead of the node clock (wall or "
+          "sim) are rejected, so that one future stamp cannot block the stamps after it", 0.0, 1e9),
 )
 
 
@@ -238,10 +247,33 @@ class PipelineNode(Node):
     def __init__(self, name: str, specs: Sequence[Any], **kwargs: Any) -> None:
         super().__init__(name, **kwargs)
         self.params = declare_parameters(self, (*COMMON_PARAMS, *specs))
+        for warning in params_file.unknown_parameters(self._parameter_overrides, self._parameters):
+            self.get_logger().warning(warning)  # -p and --params-file keys alike (misspelt, another node's)
         self.counters = RejectionCounter(self.get_logger(), self.params["warn_throttle_s"])
         self.done = Future()
+        #: A condition that makes the node's /diagnostics level ERROR (e.g. a failed checkpoint save).
+        self.error: str | None = None
         self._diag_pub = self.create_publisher(messages.DiagnosticArray, conventions.TOPIC_DIAGNOSTICS, status_qos())
         self._diag_timer = self.create_timer(self.params["diagnostics_period_s"], self.publish_diagnostics)
+
+    def stamp_check(self, monotonic: bool = True) -> stamps.StampCheck:
+        """The stamp rule (gwr_predictor.pipeline.stamps) of one input stream of this node."""
+        return stamps.StampCheck(self.params["max_stamp_ahead_s"], monotonic=monotonic)
+
+    def check_stamp(self, check: stamps.StampCheck, input_name: str, stamp: float) -> bool:
+        """Apply `check` to `stamp` against the node clock: count and warn a rejection, count a restart."""
+        now = self.now_s()
+        verdict = check.check(stamp, now)
+        if verdict == stamps.ACCEPTED:
+            return True
+        if verdict == stamps.RESTARTED:
+            self.counters.count(f"{input_name}.stamp_restarts")
+            self.counters.warn_throttled(f"{input_name}.stamp_restarts", f"{input_name}: stamps went back "
+                                         f"{check.restart_after} times in a row; new sequence from {stamp:.3f}")
+            return True
+        reason = "stamp_ahead" if verdict == stamps.AHEAD else "stamp"
+        self.counters.reject(f"{input_name}.{reason}", check.describe(verdict, stamp, now))
+        return False
 
     def now_s(self) -> float:
         """The node clock in seconds (the stamp source of every message the pipeline creates)."""
@@ -254,8 +286,10 @@ class PipelineNode(Node):
     def publish_diagnostics(self) -> None:
         rejected = self.counters.rejected
         level = messages.WARN if rejected else messages.OK
-        status = messages.diagnostic_status(self.get_fully_qualified_name(), self.diagnostic_values(),
-                                            f"{rejected} inputs rejected" if rejected else "ok", level)
+        text = f"{rejected} inputs rejected" if rejected else "ok"
+        if self.error is not None:
+            level, text = messages.ERROR, self.error
+        status = messages.diagnostic_status(self.get_fully_qualified_name(), self.diagnostic_values(), text, level)
         self._diag_pub.publish(messages.diagnostic_array(self.now_s(), [status]))
 
     def publish_final_diagnostics(self, timeout_s: float = 1.0) -> None:
@@ -289,9 +323,18 @@ class _StopSignals:
 
 def run_node(node_cls: type[PipelineNode], args: list[str] | None = None) -> int:
     """init, build, spin until done / Ctrl-C / SIGTERM, final hook, destroy, shutdown; returns the exit code."""
-    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
-    stop = _StopSignals()
     logger = rclpy.logging.get_logger(getattr(node_cls, "NODE_NAME", node_cls.__name__))
+    argv = sys.argv if args is None else args
+    try:
+        params_file.check_params_files(argv)
+        rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
+    except params_file.ParamsFileError as exc:
+        logger.error(f"bad parameter: {exc}")
+        return EXIT_BAD_PARAMETER
+    except RuntimeError as exc:  # rcl's RCLError: a remap rule or argument it cannot parse
+        logger.error(f"bad ROS arguments: {str(exc).split(', at ')[0]}")
+        return EXIT_BAD_PARAMETER
+    stop = _StopSignals()
     node: PipelineNode | None = None
     code = EXIT_OK
     try:
@@ -309,6 +352,9 @@ def run_node(node_cls: type[PipelineNode], args: list[str] | None = None) -> int
             code = int(node.done.result())
     except ParameterError as exc:
         logger.error(f"bad parameter: {exc}")
+        code = EXIT_BAD_PARAMETER
+    except (InvalidTopicNameException, InvalidNamespaceException, InvalidNodeNameException) as exc:
+        logger.error(f"bad name: {exc}")
         code = EXIT_BAD_PARAMETER
     except NodeFatalError as exc:
         logger.error(f"stopping: {exc}")
@@ -342,20 +388,23 @@ class ArmAnglesGate:
     - names and positions of different lengths, or a name twice: `layout`;
     - any of `names` missing: `missing_joints` (extra joints are ignored; order does not matter);
     - NaN or inf among the wanted positions: `non_finite`;
-    - a stamp of 0 or one not after the previous accepted stamp (repeat, jump back): `stamp`;
+    - a stamp of 0 or one not after the previous accepted stamp (repeat, jump back): `stamp`; one
+      more than `max_stamp_ahead_s` ahead of the node clock: `stamp_ahead`; a run of back-jumps
+      starts a new sequence (`<input>.stamp_restarts`), see gwr_predictor.pipeline.stamps;
     - angles beyond the joint limits by more than `limit_margin` rad: `out_of_limits`; closer
       ones are clipped to the limits and counted as `<input>.clipped` (a repair, not a rejection).
     """
 
     def __init__(self, counters: RejectionCounter, input_name: str, names: tuple[str, ...] = ARM_JOINTS,
-                 limit_margin: float = 0.2, check_stamps: bool = True) -> None:
+                 limit_margin: float = 0.2, check_stamps: bool = True, node: PipelineNode | None = None) -> None:
         self._counters = counters
+        self._node = node
+        self._stamps = node.stamp_check() if node is not None else stamps.StampCheck()
         self._input = input_name
         self._names = names
         self._lo, self._hi = limits_array(names)
         self._margin = limit_margin
         self._check_stamps = check_stamps
-        self.last_stamp: float | None = None
 
     def _reject(self, reason: str, detail: str) -> None:
         self._counters.reject(f"{self._input}.{reason}", detail)
@@ -370,15 +419,24 @@ class ArmAnglesGate:
         if not np.all(np.isfinite(angles)):
             self._reject("non_finite", f"non-finite angles {np.round(angles, 3).tolist()}")
             return None
-        if self._check_stamps:
-            if stamp <= 0.0 or (self.last_stamp is not None and stamp <= self.last_stamp):
-                self._reject("stamp", f"stamp {stamp:.3f} not after the previous {self.last_stamp}")
-                return None
         if np.any(angles < self._lo - self._margin) or np.any(angles > self._hi + self._margin):
             self._reject("out_of_limits", f"angles beyond the joint limits by more than {self._margin} rad")
             return None
+        if self._check_stamps:
+            if self._node is not None:
+                if not self._node.check_stamp(self._stamps, self._input, stamp):
+                    return None
+            else:
+                verdict = self._stamps.check(stamp)
+                if verdict not in (stamps.ACCEPTED, stamps.RESTARTED):
+                    self._reject("stamp", self._stamps.describe(verdict, stamp, None))
+                    return None
         clipped = np.clip(angles, self._lo, self._hi)
         if np.any(clipped != angles):
             self._counters.count(f"{self._input}.clipped")
-        self.last_stamp = stamp
         return stamp, clipped
+
+    @property
+    def last_stamp(self) -> float | None:
+        """The stamp of the last accepted message (None before any, or for unchecked streams)."""
+        return self._stamps.last
