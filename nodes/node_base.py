@@ -12,7 +12,9 @@
 from __future__ import annotations
 
 import math
+import os
 import signal
+import socket
 import sys
 import time
 from collections.abc import Iterable, Sequence
@@ -253,6 +255,8 @@ class PipelineNode(Node):
         self.done = Future()
         #: A condition that makes the node's /diagnostics level ERROR (e.g. a failed checkpoint save).
         self.error: str | None = None
+        #: Tells this process's statuses from those of a restarted or second instance (hardware_id).
+        self.instance_id = f"{socket.gethostname()}:{os.getpid()}:{time.time_ns()}"
         self._diag_pub = self.create_publisher(messages.DiagnosticArray, conventions.TOPIC_DIAGNOSTICS, status_qos())
         self._diag_timer = self.create_timer(self.params["diagnostics_period_s"], self.publish_diagnostics)
 
@@ -289,7 +293,8 @@ class PipelineNode(Node):
         text = f"{rejected} inputs rejected" if rejected else "ok"
         if self.error is not None:
             level, text = messages.ERROR, self.error
-        status = messages.diagnostic_status(self.get_fully_qualified_name(), self.diagnostic_values(), text, level)
+        status = messages.diagnostic_status(self.get_fully_qualified_name(), self.diagnostic_values(), text, level,
+                                            hardware_id=self.instance_id)
         self._diag_pub.publish(messages.diagnostic_array(self.now_s(), [status]))
 
     def publish_final_diagnostics(self, timeout_s: float = 1.0) -> None:

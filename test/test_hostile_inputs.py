@@ -11,14 +11,13 @@ import time
 
 import numpy as np
 import pytest
+from test_node_bad_input import FAST, POSE, joint_state, skeleton, wait_counters
 
 from gwr_predictor.data.demonstrator import default_subjects, demonstrate_one
 from gwr_predictor.learning.hierarchy import Hierarchy
 from gwr_predictor.learning.params import HierarchyParams
 from gwr_predictor.nodes import messages
 from gwr_predictor.nodes.messages import DiagnosticArray, Float64MultiArray, JointState
-
-from test_node_bad_input import FAST, POSE, joint_state, skeleton, wait_counters
 
 POISON_S = 1e6  # the "now + 1e6 s"
 
