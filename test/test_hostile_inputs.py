@@ -183,3 +183,29 @@ def test_bad_start_up_arguments_exit_2_with_a_message_and_unknown_names_are_warn
     assert "'delay_sec' is not a parameter of this node" in out and "'delay_s'" in out
     code, _ = comp.stop()
     assert code == 0
+
+
+@pytest.mark.ros
+def test_the_joint_name_cache_of_angle_extractor_is_bounded():
+    """A stream of ever new joint-name lists (in-process: the node's own method) keeps memory flat."""
+    import rclpy
+
+    from gwr_predictor.nodes.angle_extractor import ORDER_CACHE_SIZE, AngleExtractorNode
+    from gwr_predictor.pipeline.conventions import SKELETON_JOINTS
+    from ros_harness import allocate_domain_id, release_domain_id
+
+    domain = allocate_domain_id()
+    rclpy.init(args=["--ros-args"], domain_id=domain)
+    try:
+        node = AngleExtractorNode()
+        positions = np.zeros((len(SKELETON_JOINTS) + 1, 3))
+        for k in range(500):
+            names = (*SKELETON_JOINTS, f"extra_{k}")
+            out = node.reordered(names, positions)
+            assert out.shape == (len(SKELETON_JOINTS), 3)
+        assert len(node._order) <= ORDER_CACHE_SIZE
+        assert node.counters.get("skeleton.name_cache_evictions") == 500 - ORDER_CACHE_SIZE
+        node.destroy_node()
+    finally:
+        rclpy.try_shutdown()
+        release_domain_id(domain)
