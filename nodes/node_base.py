@@ -238,6 +238,8 @@ class RejectionCounter:
 COMMON_PARAMS = (
     Param("diagnostics_period_s", 1.0, "period of the counters on /diagnostics (s)", 0.05, 60.0),
     Param("warn_throttle_s", 5.0, "at most one warning per rejection reason per this many seconds", 0.0, 3600.0),
+    Param("stop_if_duplicate", True, "stop (exit 1) if another live node of this name and namespace runs on "
+          "this ROS_DOMAIN_ID and started earlier: two pipelines on one domain mix their streams"),
     Param("max_stamp_ahead_s", stamps.MAX_STAMP_AHEAD_S, "input stamps further ahead of the node clock (wall or "
           "sim) are rejected, so that one future stamp cannot block the stamps after it", 0.0, 1e9),
 )
@@ -256,9 +258,13 @@ class PipelineNode(Node):
         #: A condition that makes the node's /diagnostics level ERROR (e.g. a failed checkpoint save).
         self.error: str | None = None
         #: Tells this process's statuses from those of a restarted or second instance (hardware_id).
-        self.instance_id = f"{socket.gethostname()}:{os.getpid()}:{time.time_ns()}"
+        self.started_ns = time.time_ns()
+        self.instance_id = f"{socket.gethostname()}:{os.getpid()}:{self.started_ns}"
         self._diag_pub = self.create_publisher(messages.DiagnosticArray, conventions.TOPIC_DIAGNOSTICS, status_qos())
         self._diag_timer = self.create_timer(self.params["diagnostics_period_s"], self.publish_diagnostics)
+        if self.params["stop_if_duplicate"]:
+            self.create_subscription(messages.DiagnosticArray, conventions.TOPIC_DIAGNOSTICS,
+                                     self._check_duplicate, status_qos())
 
     def stamp_check(self, monotonic: bool = True) -> stamps.StampCheck:
         """The stamp rule (gwr_predictor.pipeline.stamps) of one input stream of this node."""
@@ -278,6 +284,26 @@ class PipelineNode(Node):
         reason = "stamp_ahead" if verdict == stamps.AHEAD else "stamp"
         self.counters.reject(f"{input_name}.{reason}", check.describe(verdict, stamp, now))
         return False
+
+    def _check_duplicate(self, msg: messages.DiagnosticArray) -> None:
+        """Another process with this node's name publishes counters: if it is also in the ROS graph
+        (a bag replaying old /diagnostics is not) and started first, this one stops."""
+        me = self.get_fully_qualified_name()
+        for status in msg.status:
+            if status.name != me or not status.hardware_id or status.hardware_id == self.instance_id:
+                continue
+            other = duplicate_started_ns(status.hardware_id)
+            if other is None or (other, status.hardware_id) > (self.started_ns, self.instance_id):
+                continue  # the other one is the newcomer: it stops
+            same = [n for n, ns in self.get_node_names_and_namespaces() if (ns.rstrip("/") + "/" + n) == me]
+            if len(same) < 2:
+                continue
+            self.error = (f"another {me} (instance {status.hardware_id}) runs on ROS_DOMAIN_ID="
+                          f"{os.environ.get('ROS_DOMAIN_ID', '0')}: two pipelines on one domain mix their "
+                          "streams; stopping this one (set ROS_DOMAIN_ID to a free domain)")
+            self.get_logger().error(self.error)
+            self.finish(EXIT_FATAL)
+            return
 
     def now_s(self) -> float:
         """The node clock in seconds (the stamp source of every message the pipeline creates)."""
@@ -311,6 +337,14 @@ class PipelineNode(Node):
 
     def on_shutdown(self) -> None:
         """Final hook, run once after spinning stops for any reason (the context may be shut down)."""
+
+
+def duplicate_started_ns(instance_id: str) -> int | None:
+    """The start time (ns) in an instance id `host:pid:start_ns`, None if it has another form."""
+    try:
+        return int(instance_id.rsplit(":", 1)[1])
+    except (IndexError, ValueError):
+        return None
 
 
 class _StopSignals:

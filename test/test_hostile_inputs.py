@@ -209,3 +209,19 @@ def test_the_joint_name_cache_of_angle_extractor_is_bounded():
     finally:
         rclpy.try_shutdown()
         release_domain_id(domain)
+
+
+@pytest.mark.ros
+def test_a_second_pipeline_on_the_same_domain_is_detected_and_stops(ros):
+    diagnostics = ros.probe.subscribe_diagnostics()
+    first = ros.start("angle_extractor", label="first", params=FAST)
+    ros.wait_for_node(diagnostics, "/angle_extractor", timeout=60)
+    second = ros.start("angle_extractor", label="second", params=FAST)
+    code = second.wait(30)
+    assert code == 1, second.output()
+    assert "another /angle_extractor" in second.output() and "ROS_DOMAIN_ID" in second.output()
+    ros.probe.spin_for(1.5)
+    assert first.running(), first.output()  # the one that was there first goes on
+    assert "another" not in first.output()
+    code, _ = first.stop()
+    assert code == 0
