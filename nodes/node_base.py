@@ -48,6 +48,8 @@ from . import messages
 EXIT_OK = 0
 EXIT_FATAL = 1
 EXIT_BAD_PARAMETER = 2
+#: /diagnostics value naming the node process (host:pid:start ns): restarts and duplicates show.
+INSTANCE_KEY = conventions.INSTANCE_KEY
 
 
 class ParameterError(Exception):
@@ -257,13 +259,14 @@ class PipelineNode(Node):
         self.done = Future()
         #: A condition that makes the node's /diagnostics level ERROR (e.g. a failed checkpoint save).
         self.error: str | None = None
-        #: Tells this process's statuses from those of a restarted or second instance (hardware_id).
+        #: Tells this process's statuses from those of a restarted or second instance (value `instance`).
         self.started_ns = time.time_ns()
         self.instance_id = f"{socket.gethostname()}:{os.getpid()}:{self.started_ns}"
-        self._diag_pub = self.create_publisher(messages.DiagnosticArray, conventions.TOPIC_DIAGNOSTICS, status_qos())
+        # absolute: diagnostic_aggregator listens on /diagnostics whatever the node's namespace
+        self._diag_pub = self.create_publisher(messages.DiagnosticArray, conventions.DIAGNOSTICS_TOPIC, status_qos())
         self._diag_timer = self.create_timer(self.params["diagnostics_period_s"], self.publish_diagnostics)
         if self.params["stop_if_duplicate"]:
-            self.create_subscription(messages.DiagnosticArray, conventions.TOPIC_DIAGNOSTICS,
+            self.create_subscription(messages.DiagnosticArray, conventions.DIAGNOSTICS_TOPIC,
                                      self._check_duplicate, status_qos())
 
     def stamp_check(self, monotonic: bool = True) -> stamps.StampCheck:
@@ -290,15 +293,18 @@ class PipelineNode(Node):
         (a bag replaying old /diagnostics is not) and started first, this one stops."""
         me = self.get_fully_qualified_name()
         for status in msg.status:
-            if status.name != me or not status.hardware_id or status.hardware_id == self.instance_id:
+            if status.name != me:
                 continue
-            other = duplicate_started_ns(status.hardware_id)
-            if other is None or (other, status.hardware_id) > (self.started_ns, self.instance_id):
+            instance = next((kv.value for kv in status.values if kv.key == INSTANCE_KEY), "")
+            if not instance or instance == self.instance_id:
+                continue
+            other = duplicate_started_ns(instance)
+            if other is None or (other, instance) > (self.started_ns, self.instance_id):
                 continue  # the other one is the newcomer: it stops
             same = [n for n, ns in self.get_node_names_and_namespaces() if (ns.rstrip("/") + "/" + n) == me]
             if len(same) < 2:
                 continue
-            self.error = (f"another {me} (instance {status.hardware_id}) runs on ROS_DOMAIN_ID="
+            self.error = (f"another {me} (instance {instance}) runs on ROS_DOMAIN_ID="
                           f"{os.environ.get('ROS_DOMAIN_ID', '0')}: two pipelines on one domain mix their "
                           "streams; stopping this one (set ROS_DOMAIN_ID to a free domain)")
             self.get_logger().error(self.error)
@@ -313,14 +319,19 @@ class PipelineNode(Node):
         """Counters plus anything a node adds by overriding this."""
         return dict(self.counters.snapshot())
 
+    def hardware_id(self) -> str:
+        """What the status is about, for diagnostic tools: the machine the node runs on (nodes that
+        stand for a device, like the simulated robot, say so)."""
+        return socket.gethostname()
+
     def publish_diagnostics(self) -> None:
         rejected = self.counters.rejected
         level = messages.WARN if rejected else messages.OK
         text = f"{rejected} inputs rejected" if rejected else "ok"
         if self.error is not None:
             level, text = messages.ERROR, self.error
-        status = messages.diagnostic_status(self.get_fully_qualified_name(), self.diagnostic_values(), text, level,
-                                            hardware_id=self.instance_id)
+        values = {**self.diagnostic_values(), INSTANCE_KEY: self.instance_id}
+        status = messages.diagnostic_status(self.get_fully_qualified_name(), values, text, level, self.hardware_id())
         self._diag_pub.publish(messages.diagnostic_array(self.now_s(), [status]))
 
     def publish_final_diagnostics(self, timeout_s: float = 1.0) -> None:

@@ -29,7 +29,6 @@ from gwr_predictor.learning.checkpoint import CheckpointError, read_checkpoint
 from gwr_predictor.nodes import messages
 from gwr_predictor.nodes.messages import Float64MultiArray, JointState, MultiArrayDimension
 from gwr_predictor.pipeline import stamps
-from gwr_predictor.pipeline.conventions import SKELETON_JOINTS
 from gwr_predictor.pipeline.params_file import ParamsFileError, load_params_file
 from gwr_predictor.robot.nao import ARM_JOINTS
 

@@ -22,8 +22,9 @@ GARBAGE = b"\x00\x01\x00\x00\xff\xff\xff\x7fnot a JointState"
 
 
 def diagnostics_msg(stamp: float, name: str, values: dict[str, int], instance: str = ""):
+    values = {**values, "instance": instance} if instance else values
     status = T["diagnostic_msgs/msg/DiagnosticStatus"](
-        level=0, name=name, message="", hardware_id=instance,
+        level=0, name=name, message="", hardware_id="host",
         values=[T["diagnostic_msgs/msg/KeyValue"](key=k, value=str(v)) for k, v in values.items()])
     header = T["std_msgs/msg/Header"](stamp=bags._stamp(stamp), frame_id="")
     return T[DIAGNOSTICS](header=header, status=[status])
@@ -86,7 +87,8 @@ def restart_bag(path, concurrent: bool):
     rows = []
     first, second = (0.0, 5.0) if not concurrent else (0.0, 0.5)
     for base, inst in ((first, "a"), (second, "b")):
-        rows.append((10.0 + base, "/diagnostics", diagnostics_msg(0, "/angle_extractor", {"angles.published": 0}, inst)))
+        rows.append((10.0 + base, "/diagnostics",
+                     diagnostics_msg(0, "/angle_extractor", {"angles.published": 0}, inst)))
         for k in range(10):
             t = 10.2 + base + 0.1 * k
             rows.append((t, "/arm_angles", bags.joint_state_msg(ARM_JOINTS, np.zeros(8), t)))

@@ -189,10 +189,10 @@ def test_bad_start_up_arguments_exit_2_with_a_message_and_unknown_names_are_warn
 def test_the_joint_name_cache_of_angle_extractor_is_bounded():
     """A stream of ever new joint-name lists (in-process: the node's own method) keeps memory flat."""
     import rclpy
+    from ros_harness import allocate_domain_id, release_domain_id
 
     from gwr_predictor.nodes.angle_extractor import ORDER_CACHE_SIZE, AngleExtractorNode
     from gwr_predictor.pipeline.conventions import SKELETON_JOINTS
-    from ros_harness import allocate_domain_id, release_domain_id
 
     domain = allocate_domain_id()
     rclpy.init(args=["--ros-args"], domain_id=domain)

@@ -177,11 +177,14 @@ class LatencyReport:
 def _source_stamp(msg: Any, msgtype: str) -> float:
     if msgtype == bags.FLOAT64_MULTIARRAY:
         return float(msg.data[0]) if msg.layout.data_offset >= 1 and len(msg.data) >= 1 else float("nan")
-    return bags.stamp_seconds(msg.header.stamp)
+    if hasattr(msg, "markers"):  # MarkerArray: the stamp is in each marker
+        return bags.stamp_seconds(msg.markers[0].header.stamp) if len(msg.markers) else float("nan")
+    header = getattr(msg, "header", None)  # std_msgs/String (robot_description) has none
+    return bags.stamp_seconds(header.stamp) if header is not None else float("nan")
 
 
 #: {node name: [(receive s, {key: value}, instance id), ...]} of the /diagnostics statuses in a bag,
-#: in receive order (the instance id is the status's hardware_id: one per node process).
+#: in receive order (the instance id is the status's `instance` value: one per node process).
 DiagnosticsHistory = dict[str, list[tuple[float, dict[str, str], str]]]
 #: A restarted instance's last messages may reach the recorder this long after its last counters.
 RESTART_GRACE_S = 0.5
@@ -205,7 +208,8 @@ def read_series(bag: str | os.PathLike[str]
             if m.topic.endswith("/" + conventions.TOPIC_DIAGNOSTICS):
                 for status in m.msg.status:
                     diagnostics.setdefault(status.name, []).append(
-                        (m.timestamp_ns * 1e-9, {kv.key: kv.value for kv in status.values}, status.hardware_id))
+                        (m.timestamp_ns * 1e-9, values := {kv.key: kv.value for kv in status.values},
+                         values.get(conventions.INSTANCE_KEY, "")))
             continue
         recv, stamps = rows.setdefault(m.topic, ([], []))
         recv.append(m.timestamp_ns * 1e-9)
