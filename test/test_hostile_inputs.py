@@ -225,3 +225,14 @@ def test_a_second_pipeline_on_the_same_domain_is_detected_and_stops(ros):
     assert "another" not in first.output()
     code, _ = first.stop()
     assert code == 0
+
+
+@pytest.mark.ros
+def test_bag_player_skips_undecodable_messages_and_replays_the_rest(ros, tmp_path):
+    from test_hostile_bags import angles_bag
+
+    bag = angles_bag(tmp_path / "bag", n=20, garbage_at=(5, 6))
+    code, output = ros.run("bag_player", params={**FAST, "bag": str(bag), "restamp": True}, timeout=60)
+    assert code == 0, output
+    assert "2 messages on /arm_angles do not decode: skipped" in output
+    assert "18 messages published" in output
