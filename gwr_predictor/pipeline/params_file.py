@@ -94,6 +94,8 @@ def unknown_parameters(given: Iterable[str], declared: Iterable[str]) -> list[st
     known = sorted(set(declared))
     warnings = []
     for name in sorted(set(given) - set(known)):
+        if name.startswith("qos_overrides."):  # declared by rclpy when the publisher is created
+            continue
         close = difflib.get_close_matches(name, known, n=3, cutoff=0.6)
         hint = f"; did you mean {' or '.join(repr(c) for c in close)}?" if close else ""
         warnings.append(f"parameter {name!r} is not a parameter of this node and is ignored{hint}")
