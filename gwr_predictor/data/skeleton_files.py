@@ -30,6 +30,7 @@ from pathlib import Path
 import numpy as np
 
 from gwr_predictor.data.file_limits import MAX_CSV_BYTES, MAX_RECORDING_BYTES, check_file_size, check_npz_members
+from gwr_predictor.errors import GwrPredictorError
 from gwr_predictor.pipeline.conventions import SKELETON_JOINTS
 
 CAMERA_CONVENTION = "openni-rh"
@@ -41,7 +42,7 @@ MAX_PLAUSIBLE_METRES = 20.0
 AXES = ("x", "y", "z")
 
 
-class SkeletonFileError(ValueError):
+class SkeletonFileError(GwrPredictorError, ValueError):
     """A skeleton file that cannot be used; the message names the file and the offending field."""
 
 

@@ -17,12 +17,13 @@ from typing import Any
 import yaml
 
 from gwr_predictor.data.file_limits import check_file_size
+from gwr_predictor.errors import GwrPredictorError
 
 #: A params file is settings, never data: larger than this is not one.
 MAX_PARAMS_FILE_BYTES = 1 << 20
 
 
-class ParamsFileError(ValueError):
+class ParamsFileError(GwrPredictorError, ValueError):
     """A params file that cannot be used; the message names the file and what is wrong."""
 
 
