@@ -1,27 +1,25 @@
 """Plumbing every pipeline node shares, so that each node file only converts, calls and publishes.
 
-- `Param` + `declare_parameters`: parameters with descriptions and ranges; a bad value stops the
-  node with a `ParameterError` naming the parameter and what is allowed.
-- `RejectionCounter`: named counters; rejections are counted per reason and warned about at most
-  once per `throttle_s` per reason, so a flood of bad input cannot flood the log.
+- `declare_parameters`: `gwr_predictor.parameter_spec.ParamSpec`s as described ROS parameters; a bad
+  value stops the node with a `ParameterError` naming the parameter and what is allowed.
+- the counters and input gates are library code (`gwr_predictor.pipeline.gates`).
 - `PipelineNode`: a Node with the above plus a periodic DiagnosticArray on /diagnostics carrying
   every counter, a `done` future for nodes that finish on their own, and an `on_shutdown` hook.
-- `run_node`: init, build, spin, quiet exit on Ctrl-C / SIGTERM, final hook, destroy, shutdown.
+- `run_node`: init, build, spin, quiet exit on Ctrl-C / SIGTERM, final hook, destroy, shutdown;
+  params files and ROS arguments are checked first (exit 2 with a message), unknown parameter names
+  warned about (`gwr_predictor.pipeline.params_file`).
 """
 
 from __future__ import annotations
 
-import math
 import os
 import signal
 import socket
 import sys
 import time
 from collections.abc import Iterable, Sequence
-from dataclasses import dataclass
 from typing import Any
 
-import numpy as np
 import rclpy
 from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.duration import Duration
@@ -40,9 +38,9 @@ from rclpy.signals import SignalHandlerOptions
 from rclpy.task import Future
 
 from gwr_predictor.errors import GwrPredictorError
+from gwr_predictor.parameter_spec import ParameterError, ParamSpec
 from gwr_predictor.pipeline import conventions, params_file, stamps
-from gwr_predictor.pipeline.conventions import LayoutError
-from gwr_predictor.robot.nao import ARM_JOINTS, limits_array
+from gwr_predictor.pipeline.gates import ArmAnglesGate, RejectionCounter, check_stamp
 
 from . import messages
 
@@ -51,10 +49,6 @@ EXIT_FATAL = 1
 EXIT_BAD_PARAMETER = 2
 #: /diagnostics value naming the node process (host:pid:start ns): restarts and duplicates show.
 INSTANCE_KEY = conventions.INSTANCE_KEY
-
-
-class ParameterError(GwrPredictorError):
-    """A parameter value the node cannot run with; the message names the parameter and the allowed values."""
 
 
 class NodeFatalError(GwrPredictorError):
@@ -84,174 +78,57 @@ def status_qos() -> QoSProfile:
 # --- parameters ----------------------------------------------------------------------------------
 
 
-@dataclass(frozen=True)
-class Param:
-    """One node parameter: default (its type is the parameter's type), description, allowed values."""
-
-    name: str
-    default: Any
-    description: str
-    minimum: float | None = None
-    maximum: float | None = None
-    choices: tuple[str, ...] | None = None
-
-
-def param_kind(default: Any) -> str:
-    if isinstance(default, bool):
-        return "bool"
-    if isinstance(default, int):
-        return "integer"
-    if isinstance(default, float):
-        return "double"
-    if isinstance(default, str):
-        return "string"
-    if isinstance(default, (list, tuple)):
-        if all(isinstance(v, str) for v in default):
-            return "string list"
-        if all(isinstance(v, float) and not isinstance(v, bool) for v in default):
-            return "double list"
-    raise TypeError(f"unsupported parameter default {default!r}")
-
-
 _ARRAY_TYPES = {"string list": Parameter.Type.STRING_ARRAY, "double list": Parameter.Type.DOUBLE_ARRAY}
 
 
-def allowed(spec: Any) -> str:
-    """Human-readable allowed values of a spec, used in descriptions and error messages."""
-    choices = getattr(spec, "choices", None)
-    if choices:
-        return "one of " + ", ".join(repr(c) for c in choices)
-    lo, hi = spec.minimum, spec.maximum
-    if lo is not None and hi is not None:
-        return f"[{lo}, {hi}]"
-    if lo is not None:
-        return f">= {lo}"
-    if hi is not None:
-        return f"<= {hi}"
-    return "any " + param_kind(spec.default)
+def descriptor(spec: ParamSpec) -> ParameterDescriptor:
+    """The ROS descriptor of a spec: described, allowed values in `additional_constraints`, read-only
+    unless the spec is `live`.
 
-
-def _descriptor(spec: Any, kind: str) -> ParameterDescriptor:
-    """Read-only (values are read once, at start), described, allowed values in `additional_constraints`.
-
-    Ranges are checked by `check_value` rather than by the descriptor's integer/floating-point ranges so
-    that the error names the rejected value; doubles are dynamically typed so that `-p rate_hz:=30`
-    (an integer) is accepted and converted.
+    Ranges are checked by `ParamSpec.check` rather than by the descriptor's integer/floating-point
+    ranges so that the error names the rejected value; doubles are dynamically typed so that
+    `-p rate_hz:=30` (an integer) is accepted and converted.
     """
-    return ParameterDescriptor(description=spec.description, read_only=True, dynamic_typing=kind == "double",
-                               additional_constraints=f"allowed: {allowed(spec)}")
+    return ParameterDescriptor(description=spec.description, read_only=spec.read_only,
+                               dynamic_typing=spec.kind == "double",
+                               additional_constraints=f"allowed: {spec.allowed()}")
 
 
-def check_value(spec: Any, kind: str, value: Any) -> Any:
-    """The declared value converted to the spec's type, or ParameterError."""
-    name = spec.name
-    if kind == "double":
-        if isinstance(value, bool) or not isinstance(value, (int, float)):
-            raise ParameterError(f"parameter '{name}' must be a number in {allowed(spec)}, got {value!r}")
-        value = float(value)
-        if not math.isfinite(value):
-            raise ParameterError(f"parameter '{name}' must be finite, allowed {allowed(spec)}, got {value}")
-    if kind in ("double", "integer"):
-        if (spec.minimum is not None and value < spec.minimum) or (spec.maximum is not None and value > spec.maximum):
-            raise ParameterError(f"parameter '{name}' = {value} is outside the allowed range {allowed(spec)}")
-    choices = getattr(spec, "choices", None)
-    if choices and value not in choices:
-        raise ParameterError(f"parameter '{name}' = {value!r} is not allowed: must be {allowed(spec)}")
-    if kind in _ARRAY_TYPES:
-        value = list(value) if value is not None else list(spec.default)
-    return value
-
-
-def declare_parameters(node: Node, specs: Iterable[Any]) -> dict[str, Any]:
-    """Declare every spec (read-only, described) and return {name: validated value}.
-
-    Specs are `Param`s or any object with name/default/description/minimum/maximum
-    (e.g. `gwr_predictor.learning.params.ParamSpec`).
-    """
+def declare_parameters(node: Node, specs: Iterable[ParamSpec]) -> dict[str, Any]:
+    """Declare every spec and return {name: validated value}; a bad value raises ParameterError."""
     values: dict[str, Any] = {}
     for spec in specs:
-        kind = param_kind(spec.default)
-        desc = _descriptor(spec, kind)
+        kind = spec.kind
+        desc = descriptor(spec)
         default = spec.default
         if kind in _ARRAY_TYPES:  # an empty list has no type of its own
             default = list(spec.default) if spec.default else _ARRAY_TYPES[kind]
         try:
             value = node.declare_parameter(spec.name, default, desc).value
         except InvalidParameterTypeException as exc:
-            raise ParameterError(f"parameter '{spec.name}' must be of type {kind} ({allowed(spec)}): {exc}") from None
+            raise ParameterError(f"parameter '{spec.name}' must be of type {kind} ({spec.allowed()}): {exc}") from None
         except InvalidParameterValueException as exc:
-            raise ParameterError(f"parameter '{spec.name}' ({allowed(spec)}): {exc}") from None
-        values[spec.name] = check_value(spec, kind, value)
+            raise ParameterError(f"parameter '{spec.name}' ({spec.allowed()}): {exc}") from None
+        values[spec.name] = spec.check(value)
     return values
-
-
-# --- counters and throttled warnings ------------------------------------------------------------
-
-
-class RejectionCounter:
-    """Named event counters; `reject` also warns, at most once per `throttle_s` for each reason."""
-
-    def __init__(self, logger: Any, throttle_s: float = 5.0) -> None:
-        self._logger = logger
-        self._throttle_s = throttle_s
-        self._counts: dict[str, int] = {}
-        self._last_warned: dict[str, float] = {}
-        self._suppressed: dict[str, int] = {}
-
-    def count(self, key: str, n: int = 1) -> None:
-        self._counts[key] = self._counts.get(key, 0) + n
-
-    def reject(self, reason: str, detail: str = "") -> None:
-        """Count one rejected input under `rejected.<reason>` and warn (throttled per reason)."""
-        self.count("rejected." + reason)
-        self.warn_throttled("rejected." + reason, f"rejected input [{reason}]: {detail}")
-
-    def warn_throttled(self, key: str, message: str, level: str = "warning") -> None:
-        """Log `message` (at `level`: warning or info) unless `key` was logged less than `throttle_s` ago;
-        suppressed repeats are counted and reported with the next message."""
-        now = time.monotonic()
-        last = self._last_warned.get(key)
-        if last is not None and now - last < self._throttle_s:
-            self._suppressed[key] = self._suppressed.get(key, 0) + 1
-            return
-        suppressed = self._suppressed.pop(key, 0)
-        more = f" ({suppressed} more since the last warning)" if suppressed else ""
-        total = self._counts.get(key)
-        so_far = f"; {total} so far" if total else ""
-        text = f"{message}{more}{so_far}"
-        if level == "info":  # two call sites: rclpy fixes the severity per call site
-            self._logger.info(text)
-        else:
-            self._logger.warning(text)
-        self._last_warned[key] = now
-
-    def get(self, key: str) -> int:
-        return self._counts.get(key, 0)
-
-    @property
-    def rejected(self) -> int:
-        return sum(v for k, v in self._counts.items() if k.startswith("rejected."))
-
-    def snapshot(self) -> dict[str, int]:
-        return dict(sorted(self._counts.items()))
 
 
 # --- the base node -------------------------------------------------------------------------------
 
 COMMON_PARAMS = (
-    Param("diagnostics_period_s", 1.0, "period of the counters on /diagnostics (s)", 0.05, 60.0),
-    Param("warn_throttle_s", 5.0, "at most one warning per rejection reason per this many seconds", 0.0, 3600.0),
-    Param("stop_if_duplicate", True, "stop (exit 1) if another live node of this name and namespace runs on "
-          "this ROS_DOMAIN_ID and started earlier: two pipelines on one domain mix their streams"),
-    Param("max_stamp_ahead_s", stamps.MAX_STAMP_AHEAD_S, "input stamps further ahead of the node clock (wall or "
-          "sim) are rejected, so that one future stamp cannot block the stamps after it", 0.0, 1e9),
+    ParamSpec("diagnostics_period_s", 1.0, "period of the counters on /diagnostics (s)", 0.05, 60.0),
+    ParamSpec("warn_throttle_s", 5.0, "at most one warning per rejection reason per this many seconds", 0.0, 3600.0),
+    ParamSpec("stop_if_duplicate", True, "stop (exit 1) if another live node of this name and namespace runs on "
+              "this ROS_DOMAIN_ID and started earlier: two pipelines on one domain mix their streams"),
+    ParamSpec("max_stamp_ahead_s", stamps.MAX_STAMP_AHEAD_S, "input stamps further ahead of the node clock (wall "
+              "or sim) are rejected, so that one future stamp cannot block the stamps after it", 0.0, 1e9),
 )
 
 
 class PipelineNode(Node):
     """A Node with validated parameters, counters published on /diagnostics and a final hook."""
 
-    def __init__(self, name: str, specs: Sequence[Any], **kwargs: Any) -> None:
+    def __init__(self, name: str, specs: Sequence[ParamSpec], **kwargs: Any) -> None:
         super().__init__(name, **kwargs)
         self.params = declare_parameters(self, (*COMMON_PARAMS, *specs))
         for warning in params_file.unknown_parameters(self._parameter_overrides, self._parameters):
@@ -270,24 +147,18 @@ class PipelineNode(Node):
             self.create_subscription(messages.DiagnosticArray, conventions.DIAGNOSTICS_TOPIC,
                                      self._check_duplicate, status_qos())
 
-    def stamp_check(self, monotonic: bool = True) -> stamps.StampCheck:
-        """The stamp rule (gwr_predictor.pipeline.stamps) of one input stream of this node."""
-        return stamps.StampCheck(self.params["max_stamp_ahead_s"], monotonic=monotonic)
+    def arm_gate(self, input_name: str, check_stamps: bool = True) -> ArmAnglesGate:
+        """The gate of one JointState input, its stamps checked against this node's clock."""
+        return ArmAnglesGate(self.counters, input_name, check_stamps=check_stamps, clock=self.now_s,
+                             max_ahead_s=self.params["max_stamp_ahead_s"])
+
+    def stamp_check(self) -> stamps.StampCheck:
+        """The stamp rule (gwr_predictor.pipeline.stamps) of one more input stream of this node."""
+        return stamps.StampCheck(self.params["max_stamp_ahead_s"])
 
     def check_stamp(self, check: stamps.StampCheck, input_name: str, stamp: float) -> bool:
-        """Apply `check` to `stamp` against the node clock: count and warn a rejection, count a restart."""
-        now = self.now_s()
-        verdict = check.check(stamp, now)
-        if verdict == stamps.ACCEPTED:
-            return True
-        if verdict == stamps.RESTARTED:
-            self.counters.count(f"{input_name}.stamp_restarts")
-            self.counters.warn_throttled(f"{input_name}.stamp_restarts", f"{input_name}: stamps went back "
-                                         f"{check.restart_after} times in a row; new sequence from {stamp:.3f}")
-            return True
-        reason = "stamp_ahead" if verdict == stamps.AHEAD else "stamp"
-        self.counters.reject(f"{input_name}.{reason}", check.describe(verdict, stamp, now))
-        return False
+        """`gates.check_stamp` against the node clock."""
+        return check_stamp(self.counters, check, input_name, stamp, self.now_s())
 
     def _check_duplicate(self, msg: messages.DiagnosticArray) -> None:
         """Another process with this node's name publishes counters: if it is also in the ROS graph
@@ -299,7 +170,7 @@ class PipelineNode(Node):
             instance = next((kv.value for kv in status.values if kv.key == INSTANCE_KEY), "")
             if not instance or instance == self.instance_id:
                 continue
-            other = duplicate_started_ns(instance)
+            other = started_ns(instance)
             if other is None or (other, instance) > (self.started_ns, self.instance_id):
                 continue  # the other one is the newcomer: it stops
             same = [n for n, ns in self.get_node_names_and_namespaces() if (ns.rstrip("/") + "/" + n) == me]
@@ -351,7 +222,7 @@ class PipelineNode(Node):
         """Final hook, run once after spinning stops for any reason (the context may be shut down)."""
 
 
-def duplicate_started_ns(instance_id: str) -> int | None:
+def started_ns(instance_id: str) -> int | None:
     """The start time (ns) in an instance id `host:pid:start_ns`, None if it has another form."""
     try:
         return int(instance_id.rsplit(":", 1)[1])
@@ -375,9 +246,8 @@ class _StopSignals:
 def run_node(node_cls: type[PipelineNode], args: list[str] | None = None) -> int:
     """init, build, spin until done / Ctrl-C / SIGTERM, final hook, destroy, shutdown; returns the exit code."""
     logger = rclpy.logging.get_logger(getattr(node_cls, "NODE_NAME", node_cls.__name__))
-    argv = sys.argv if args is None else args
     try:
-        params_file.check_params_files(argv)
+        params_file.check_params_files(sys.argv if args is None else args)
         rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
     except params_file.ParamsFileError as exc:
         logger.error(f"bad parameter: {exc}")
@@ -427,67 +297,3 @@ def run_node(node_cls: type[PipelineNode], args: list[str] | None = None) -> int
             node.destroy_node()
         rclpy.try_shutdown()
     return code
-
-
-# --- input gates: the stated rules for bad input, shared by every node that reads arm angles -----
-
-
-class ArmAnglesGate:
-    """Checks one JointState input stream of the arm joints and returns (stamp, angles) or None.
-
-    Rules, each counted as `rejected.<input>.<reason>` (with a throttled warning):
-    - names and positions of different lengths, or a name twice: `layout`;
-    - any of `names` missing: `missing_joints` (extra joints are ignored; order does not matter);
-    - NaN or inf among the wanted positions: `non_finite`;
-    - a stamp of 0 or one not after the previous accepted stamp (repeat, jump back): `stamp`; one
-      more than `max_stamp_ahead_s` ahead of the node clock: `stamp_ahead`; a run of back-jumps
-      starts a new sequence (`<input>.stamp_restarts`), see gwr_predictor.pipeline.stamps;
-    - angles beyond the joint limits by more than `limit_margin` rad: `out_of_limits`; closer
-      ones are clipped to the limits and counted as `<input>.clipped` (a repair, not a rejection).
-    """
-
-    def __init__(self, counters: RejectionCounter, input_name: str, names: tuple[str, ...] = ARM_JOINTS,
-                 limit_margin: float = 0.2, check_stamps: bool = True, node: PipelineNode | None = None) -> None:
-        self._counters = counters
-        self._node = node
-        self._stamps = node.stamp_check() if node is not None else stamps.StampCheck()
-        self._input = input_name
-        self._names = names
-        self._lo, self._hi = limits_array(names)
-        self._margin = limit_margin
-        self._check_stamps = check_stamps
-
-    def _reject(self, reason: str, detail: str) -> None:
-        self._counters.reject(f"{self._input}.{reason}", detail)
-
-    def accept(self, msg: Any) -> tuple[float, np.ndarray] | None:
-        try:
-            stamp, names, positions = messages.read_joint_state(msg)
-            angles = messages.select_joints(names, positions, self._names)
-        except LayoutError as exc:
-            self._reject("missing_joints" if "missing joints" in str(exc) else "layout", str(exc))
-            return None
-        if not np.all(np.isfinite(angles)):
-            self._reject("non_finite", f"non-finite angles {np.round(angles, 3).tolist()}")
-            return None
-        if np.any(angles < self._lo - self._margin) or np.any(angles > self._hi + self._margin):
-            self._reject("out_of_limits", f"angles beyond the joint limits by more than {self._margin} rad")
-            return None
-        if self._check_stamps:
-            if self._node is not None:
-                if not self._node.check_stamp(self._stamps, self._input, stamp):
-                    return None
-            else:
-                verdict = self._stamps.check(stamp)
-                if verdict not in (stamps.ACCEPTED, stamps.RESTARTED):
-                    self._reject("stamp", self._stamps.describe(verdict, stamp, None))
-                    return None
-        clipped = np.clip(angles, self._lo, self._hi)
-        if np.any(clipped != angles):
-            self._counters.count(f"{self._input}.clipped")
-        return stamp, clipped
-
-    @property
-    def last_stamp(self) -> float | None:
-        """The stamp of the last accepted message (None before any, or for unchecked streams)."""
-        return self._stamps.last

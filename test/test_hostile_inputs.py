@@ -191,7 +191,7 @@ def test_the_joint_name_cache_of_angle_extractor_is_bounded():
     import rclpy
     from ros_harness import allocate_domain_id, release_domain_id
 
-    from gwr_predictor.nodes.angle_extractor import ORDER_CACHE_SIZE, AngleExtractorNode
+    from gwr_predictor.nodes.angle_extractor import AngleExtractorNode
     from gwr_predictor.pipeline.conventions import SKELETON_JOINTS
 
     domain = allocate_domain_id()
@@ -201,10 +201,11 @@ def test_the_joint_name_cache_of_angle_extractor_is_bounded():
         positions = np.zeros((len(SKELETON_JOINTS) + 1, 3))
         for k in range(500):
             names = (*SKELETON_JOINTS, f"extra_{k}")
-            out = node.reordered(names, positions)
+            out = node.reorder(names, positions)
             assert out.shape == (len(SKELETON_JOINTS), 3)
-        assert len(node._order) <= ORDER_CACHE_SIZE
-        assert node.counters.get("skeleton.name_cache_evictions") == 500 - ORDER_CACHE_SIZE
+        size = node.reorder.cache_size
+        assert len(node.reorder._order) <= size
+        assert node.counters.get("skeleton.name_cache_evictions") == 500 - size
         node.destroy_node()
     finally:
         rclpy.try_shutdown()
