@@ -14,10 +14,9 @@ import pytest
 from test_node_bad_input import FAST, POSE, joint_state, skeleton, wait_counters
 
 from gwr_predictor.data.demonstrator import default_subjects, demonstrate_one
-from gwr_predictor.learning.hierarchy import Hierarchy
-from gwr_predictor.learning.params import HierarchyParams
 from gwr_predictor.nodes import messages
 from gwr_predictor.nodes.messages import DiagnosticArray, Float64MultiArray, JointState
+from gwr_predictor.predictors.registry import DEFAULT_PREDICTOR, make_predictor
 
 POISON_S = 1e6  # the "now + 1e6 s"
 
@@ -125,7 +124,7 @@ def test_stale_temp_files_are_removed_and_a_failed_save_is_an_error_on_diagnosti
     folder = tmp_path / "models"
     folder.mkdir()
     checkpoint = folder / "model.npz"
-    Hierarchy(HierarchyParams.paper()).save(checkpoint)
+    make_predictor(DEFAULT_PREDICTOR).save(checkpoint)  # a checkpoint of the node's default predictor
     stale = [folder / ".model.npz.abc123.tmp", folder / ".model.npz.x.tmp"]
     for path in stale:
         path.write_bytes(b"half a save")
