@@ -233,9 +233,9 @@ class _OnlinePredictor:
         if self._delta:  # displacement of each target frame from the regressor's newest frame
             target = self._target.reshape(k, -1)
             np.subtract(buf[1:], buf[0], out=target)
-            self.pgwr.learn_pair_unchecked(reg, self._target)
+            self.pgwr.learn_unchecked(reg, self._target)
         else:
-            self.pgwr.learn_pair_unchecked(reg, buf[1:].reshape(-1))
+            self.pgwr.learn_unchecked(reg, buf[1:].reshape(-1))
 
     def _forecast(self, reg: np.ndarray, record: bool) -> np.ndarray:
         p = self.params
