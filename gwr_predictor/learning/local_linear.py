@@ -71,8 +71,8 @@ class LocalLinearPGWR(PredictiveGWR):
             a[:n] = old[:n]
         self._A = a
 
-    def _append(self, x: np.ndarray, b: int) -> int:
-        r = super()._append(x, b)
+    def _append(self, xm: np.ndarray, xc: np.ndarray, b: int) -> int:
+        r = super()._append(xm, xc, b)
         self._A[r] = self._A[b]
         return r
 
@@ -108,7 +108,7 @@ class LocalLinearPGWR(PredictiveGWR):
         gain = rates / (np.vecdot(d, d) + self.delta)
         a += np.einsum("ki,ko->kio", gain[:, None] * d, err)  # rank-1 NLMS step per neuron
         self._A[block] = a
-        return self.learn_pair_unchecked(x_in, y)
+        return self.learn_unchecked(x_in, y)
 
     def predict_local(self, x_in: np.ndarray, k: int = 1) -> np.ndarray:
         """v_b + A_b^T (x - w_b) for the BMU b of a trusted regressor (a new array); with k > 1 the
@@ -116,7 +116,7 @@ class LocalLinearPGWR(PredictiveGWR):
         if k == 1 or self._n < 2:
             b = self.match_unchecked(x_in)
             return self._wo[b] + (x_in - self._w[b]) @ self._A[b]
-        aff = self._affinity(x_in)
+        aff = self._search.affinity(x_in, self._n)
         k = min(k, self._n)
         idx = np.argpartition(aff, self._n - k)[self._n - k:]
         d = x_in - self._w[idx]  # (k, in)
