@@ -182,6 +182,14 @@ def test_render_command_writes_an_mp4_and_a_gif(tmp_path, capsys):
                  "--no-progress"]) == 0
     with Image.open(gif) as im:
         assert im.size == (480, 160) and im.n_frames == 10
+    gif15 = tmp_path / "v15.gif"  # 15 fps: delays of 60 and 70 ms that add up to real time
+    assert main(["render", str(bag), "-o", str(gif15), "--seconds", "0:2", "--scale", "0.5", "--no-progress"]) == 0
+    with Image.open(gif15) as im:
+        delays = []
+        for k in range(im.n_frames):
+            im.seek(k)
+            delays.append(im.info["duration"])
+    assert len(delays) == 30 and sum(delays) == 2000 and set(delays) == {60, 70}
     assert not list(tmp_path.rglob("*.part.*"))
 
 

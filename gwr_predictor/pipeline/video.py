@@ -24,6 +24,7 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -33,6 +34,9 @@ from gwr_predictor.pipeline.run_report import RunData, Series, read_run, resampl
 from gwr_predictor.robot.nao import SIDES, UPPER_ARM_LENGTH, forward_kinematics
 from gwr_predictor.robot.pybullet_nao import Camera, NaoSimulator
 from gwr_predictor.robot.tracking import LagError, estimate_lag
+
+if TYPE_CHECKING:
+    from PIL.Image import Image as PILImage
 
 #: The camera of every panel: in front of the robot, a little to its left and above (torso frame).
 VIDEO_CAMERA = Camera(eye=(0.95, 0.32, 0.16), target=(0.0, 0.0, 0.0), up=(0.0, 0.0, 1.0), fov_deg=45.0)
@@ -285,6 +289,7 @@ class FrameRenderer:
         self._sim = NaoSimulator(gravity=False)
         self.empty_scene = self._empty_scene()
         self._cache: dict[str, tuple[np.ndarray, np.ndarray]] = {}
+        self._template_image: PILImage | None = None
         from PIL import ImageFont
 
         self._font = ImageFont.load_default(size=max(8, round(13 * scale)))
@@ -387,6 +392,24 @@ class FrameRenderer:
         return np.asarray(img), label
 
     # --- whole frames ---------------------------------------------------------------------------
+    def _template(self) -> PILImage:
+        """The frame's constant parts (background, caption texts), drawn once: text is slow."""
+        if self._template_image is None:
+            from PIL import Image, ImageDraw
+
+            run = self.run
+            image = Image.new("RGB", (self.width, self.height), (250, 250, 250))
+            draw = ImageDraw.Draw(image)
+            pad = max(2, round(4 * self.scale))
+            x = pad + draw.textlength("t = 000.00 s   ", font=self._font)
+            draw.text((x, self.panel_h + pad), f"{run.bag.parent.name if run.bag.name == 'bag' else run.bag.name}   "
+                      "blue arm over each robot: the person's pose at this instant", fill=(0, 0, 0), font=self._font)
+            draw.text((pad, self.panel_h + self.caption_h // 2 + pad // 2),
+                      f"lag: best time shift over the last {LAG_WINDOW_S:.0f} s; error: mean |robot - person| over "
+                      f"the last {ERROR_WINDOW_S:.0f} s, 8 joints", fill=(90, 90, 90), font=self._small)
+            self._template_image = image
+        return self._template_image
+
     def frame(self, t: float) -> np.ndarray:
         """The frame at run time `t` (seconds since the first /arm_angles frame): HxWx3 uint8."""
         from PIL import Image, ImageDraw
@@ -406,7 +429,7 @@ class FrameRenderer:
                                f"error {err:.2f} rad" if math.isfinite(err) else "error -"))
             title = robot_title(ns, run.modes[ns]) + ("" if ok else " (no data now)")
             panels.append((image, f"{title}\n{stats}"))
-        frame = Image.new("RGB", (self.width, self.height), (250, 250, 250))
+        frame = self._template().copy()
         draw = ImageDraw.Draw(frame)
         pad = max(2, round(4 * self.scale))
         for k, (image, label) in enumerate(panels):
@@ -415,12 +438,7 @@ class FrameRenderer:
             draw.multiline_text((x + pad, pad), label, fill=(0, 0, 0), font=self._font, spacing=2)
             if k:
                 draw.line([(x, 0), (x, self.panel_h)], fill=(200, 200, 200), width=1)
-        caption = (f"t = {t:6.2f} s   {run.bag.parent.name if run.bag.name == 'bag' else run.bag.name}   "
-                   "blue arm over each robot: the person's pose at this instant")
-        draw.text((pad, self.panel_h + pad), caption, fill=(0, 0, 0), font=self._font)
-        draw.text((pad, self.panel_h + self.caption_h // 2 + pad // 2),
-                  f"lag: best time shift over the last {LAG_WINDOW_S:.0f} s; error: mean |robot - person| over "
-                  f"the last {ERROR_WINDOW_S:.0f} s, 8 joints", fill=(90, 90, 90), font=self._small)
+        draw.text((pad, self.panel_h + pad), f"t = {t:6.2f} s", fill=(0, 0, 0), font=self._font)
         return np.asarray(frame)
 
 

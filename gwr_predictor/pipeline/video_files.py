@@ -3,7 +3,8 @@
 Why two: MP4 is small and plays everywhere, but needs an encoder; `imageio-ffmpeg` is a wheel that
 ships its own ffmpeg binary, so it installs from PyPI like everything else (pinned in
 requirements.txt). Without it, a GIF still works (Pillow), only larger: frames are quantised on
-arrival to one shared palette (no flicker, 1 byte per pixel in memory) and written on close.
+arrival to one shared palette (no flicker, 1 byte per pixel in memory) and written on close,
+with frame delays (whole hundredths of a second in GIF) that add up to real time.
 A video is written to `<name>.part<suffix>` and renamed when complete, so a file with the final
 name is never a truncated one.
 """
@@ -128,8 +129,10 @@ class VideoWriter:
                 if not self._gif:
                     raise VideoError(f"{self.path}: no frame written")
                 first, *rest = self._gif
-                first.save(self._part, format="GIF", save_all=True, append_images=rest,
-                           duration=round(1000.0 / self.fps), loop=0)
+                # GIF delays are whole hundredths of a second: spread the rounding so time stays real
+                ticks = np.round(np.arange(len(self._gif) + 1) * 100.0 / self.fps)
+                delays = [max(10, int(v) * 10) for v in np.diff(ticks)]
+                first.save(self._part, format="GIF", save_all=True, append_images=rest, duration=delays, loop=0)
                 self._gif = []
             os.replace(self._part, self.path)
         except (OSError, RuntimeError) as err:
