@@ -197,3 +197,16 @@ def test_gui_without_a_display_is_refused_with_the_reason(monkeypatch):
     monkeypatch.delenv("DISPLAY", raising=False)
     with pytest.raises(SimulatorError, match="DISPLAY is not set"):
         NaoSimulator(gui=True)
+
+
+@pytest.mark.ros
+def test_nao_sim_with_gui_but_no_display_warns_and_runs_headless(ros):
+    from gwr_predictor.nodes import messages
+
+    ros.env.pop("DISPLAY", None)
+    states = ros.probe.subscribe(f"/{conventions.TOPIC_ROBOT_STATE}", messages.JointState)
+    proc = ros.start("nao_sim", params={"gui": True})
+    ros.wait_for_log(proc, "ready")
+    assert "parameter 'gui': gui=True needs a display, but DISPLAY is not set" in proc.output()
+    assert "running headless instead" in proc.output()
+    ros.probe.spin_until(lambda: len(states) >= 5, 30, "joint_states from the headless nao_sim", [proc])
