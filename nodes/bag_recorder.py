@@ -12,18 +12,19 @@ import time
 from collections.abc import Callable
 from pathlib import Path
 
+from gwr_predictor.parameter_spec import ParamSpec
 from gwr_predictor.pipeline import bags, conventions
 
-from . import messages
-from .node_base import NodeFatalError, Param, ParameterError, PipelineNode, run_node, stream_qos
+from . import messages, standard_messages
+from .node_base import NodeFatalError, ParameterError, PipelineNode, run_node, stream_qos
 
 PARAMS = (
-    Param("path", "", "bag directory to create (must not exist); empty: recording_<date-time> in the working dir"),
-    Param("topics", list(conventions.TOPIC_TYPES),
+    ParamSpec("path", "", "bag directory to create (must not exist); empty: recording_<date-time> in the working dir"),
+    ParamSpec("topics", list(conventions.TOPIC_TYPES),
           "topics to record; relative names resolve in the node's namespace; the type comes from the last name "
           "segment (conventions.TOPIC_TYPES) or an explicit 'name@pkg/msg/Type'"),
-    Param("flush_period_s", 1.0, "put everything received on disk this often (s)", 0.05, 3600.0),
-    Param("queue_depth", conventions.QOS_DEPTH_RECORDER, "reliable keep-last depth per subscription", 1, 100000),
+    ParamSpec("flush_period_s", 1.0, "put everything received on disk this often (s)", 0.05, 3600.0),
+    ParamSpec("queue_depth", conventions.QOS_DEPTH_RECORDER, "reliable keep-last depth per subscription", 1, 100000),
 )
 
 
@@ -33,7 +34,8 @@ def topic_types(resolve: Callable[[str], str], names: list[str]) -> dict[str, st
     for entry in names:
         name, _, msgtype = entry.partition("@")
         if not msgtype:
-            msgtype = conventions.TOPIC_TYPES.get(name.rstrip("/").rsplit("/", 1)[-1], "")
+            last = name.rstrip("/").rsplit("/", 1)[-1]
+            msgtype = conventions.TOPIC_TYPES.get(last, conventions.OPTIONAL_TOPIC_TYPES.get(last, ""))
         if not msgtype:
             raise ValueError(f"topic {entry!r}: unknown type; give it as 'name@pkg/msg/Type'")
         try:
@@ -66,8 +68,10 @@ class BagRecorderNode(PipelineNode):
             raise NodeFatalError(str(exc)) from None
         qos = stream_qos(p["queue_depth"])
         for topic, msgtype in topics.items():
+            latched = topic.rsplit("/", 1)[-1] in conventions.LATCHED_TOPICS
             self.create_subscription(messages.message_class(msgtype), topic,
-                                     lambda raw, topic=topic: self.on_message(topic, raw), qos, raw=True)
+                                     lambda raw, topic=topic: self.on_message(topic, raw),
+                                     standard_messages.latched_qos() if latched else qos, raw=True)
         self.create_timer(p["flush_period_s"], self.flush)
         self.get_logger().info(f"recording {len(topics)} topics into {path}: {', '.join(topics)}")
 

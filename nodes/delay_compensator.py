@@ -4,27 +4,39 @@ Subscribes to the observed angles, the predictions and the robot's reported join
 prediction (and on an observation when no usable prediction exists) asks
 `gwr_predictor.robot.compensator.DelayCompensator` which pose to execute and publishes it as a
 JointState on `joint_commands`. Mode "none" forwards each observation (the uncompensated baseline).
+
+`output` chooses where commands go: `joint_state` (the simulator's `joint_commands`),
+`joint_trajectory` (a one-point `trajectory_msgs/JointTrajectory` on
+`joint_trajectory_controller/joint_trajectory`, what ros2_control's joint_trajectory_controller
+executes on a real robot: reach the pose `trajectory_time_s` after arrival) or `both`.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
+from gwr_predictor.parameter_spec import ParamSpec
 from gwr_predictor.pipeline import conventions
 from gwr_predictor.pipeline.conventions import LayoutError
+from gwr_predictor.pipeline.gates import ArmAnglesGate
+from gwr_predictor.pipeline.trajectory import command_trajectory
 from gwr_predictor.robot import compensator
 from gwr_predictor.robot.nao import ARM_JOINTS
 
-from . import messages
-from .node_base import ArmAnglesGate, Param, PipelineNode, run_node, stream_qos
+from . import messages, standard_messages
+from .node_base import PipelineNode, run_node, stream_qos
 
 PARAMS = (
-    Param("mode", "fixed", "none: forward observations; fixed: the prediction delay_s ahead; "
-          "variable: Eq. 11 against the robot's reported state", choices=compensator.MODES),
-    Param("delay_s", 0.6, "robot delay to compensate (s); sets the step in fixed mode", 0.0, 60.0),
-    Param("frame_period_s", 0.1, "spacing of the predicted frames (s)", 0.001, 10.0),
-    Param("stale_after_s", 0.5, "predictions older than this (now - their stamp) are not used", 0.0, 3600.0),
-    Param("robot_state_timeout_s", 0.5, "a robot state older than this is ignored (variable mode)", 0.0, 3600.0),
+    compensator.PARAM_SPECS["mode"],
+    compensator.PARAM_SPECS["delay_s"],
+    ParamSpec("frame_period_s", 0.1, "spacing of the predicted frames (s)", 0.001, 10.0),
+    compensator.PARAM_SPECS["stale_after_s"],
+    ParamSpec("robot_state_timeout_s", 0.5, "a robot state older than this is ignored (variable mode)", 0.0, 3600.0),
+    ParamSpec("output", "joint_state", "joint_state: JointState on joint_commands (nao_sim); joint_trajectory: "
+              "JointTrajectory on joint_trajectory_controller/joint_trajectory (ros2_control); both",
+              choices=("joint_state", "joint_trajectory", "both")),
+    ParamSpec("trajectory_time_s", 0.1, "joint_trajectory output: time_from_start of the commanded pose (s); "
+              "about one command period, so the controller moves smoothly from command to command", 0.001, 10.0),
 )
 
 
@@ -45,7 +57,12 @@ class DelayCompensatorNode(PipelineNode):
         self.robot_state_time = -np.inf
         self.obs_stamp: float | None = None
         self.fallback_sent_for: float | None = None  # the observation last commanded as a fallback
-        self.command_pub = self.create_publisher(messages.JointState, conventions.TOPIC_COMMAND, stream_qos())
+        output = p["output"]
+        self.command_pub = (self.create_publisher(messages.JointState, conventions.TOPIC_COMMAND, stream_qos())
+                            if output in ("joint_state", "both") else None)
+        self.trajectory_pub = (self.create_publisher(standard_messages.JointTrajectory,
+                                                     conventions.TOPIC_TRAJECTORY_COMMAND, stream_qos())
+                               if output in ("joint_trajectory", "both") else None)
         self.create_subscription(messages.JointState, conventions.TOPIC_ANGLES, self.on_observation, stream_qos())
         self.create_subscription(messages.Float64MultiArray, conventions.TOPIC_PREDICTIONS, self.on_predictions,
                                  stream_qos())
@@ -57,7 +74,7 @@ class DelayCompensatorNode(PipelineNode):
 
     def on_observation(self, msg: messages.JointState) -> None:
         """Store the newest pose; command it directly in mode none or when no usable prediction exists."""
-        accepted = self.observations.accept(msg)
+        accepted = self.observations.accept(*messages.joint_state_fields(msg))
         if accepted is None:
             return
         self.obs_stamp, self.observation = accepted
@@ -93,13 +110,13 @@ class DelayCompensatorNode(PipelineNode):
         once per observation, so that the robot does not hold a pose that was only predicted."""
         if self.observation is None or self.fallback_sent_for == self.obs_stamp:
             return
-        if self.pred_stamp is not None and self.now_s() - self.pred_stamp <= self.params["stale_after_s"]:
+        if not self.compensator.stale(self.now_s(), self.pred_stamp):
             return
         self.fallback_sent_for = self.obs_stamp
         self.publish_command()
 
     def on_robot_state(self, msg: messages.JointState) -> None:
-        accepted = self.robot_states.accept(msg)
+        accepted = self.robot_states.accept(*messages.joint_state_fields(msg))
         if accepted is not None:
             self.robot_state, self.robot_state_time = accepted[1], self.now_s()
 
@@ -112,7 +129,8 @@ class DelayCompensatorNode(PipelineNode):
             self.counters.count("commands.skipped_no_observation")
             return
         now = self.now_s()
-        state = self.robot_state if now - self.robot_state_time <= self.params["robot_state_timeout_s"] else None
+        state = compensator.recent_state(self.robot_state, self.robot_state_time, now,
+                                         self.params["robot_state_timeout_s"])
         out = self.compensator.command(now, self.observation, self.predictions, self.pred_stamp, state)
         if out.fallback_reason is not None:
             self.counters.count(f"fallback.{out.fallback_reason}")
@@ -121,7 +139,13 @@ class DelayCompensatorNode(PipelineNode):
                                          f"commanding the latest observation: {out.fallback_reason}", "info")
         self.counters.count(f"step_used.{out.step_used}")
         self.counters.count("commands.published")
-        self.command_pub.publish(messages.joint_state(now, ARM_JOINTS, out.angles))
+        if self.command_pub is not None:
+            self.command_pub.publish(messages.joint_state(now, ARM_JOINTS, out.angles))
+        if self.trajectory_pub is not None:
+            # stamp 0: the controller starts the trajectory when it arrives (one stamped in the past
+            # could end in the past and be refused); the pose is reached trajectory_time_s later
+            trajectory = command_trajectory(out.angles, self.params["trajectory_time_s"])
+            self.trajectory_pub.publish(standard_messages.joint_trajectory(0.0, ARM_JOINTS, trajectory))
 
 
 def main(args: list[str] | None = None) -> int:

@@ -5,33 +5,41 @@ kinematic model): commands reach its motors `delay_s` later (the paper's 600 ms 
 transport) plus `latency_s` of motor response. A timer advances it to the node clock in control
 periods (the physics runs at 240 Hz inside) and publishes what the robot reports on `joint_states`.
 `delay_amplitude_s` makes the delay vary as a sine (the variable-delay scenario of Sec. VI-D).
+
+For URDF viewers (RViz's RobotModel, Foxglove's 3D panel) it also publishes the URDF on
+`robot_description` (std_msgs/String, transient-local, as robot_state_publisher does) and
+`joint_states` carries every movable URDF joint: the 8 arm joints plus both WristYaw, which
+nothing commands (they hold their start pose).
 """
 
 from __future__ import annotations
 
-import math
 from pathlib import Path
 
+from gwr_predictor.parameter_spec import ParamSpec
 from gwr_predictor.pipeline import conventions
-from gwr_predictor.robot.delayed_arm import RobotError, SimulatedRobot
-from gwr_predictor.robot.nao import ARM_JOINTS
+from gwr_predictor.pipeline.gates import ArmAnglesGate
+from gwr_predictor.robot.delayed_arm import ROBOT_SPECS, RobotError, SimulatedRobot, sine_delay
+from gwr_predictor.robot.nao import ROBOT_ARM_JOINTS, robot_arm_positions
+from gwr_predictor.robot.urdf import default_urdf_path
 
-from . import messages
-from .node_base import ArmAnglesGate, NodeFatalError, Param, ParameterError, PipelineNode, run_node, stream_qos
+from . import messages, standard_messages
+from .node_base import NodeFatalError, ParameterError, PipelineNode, run_node, stream_qos
 
 PARAMS = (
-    Param("backend", "pybullet", "robot model", choices=("pybullet", "kinematic")),
-    Param("gui", False, "open the PyBullet window, a live view (needs DISPLAY; without one: a warning, headless)"),
-    Param("delay_s", 0.6, "transport + sensing delay of every command (s)", 0.0, 60.0),
-    Param("delay_amplitude_s", 0.0, "variable delay: delay_s + amplitude * sin(2 pi t / delay_period_s)", 0.0, 30.0),
-    Param("delay_period_s", 20.0, "period of the delay variation (s)", 0.1, 3600.0),
-    Param("latency_s", 0.035, "motor response latency (s); the real Nao: 30-40 ms", 0.0, 10.0),
-    Param("control_period_s", 0.01, "robot control period; physics steps at 240 Hz within it (s)", 0.001, 0.1),
-    Param("state_rate_hz", 50.0, "rate of joint_states", 1.0, 1000.0),
-    Param("render_dir", "", "write offscreen PNG pictures of the robot here (pybullet backend); empty: none"),
-    Param("render_period_s", 1.0, "one picture every this many seconds", 0.05, 3600.0),
-    Param("render_width", 320, "picture width (px)", 16, 4096),
-    Param("render_height", 240, "picture height (px)", 16, 4096),
+    ParamSpec("backend", "pybullet", "robot model", choices=("pybullet", "kinematic")),
+    ParamSpec("gui", False, "open the PyBullet window, a live view (needs DISPLAY; without one: a warning, headless)"),
+    ROBOT_SPECS["delay_s"],
+    ParamSpec("delay_amplitude_s", 0.0, "variable delay: delay_s + amplitude * sin(2 pi t / delay_period_s)",
+              0.0, 30.0),
+    ParamSpec("delay_period_s", 20.0, "period of the delay variation (s)", 0.1, 3600.0),
+    ROBOT_SPECS["latency_s"],
+    ParamSpec("control_period_s", 0.01, "robot control period; physics steps at 240 Hz within it (s)", 0.001, 0.1),
+    ParamSpec("state_rate_hz", 50.0, "rate of joint_states", 1.0, 1000.0),
+    ParamSpec("render_dir", "", "write offscreen PNG pictures of the robot here (pybullet backend); empty: none"),
+    ParamSpec("render_period_s", 1.0, "one picture every this many seconds", 0.05, 3600.0),
+    ParamSpec("render_width", 320, "picture width (px)", 16, 4096),
+    ParamSpec("render_height", 240, "picture height (px)", 16, 4096),
 )
 
 
@@ -66,6 +74,7 @@ class NaoSimNode(PipelineNode):
         self.t0 = self.now_s()
         self.gate = ArmAnglesGate(self.counters, "joint_commands")
         self.state_pub = self.create_publisher(messages.JointState, conventions.TOPIC_ROBOT_STATE, stream_qos())
+        self.publish_robot_description()
         self.create_subscription(messages.JointState, conventions.TOPIC_COMMAND, self.on_command, stream_qos())
         self.create_timer(1.0 / p["state_rate_hz"], self.on_tick)
         self.render_dir = Path(p["render_dir"]) if p["render_dir"] else None
@@ -83,13 +92,12 @@ class NaoSimNode(PipelineNode):
         p = self.params
         t = self.now_s() - self.t0
         if p["delay_amplitude_s"] > 0.0:
-            self.robot.delay_s = max(0.0, p["delay_s"] + p["delay_amplitude_s"]
-                                     * math.sin(2.0 * math.pi * t / p["delay_period_s"]))
+            self.robot.delay_s = sine_delay(t, p["delay_s"], p["delay_amplitude_s"], p["delay_period_s"])
         if t > self.robot.t:
             self.robot.advance(t - self.robot.t)
 
     def on_command(self, msg: messages.JointState) -> None:
-        accepted = self.gate.accept(msg)
+        accepted = self.gate.accept(*messages.joint_state_fields(msg))
         if accepted is None:
             return
         self.advance()
@@ -99,8 +107,29 @@ class NaoSimNode(PipelineNode):
     def on_tick(self) -> None:
         """Advance and report the joint angles."""
         self.advance()
-        self.state_pub.publish(messages.joint_state(self.now_s(), ARM_JOINTS, self.robot.state()))
+        self.state_pub.publish(messages.joint_state(self.now_s(), ROBOT_ARM_JOINTS,
+                                                    robot_arm_positions(self.robot.state(), self.wrists())))
         self.counters.count("states.published")
+
+    def wrists(self) -> tuple[float, float]:
+        """(left, right) WristYaw: read from the simulator when there is one, else the start pose 0."""
+        if self.sim is None:
+            return (0.0, 0.0)
+        return tuple(self.sim.joint_positions(("LWristYaw", "RWristYaw")))
+
+    def publish_robot_description(self) -> None:
+        """The URDF the simulator runs, once, latched: a viewer that starts later still gets it."""
+        path = self.sim.urdf_path if self.sim is not None else default_urdf_path()
+        try:
+            urdf = Path(path).read_text(encoding="utf-8")
+        except OSError as exc:
+            raise NodeFatalError(f"cannot read the URDF {path}: {exc}") from None
+        self.description_pub = self.create_publisher(standard_messages.String, conventions.TOPIC_ROBOT_DESCRIPTION,
+                                                     standard_messages.latched_qos())
+        self.description_pub.publish(standard_messages.String(data=urdf))
+
+    def hardware_id(self) -> str:
+        return f"simulated Nao ({self.params['backend']}) on {super().hardware_id()}"
 
     def render(self) -> None:
         from gwr_predictor.robot.pybullet_nao import save_png

@@ -9,9 +9,9 @@ import pytest
 from rclpy.serialization import deserialize_message
 
 from gwr_predictor.nodes import messages
-from gwr_predictor.nodes.bag_player import parse_remaps, shift_stamp
 from gwr_predictor.nodes.messages import JointState
 from gwr_predictor.pipeline import bags, conventions
+from gwr_predictor.pipeline.bags import parse_remaps, shift_stamp
 from gwr_predictor.robot.nao import ARM_JOINTS
 
 FAST = {"diagnostics_period_s": 0.5}

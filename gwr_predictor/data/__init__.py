@@ -1,6 +1,7 @@
 """Where the learner's frames come from: demonstrator -> skeleton files -> median of 3 -> Nao angles.
 
-Also the angle CSV files, the memoised demonstrator data set and simulated sensor faults.
+Also the angle CSV files, the memoised demonstrator data set, simulated sensor faults and the
+bench's synthetic arm demonstrations.
 """
 
 from gwr_predictor._exports import lazy_exports
@@ -20,6 +21,9 @@ _EXPORTS = {
     "SmoothingError": "smoothing",
     "skeleton_to_angles": "angles",
     "AngleExtractionError": "angles",
+    "extract_angles": "extraction",
+    "frame_angles": "extraction",
+    "ExtractedAngles": "extraction",
     "AngleFileError": "angle_files",
     "load_angles_csv": "angle_files",
     "save_angles_csv": "angle_files",
@@ -28,6 +32,8 @@ _EXPORTS = {
     "drop_chunks": "faults",
     "joint_dropouts": "faults",
     "FaultParameterError": "faults",
+    "synthetic_demonstrations": "synthetic",
+    "synthetic_arm_stream": "synthetic",
 }
 __all__ = sorted(_EXPORTS)
 __getattr__, __dir__ = lazy_exports(__name__, _EXPORTS)

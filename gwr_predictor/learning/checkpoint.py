@@ -21,14 +21,19 @@ from typing import Any
 
 import numpy as np
 
+from gwr_predictor.errors import GwrPredictorError
+
 MAGIC = "gwr_predictor.checkpoint"
 #: 2: HierarchyParams gained `target` and `readout_k`, and the frame buffer `xbuf` keeps one frame
 #: more (the base of delta targets). Version 1 files are refused: their parameters lack the new keys.
+#: Within 2, a model's layers are stored in the network's own format (`GWR.state`: arrays
+#: `<layer>.weights/counters/edges`, the other values in the header's `layers`); files without
+#: `layers` take those values from the parameters, as they were written.
 FORMAT_VERSION = 2
 HEADER_KEY = "__header__"
 
 
-class CheckpointError(Exception):
+class CheckpointError(GwrPredictorError):
     """A checkpoint that cannot be written or read; the message names the file and the cause."""
 
 
@@ -120,3 +125,15 @@ def read_checkpoint(path: str | os.PathLike[str], kind: str,
     if missing:
         raise CheckpointError(f"{path}: missing arrays {missing}")
     return header, arrays
+
+
+def set_aside(path: str | Path, when: str | None = None) -> Path:
+    """The corrupt-checkpoint policy: an unreadable checkpoint is moved to `<name>.corrupt-<time>`
+    (never deleted, never overwritten) so a fresh model can start; returns where it went. OSError
+    if it cannot be moved: then the caller must not start, or it would overwrite the file."""
+    import time
+
+    path = Path(path)
+    aside = path.with_name(f"{path.name}.corrupt-{when or time.strftime('%Y%m%d-%H%M%S')}")
+    os.replace(path, aside)
+    return aside

@@ -13,10 +13,13 @@ This module is pure Python/numpy; `gwr_predictor.nodes.messages` turns these int
 
 from __future__ import annotations
 
+import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
+from gwr_predictor.errors import GwrPredictorError
 from gwr_predictor.robot.nao import ARM_JOINTS
 
 # --- topics (relative names, so a namespace or remapping moves the whole pipeline) -------------
@@ -28,6 +31,17 @@ TOPIC_COMMAND = "joint_commands"  # JointState: what the robot is told to execut
 TOPIC_ROBOT_STATE = "joint_states"  # JointState: what the simulated Nao reports
 TOPIC_LEARNER_STATUS = "learner_status"  # diagnostic_msgs/DiagnosticArray, about 1 Hz
 TOPIC_DIAGNOSTICS = "diagnostics"  # diagnostic_msgs/DiagnosticArray: rejection counters of all nodes
+#: Diagnostics go to the absolute /diagnostics whatever a node's namespace (diagnostic_aggregator listens
+#: there); the status name (the node's fully qualified name) tells the namespaces apart.
+DIAGNOSTICS_TOPIC = "/" + TOPIC_DIAGNOSTICS
+# --- standard views and interfaces (RViz, Foxglove, ros2_control, body trackers) ----------------
+TOPIC_SKELETON_MARKERS = "skeleton_markers"  # visualization_msgs/MarkerArray: joints + bones, capture stamp
+TOPIC_PREDICTED_TRAJECTORY = "predicted_trajectory"  # trajectory_msgs/JointTrajectory: t+1..t+h
+TOPIC_PREDICTED_ARM_MARKERS = "predicted_arm_markers"  # MarkerArray: the Nao's arms at t+h, frame torso
+TOPIC_ROBOT_DESCRIPTION = "robot_description"  # std_msgs/String: the URDF, transient-local
+TOPIC_BODY_TRACKING = "body_tracking_data"  # MarkerArray in: Azure Kinect / Orbbec body tracking
+#: The compensator's optional command output for ros2_control (relative: remap or namespace it).
+TOPIC_TRAJECTORY_COMMAND = "joint_trajectory_controller/joint_trajectory"
 
 #: All pipeline topics with their ROS type names (for recorders and bag checks).
 TOPIC_TYPES: dict[str, str] = {
@@ -39,6 +53,18 @@ TOPIC_TYPES: dict[str, str] = {
     TOPIC_ROBOT_STATE: "sensor_msgs/msg/JointState",
     TOPIC_LEARNER_STATUS: "diagnostic_msgs/msg/DiagnosticArray",
     TOPIC_DIAGNOSTICS: "diagnostic_msgs/msg/DiagnosticArray",
+    TOPIC_SKELETON_MARKERS: "visualization_msgs/msg/MarkerArray",
+    TOPIC_PREDICTED_TRAJECTORY: "trajectory_msgs/msg/JointTrajectory",
+    TOPIC_PREDICTED_ARM_MARKERS: "visualization_msgs/msg/MarkerArray",
+    TOPIC_ROBOT_DESCRIPTION: "std_msgs/msg/String",
+}
+#: Topics a recorder should subscribe to transient-local (their one message is latched, as
+#: robot_state_publisher does with robot_description).
+LATCHED_TOPICS = frozenset({TOPIC_ROBOT_DESCRIPTION})
+#: Types of topics the pipeline can publish or read but does not by default (for `name@type`-free recording).
+OPTIONAL_TOPIC_TYPES: dict[str, str] = {
+    "joint_trajectory": "trajectory_msgs/msg/JointTrajectory",
+    TOPIC_BODY_TRACKING: "visualization_msgs/msg/MarkerArray",
 }
 
 # --- skeleton joints (OpenNI/NITE, 15 joints) --------------------------------------------------
@@ -59,7 +85,7 @@ XYZ_LABEL = "xyz"
 HORIZON_LABEL = "horizon"
 
 
-class LayoutError(ValueError):
+class LayoutError(GwrPredictorError, ValueError):
     """A MultiArray whose layout does not match the convention; the message says what differs."""
 
 
@@ -164,3 +190,43 @@ QOS_DEPTH_RECORDER = 500
 #: Key/value names in the learner status (DiagnosticArray on TOPIC_LEARNER_STATUS).
 LEARNER_STATUS_NAME = "learner"  # the status name is "<node>/learner"
 NEURON_KEYS = {"gwr1": "neurons.gwr1", "gwr2": "neurons.gwr2", "pgwr": "neurons.pgwr"}
+
+
+# --- stamps: the one conversion between float seconds and builtin_interfaces/Time fields ---------
+
+
+def split_stamp(seconds: float) -> tuple[int, int]:
+    """Seconds -> (sec, nanosec) of a builtin_interfaces/Time; negative or non-finite stamps are a
+    caller bug (ValueError)."""
+    if not math.isfinite(seconds) or seconds < 0.0:
+        raise ValueError(f"stamp must be finite and >= 0, got {seconds}")
+    sec = math.floor(seconds)
+    nanosec = round((seconds - sec) * 1e9)
+    if nanosec >= 1_000_000_000:
+        sec, nanosec = sec + 1, nanosec - 1_000_000_000
+    return sec, nanosec
+
+
+def stamp_seconds(stamp: object) -> float:
+    """A builtin_interfaces/Time (rclpy's or rosbags', anything with sec and nanosec) -> seconds."""
+    return stamp.sec + stamp.nanosec * 1e-9  # type: ignore[attr-defined]
+
+
+# --- joint selection ---------------------------------------------------------------------------
+
+
+def select_joints(names: Sequence[str], positions: np.ndarray, wanted: Sequence[str]) -> np.ndarray:
+    """Positions of `wanted` in that order, from a message with `names` in any order.
+
+    Raises LayoutError naming the missing joints or a duplicated name; extra joints are ignored
+    (a full-body JointState carries more than the arms).
+    """
+    index: dict[str, int] = {}
+    for i, name in enumerate(names):
+        if name in index:
+            raise LayoutError(f"joint name {name!r} appears twice")
+        index[name] = i
+    missing = [n for n in wanted if n not in index]
+    if missing:
+        raise LayoutError(f"missing joints {missing}")
+    return np.asarray([positions[index[n]] for n in wanted], dtype=np.float64)

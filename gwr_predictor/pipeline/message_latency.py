@@ -36,8 +36,8 @@ from typing import Any
 
 import numpy as np
 
+from gwr_predictor.json_safe import to_jsonable
 from gwr_predictor.pipeline import bags, conventions
-from gwr_predictor.pipeline.run_report import finite_json
 
 #: Percentiles reported for every latency.
 PERCENTILES = (50, 90, 99)
@@ -136,7 +136,7 @@ class LatencyReport:
         }
 
     def to_json(self) -> str:
-        return json.dumps(finite_json(self.to_dict()), indent=2)
+        return json.dumps(to_jsonable(self.to_dict()), indent=2)
 
     def summary_lines(self) -> list[str]:
         lines = [f"bag {self.bag}: {self.duration_s:.1f} s",
@@ -163,7 +163,10 @@ class LatencyReport:
 def _source_stamp(msg: Any, msgtype: str) -> float:
     if msgtype == bags.FLOAT64_MULTIARRAY:
         return float(msg.data[0]) if msg.layout.data_offset >= 1 and len(msg.data) >= 1 else float("nan")
-    return bags.stamp_seconds(msg.header.stamp)
+    if hasattr(msg, "markers"):  # MarkerArray: the stamp is in each marker
+        return bags.stamp_seconds(msg.markers[0].header.stamp) if len(msg.markers) else float("nan")
+    header = getattr(msg, "header", None)  # std_msgs/String (robot_description) has none
+    return bags.stamp_seconds(header.stamp) if header is not None else float("nan")
 
 
 #: {node name: [(receive s, {key: value}), ...]} of the /diagnostics statuses in a bag, in receive order.

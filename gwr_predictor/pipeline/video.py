@@ -28,6 +28,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from gwr_predictor.errors import GwrPredictorError
 from gwr_predictor.pipeline import bags, conventions
 from gwr_predictor.pipeline.conventions import LayoutError
 from gwr_predictor.pipeline.run_report import RunData, Series, read_run, resample
@@ -56,7 +57,7 @@ _ARM_BONES = (("left_shoulder", "left_elbow"), ("left_elbow", "left_hand"), ("ri
               ("right_elbow", "right_hand"))
 
 
-class VideoError(RuntimeError):
+class VideoError(GwrPredictorError, RuntimeError):
     """A run that cannot be rendered (missing topics, bad time span or size); the message names the cause."""
 
 
