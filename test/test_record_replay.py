@@ -39,6 +39,8 @@ def test_replayed_angles_reproduce_the_recorded_predictions_exactly(ros, tmp_pat
             ros.start("angle_extractor", params=FAST)]
     for name in ("/gwr_hierarchy", "/angle_extractor"):
         ros.wait_for_node(diagnostics, name, timeout=60)
+    probe.wait_for_graph({"/arm_angles": ("angle_extractor", ["gwr_hierarchy", "bag_recorder"]),
+                          "/predictions": ("gwr_hierarchy", ["bag_recorder"])})
     source = ros.start("skeleton_source", params={**FAST, "patterns": ["raise_lateral_one", "wave_both"], "subjects": 1,
                                                   "repetitions": 1, "loop": False, "pause_s": 0.7,
                                                   "wait_for_subscribers": 2})  # extractor and recorder
@@ -57,6 +59,7 @@ def test_replayed_angles_reproduce_the_recorded_predictions_exactly(ros, tmp_pat
     learner = ros.start("gwr_hierarchy", label="learner_replay", params=learner_params)
     for name in ("/bag_recorder", "/gwr_hierarchy"):
         ros.wait_for_node(diagnostics, name, timeout=60)
+    probe.wait_for_graph({"/predictions": ("gwr_hierarchy", ["bag_recorder"])})
     code, output = ros.run("bag_player", timeout=60, params={
         **FAST, "bag": str(tmp_path / "live"), "topics": ["/arm_angles"], "rate": 4.0,
         "wait_for_subscribers": 1, "start_delay_s": 1.0})
