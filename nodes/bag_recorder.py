@@ -4,6 +4,10 @@ No rosbag2_py on PyPI, so recording is the package's own job: raw subscriptions 
 bytes from the wire, which `gwr_predictor.pipeline.bags.BagWriter` stores unchanged. The bag is flushed
 periodically (a crash loses at most one flush period; `bags.recover_bag` repairs it) and closed
 properly on Ctrl-C and SIGTERM. An unwritable path or a full disk stops the node with exit code 1.
+
+Each topic's entry in the bag carries the QoS profiles its publishers offer, read from the ROS
+graph when the topic's first message arrives (as rosbag2 records them), so that `ros2 bag play`
+and `bag_player` publish with them again.
 """
 
 from __future__ import annotations
@@ -11,6 +15,8 @@ from __future__ import annotations
 import time
 from collections.abc import Callable
 from pathlib import Path
+
+from rclpy.qos import QoSProfile
 
 from gwr_predictor.pipeline import bags, conventions
 
@@ -44,6 +50,15 @@ def topic_types(resolve: Callable[[str], str], names: list[str]) -> dict[str, st
     return resolved
 
 
+def offered_profile(qos: QoSProfile) -> bags.Qos:
+    """An rclpy QoSProfile (as discovered for a publisher) -> the profile stored in the bag."""
+    return bags.qos_profile(history=qos.history.name, depth=qos.depth, reliability=qos.reliability.name,
+                            durability=qos.durability.name, deadline_ns=qos.deadline.nanoseconds,
+                            lifespan_ns=qos.lifespan.nanoseconds, liveliness=qos.liveliness.name,
+                            liveliness_lease_ns=qos.liveliness_lease_duration.nanoseconds,
+                            avoid_ros_namespace_conventions=qos.avoid_ros_namespace_conventions)
+
+
 class BagRecorderNode(PipelineNode):
     NODE_NAME = "bag_recorder"
 
@@ -57,7 +72,7 @@ class BagRecorderNode(PipelineNode):
             raise ParameterError(f"parameter 'topics': {exc}") from None
         if not topics:
             raise ParameterError("parameter 'topics' is empty: nothing to record")
-        self.writer = bags.BagWriter(path, topics)
+        self.writer = bags.BagWriter(path, topics, offered_qos=self.offered_qos)
         self.on_disk = 0  # messages written as of the last flush: what survives a SIGKILL
         self.failure: str | None = None
         try:
@@ -70,6 +85,10 @@ class BagRecorderNode(PipelineNode):
                                      lambda raw, topic=topic: self.on_message(topic, raw), qos, raw=True)
         self.create_timer(p["flush_period_s"], self.flush)
         self.get_logger().info(f"recording {len(topics)} topics into {path}: {', '.join(topics)}")
+
+    def offered_qos(self, topic: str) -> list[bags.Qos]:
+        """The QoS profiles the topic's publishers offer now (one per publisher, as the graph reports them)."""
+        return [offered_profile(info.qos_profile) for info in self.get_publishers_info_by_topic(topic)]
 
     def on_message(self, topic: str, raw: bytes) -> None:
         """Store the bytes as received, stamped with the receive time."""

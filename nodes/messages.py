@@ -13,6 +13,7 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray, MultiArrayDimension
 
@@ -36,6 +37,12 @@ def to_time(seconds: float) -> Time:
 def from_time(stamp: Time) -> float:
     """builtin_interfaces/Time -> seconds (float)."""
     return stamp.sec + stamp.nanosec * 1e-9
+
+
+def clock_msg(nanoseconds: int) -> Clock:
+    """rosgraph_msgs/Clock at `nanoseconds` (exact: no float on the way)."""
+    sec, nanosec = divmod(int(nanoseconds), 1_000_000_000)
+    return Clock(clock=Time(sec=sec, nanosec=nanosec))
 
 
 # --- labelled Float64MultiArray ----------------------------------------------------------------
