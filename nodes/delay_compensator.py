@@ -45,6 +45,7 @@ class DelayCompensatorNode(PipelineNode):
         self.robot_state_time = -np.inf
         self.obs_stamp: float | None = None
         self.fallback_sent_for: float | None = None  # the observation last commanded as a fallback
+        self.command_stamp = 0.0  # stamp of the last command
         self.command_pub = self.create_publisher(messages.JointState, conventions.TOPIC_COMMAND, stream_qos())
         self.create_subscription(messages.JointState, conventions.TOPIC_ANGLES, self.on_observation, stream_qos())
         self.create_subscription(messages.Float64MultiArray, conventions.TOPIC_PREDICTIONS, self.on_predictions,
@@ -121,7 +122,10 @@ class DelayCompensatorNode(PipelineNode):
                                          f"commanding the latest observation: {out.fallback_reason}", "info")
         self.counters.count(f"step_used.{out.step_used}")
         self.counters.count("commands.published")
-        self.command_pub.publish(messages.joint_state(now, ARM_JOINTS, out.angles))
+        # strictly increasing stamps even when two commands fall on one tick of a simulated clock
+        # (/clock moves in steps), so that the robot does not reject the newer one as a repeat
+        self.command_stamp = max(now, self.command_stamp + 1e-6)
+        self.command_pub.publish(messages.joint_state(self.command_stamp, ARM_JOINTS, out.angles))
 
 
 def main(args: list[str] | None = None) -> int:

@@ -245,7 +245,7 @@ class SimClockWatch:
     stands still for `stalled_after_s` (the clock source stopped or paused) is logged once per stall.
     """
 
-    def __init__(self, node: Node, counters: RejectionCounter, no_clock_after_s: float = 3.0,
+    def __init__(self, node: Node, counters: RejectionCounter, no_clock_after_s: float = 5.0,
                  stalled_after_s: float = 5.0) -> None:
         self._node = node
         self._counters = counters

@@ -124,6 +124,8 @@ def test_replay_on_simulated_time_twice_as_fast_as_real_time(ros, tmp_path):
     predicted = int(comp.get("predictions.received", "0"))
     assert predicted >= frames - 10, comp
     assert int(comp.get("fallback.stale_predictions", "0")) <= 2, comp
+    robot = diagnostics["/nao_sim"]  # every command accepted, none refused as a repeated stamp
+    assert not any(k.startswith("rejected.") for k in robot) and int(robot["commands.accepted"]) == len(stamps), robot
 
 
 @pytest.mark.ros
