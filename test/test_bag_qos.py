@@ -1,6 +1,11 @@
 """Bags keep the QoS their publishers offered (as rosbag2 does) and can be read from a bare .mcap file;
 checked with independent readers: rosbags' own Reader, the `mcap` library and mcap-ros2-support."""
 
+import os
+import subprocess
+import sys
+import textwrap
+
 import numpy as np
 import pytest
 import yaml
@@ -109,3 +114,29 @@ def test_replay_qos_is_the_offer_every_recorded_subscriber_can_match():
     assert bags.replay_qos([LATCHED, BEST_EFFORT], 10) == bags.ReplayQos("best_effort", "volatile", 1)
     assert bags.replay_qos([BEST_EFFORT], 10) == bags.ReplayQos("best_effort", "volatile", 10)  # depth 0: default
     assert RELIABLE.reliability == QosReliability.RELIABLE and LATCHED.durability == QosDurability.TRANSIENT_LOCAL
+
+
+CRASHING_WRITER = textwrap.dedent("""
+    import os, sys
+    import numpy as np
+    from gwr_predictor.pipeline import bags
+    from gwr_predictor.robot.nao import ARM_JOINTS
+    qos = bags.qos_profile(history="keep_last", depth=3, reliability="best_effort", durability="volatile")
+    writer = bags.BagWriter(sys.argv[1], {"/arm_angles": bags.JOINT_STATE}, flush_every=5,
+                            offered_qos=lambda topic: [qos])
+    writer.open()
+    for k in range(12):
+        writer.write("/arm_angles", 1000 + k, bags.joint_state_msg(ARM_JOINTS, np.full(8, float(k)), k * 0.1))
+    os._exit(9)  # a crash: no close
+""")
+
+
+def test_a_recovered_bag_keeps_the_offered_qos(tmp_path):
+    env = {k: v for k, v in os.environ.items() if k != "_ROS_WHEELS_BOOTSTRAP_COMPLETE"}
+    done = subprocess.run([sys.executable, "-c", CRASHING_WRITER, str(tmp_path / "crashed")], env=env,
+                          capture_output=True, timeout=120, check=False)
+    assert done.returncode == 9, done.stderr.decode()
+    info = bags.recover_bag(tmp_path / "crashed")
+    assert info.message_count == 10
+    (offered,) = info.offered_qos["/arm_angles"]
+    assert offered.reliability == QosReliability.BEST_EFFORT and offered.depth == 3

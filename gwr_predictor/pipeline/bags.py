@@ -32,6 +32,7 @@ import numpy as np
 from rosbags.interfaces import Qos, QosDurability, QosHistory, QosLiveliness, QosReliability, QosTime
 from rosbags.rosbag2 import Reader, StoragePlugin, Writer
 from rosbags.rosbag2.errors import ReaderError, WriterError
+from rosbags.rosbag2.metadata import parse_qos
 from rosbags.typesys import Stores, get_typestore
 
 from gwr_predictor.pipeline.conventions import ArrayDim, PackedArray
@@ -392,6 +393,7 @@ class _Salvage(NamedTuple):
     channels: dict[int, tuple[str, str]]  # channel id -> (topic, msgtype)
     messages: list[tuple[int, int, bytes]]  # (channel id, log_time, data)
     complete: bool  # the file had its footer
+    qos: dict[str, str]  # topic -> offered_qos_profiles (YAML) of its channel
 
 
 def _salvage_mcap(mcap_path: Path) -> _Salvage:
@@ -404,12 +406,15 @@ def _salvage_mcap(mcap_path: Path) -> _Salvage:
     channels: dict[int, tuple[str, str]] = {}
     messages: list[tuple[int, int, bytes]] = []
     complete = False
+    qos: dict[str, str] = {}
 
     def take(record: Any) -> None:
         if isinstance(record, Schema):
             schemas[record.id] = record.name
         elif isinstance(record, Channel):
             channels[record.id] = (record.topic, schemas.get(record.schema_id, ""))
+            if record.metadata.get("offered_qos_profiles"):
+                qos[record.topic] = record.metadata["offered_qos_profiles"]
         elif isinstance(record, Message) and record.channel_id in channels:
             messages.append((record.channel_id, record.log_time, bytes(record.data)))
 
@@ -427,7 +432,7 @@ def _salvage_mcap(mcap_path: Path) -> _Salvage:
                     take(record)
         except (McapError, struct.error, ValueError):
             pass  # the file ends inside a record (or a compressed chunk is cut): keep what was read
-    return _Salvage(channels, messages, complete)
+    return _Salvage(channels, messages, complete, qos)
 
 
 def recover_bag(path: str | os.PathLike[str]) -> BagInfo:
@@ -463,7 +468,11 @@ def recover_bag(path: str | os.PathLike[str]) -> BagInfo:
     try:
         topics = {topic: msgtype for topic, msgtype in salvage.channels.values()}
         cid_topic = {cid: topic for cid, (topic, _) in salvage.channels.items()}
-        with BagWriter(staging, topics) as writer:
+        try:
+            offered = {topic: parse_qos(text) for topic, text in salvage.qos.items()}
+        except Exception:  # unreadable QoS text: the messages matter more than their QoS
+            offered = {}
+        with BagWriter(staging, topics, offered_qos=lambda topic: offered.get(topic, [])) as writer:
             for cid, log_time, data in sorted(salvage.messages, key=lambda m: m[1]):
                 writer.write_raw(cid_topic[cid], log_time, data)
         damaged.rename(damaged.with_name(damaged.name + ".damaged"))
