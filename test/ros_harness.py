@@ -49,7 +49,8 @@ def _domain_range() -> tuple[int, int]:
 
 
 def allocate_domain_id() -> int:
-    """A domain id not used before in this pytest run (spread over runs by the pid)."""
+    """A domain id no running session of this pytest run holds (spread over runs by the pid); a
+    session releases its id once its processes are stopped, so a range of 10 ids serves a whole run."""
     lo, hi = _domain_range()
     size = hi - lo + 1
     for _ in range(size):
@@ -57,7 +58,11 @@ def allocate_domain_id() -> int:
         if domain not in _used_domains:
             _used_domains.add(domain)
             return domain
-    raise RuntimeError(f"all ROS domain ids {lo}..{hi} used in this run")
+    raise RuntimeError(f"all ROS domain ids {lo}..{hi} are held by running sessions")
+
+
+def release_domain_id(domain: int) -> None:
+    _used_domains.discard(domain)
 
 
 def ros_env(domain_id: int, log_dir: Path, extra: dict[str, str] | None = None) -> dict[str, str]:
@@ -291,6 +296,7 @@ class RosSession:
         finally:
             if self._probe is not None:
                 self._probe.close()
+            release_domain_id(self.domain_id)
 
 
 @pytest.fixture
