@@ -41,7 +41,8 @@ PARAMS = (
     Param("restamp", False, "shift the stamps inside the messages to the replay time"),
     Param("tick_s", 0.002, "scheduling period: messages go out at most this late (s)", 0.0005, 0.1),
     Param("clock", False, "publish /clock with the recorded time (for nodes with use_sim_time:=true)"),
-    Param("clock_period_s", 0.01, "wall-clock period of /clock while playing (s)", 0.001, 1.0),
+    Param("clock_period_s", 0.005, "wall-clock period of /clock while playing (s); a node timer needs a "
+          "period above clock_period_s * rate to keep its rate", 0.001, 1.0),
 )
 
 _JOINT_STATE = "sensor_msgs/msg/JointState"

@@ -16,6 +16,7 @@ import time
 from collections.abc import Callable
 from pathlib import Path
 
+from rclpy.clock import Clock, ClockType
 from rclpy.qos import QoSProfile
 
 from gwr_predictor.pipeline import bags, conventions
@@ -83,7 +84,9 @@ class BagRecorderNode(PipelineNode):
         for topic, msgtype in topics.items():
             self.create_subscription(messages.message_class(msgtype), topic,
                                      lambda raw, topic=topic: self.on_message(topic, raw), qos, raw=True)
-        self.create_timer(p["flush_period_s"], self.flush)
+        self.before_clock: list[tuple[str, bytes]] = []  # use_sim_time: received before the first /clock
+        # the wall clock: what a crash may lose is wall time, and under sim time /clock may stop
+        self.create_timer(p["flush_period_s"], self.flush, clock=Clock(clock_type=ClockType.STEADY_TIME))
         self.get_logger().info(f"recording {len(topics)} topics into {path}: {', '.join(topics)}")
 
     def offered_qos(self, topic: str) -> list[bags.Qos]:
@@ -91,16 +94,34 @@ class BagRecorderNode(PipelineNode):
         return [offered_profile(info.qos_profile) for info in self.get_publishers_info_by_topic(topic)]
 
     def on_message(self, topic: str, raw: bytes) -> None:
-        """Store the bytes as received, stamped with the receive time."""
+        """Store the bytes as received, stamped with the receive time (the node clock).
+
+        Under use_sim_time, messages that arrive before the first /clock (the clock still at 0) are
+        held and stamped with the first clock value, so that the bag's time line is the simulated one.
+        """
+        stamp = self.get_clock().now().nanoseconds
+        self.counters.count(f"recorded.{topic}")
+        if stamp == 0:
+            self.before_clock.append((topic, bytes(raw)))
+            self.counters.count("recorded_before_clock")
+            return
         try:
-            self.writer.write_raw(topic, self.get_clock().now().nanoseconds, raw)
+            self.write_held(stamp)
+            self.writer.write_raw(topic, stamp, raw)
         except bags.BagError as exc:
             self.stop_recording(exc)
-        self.counters.count(f"recorded.{topic}")
+
+    def write_held(self, stamp: int) -> None:
+        """Write the messages held back until the clock started, at `stamp`."""
+        held, self.before_clock = self.before_clock, []
+        for topic, raw in held:
+            self.writer.write_raw(topic, stamp, raw)
 
     def flush(self) -> None:
         """Put everything received on disk (a SIGKILL then loses at most one flush period)."""
         try:
+            if self.before_clock and self.get_clock().now().nanoseconds:
+                self.write_held(self.get_clock().now().nanoseconds)
             self.writer.flush()
         except bags.BagError as exc:
             self.stop_recording(exc)
@@ -124,6 +145,10 @@ class BagRecorderNode(PipelineNode):
                                  "were flushed before the failure: recover them with "
                                  f"gwr_predictor.pipeline.bags.recover_bag({str(self.writer.path)!r})")
         try:
+            if self.before_clock:  # use_sim_time and no /clock ever: nothing better than 0
+                self.get_logger().warning(f"no /clock during the recording: {len(self.before_clock)} messages "
+                                          "stamped 0 in the bag")
+                self.write_held(0)
             self.writer.close()
         except bags.BagError as exc:
             raise NodeFatalError(str(exc)) from None

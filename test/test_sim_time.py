@@ -94,10 +94,12 @@ def test_replay_on_simulated_time_twice_as_fast_as_real_time(ros, tmp_path):
     probe.node.create_subscription(messages.JointState, conventions.TOPIC_ROBOT_STATE,
                                    lambda m: arrivals.append((time.monotonic(), messages.read_joint_state(m)[0])),
                                    QoSProfile(depth=1000))
-    nodes = [ros.start("gwr_hierarchy", params={**SIM, "seed": 1}),
+    nodes = [ros.start("bag_recorder", params={**SIM, "path": str(tmp_path / "replayed"),
+                                               "topics": ["joint_commands", "diagnostics"]}),
+             ros.start("gwr_hierarchy", params={**SIM, "seed": 1}),
              ros.start("delay_compensator", params={**SIM, "mode": "fixed"}),
              ros.start("nao_sim", params={**SIM, "backend": "kinematic"})]
-    for name in ("/gwr_hierarchy", "/delay_compensator", "/nao_sim"):
+    for name in ("/bag_recorder", "/gwr_hierarchy", "/delay_compensator", "/nao_sim"):
         ros.wait_for_node(diagnostics, name, timeout=60)  # diagnostics run on the wall clock, /clock or not
     player = ros.start("bag_player", params={
         **FAST, "bag": str(tmp_path / "angles"), "clock": True, "rate": 2.0, "wait_for_subscribers": 2})
@@ -106,7 +108,7 @@ def test_replay_on_simulated_time_twice_as_fast_as_real_time(ros, tmp_path):
     assert player.wait(1) == 0, output
     assert f"{frames} messages published" in output and "publishing /clock" in output
     probe.spin_for(1.0)
-    for proc in nodes:
+    for proc in reversed(nodes):
         code, killed = proc.stop()
         assert code == 0 and not killed, proc.output()
         first = re.search(r"/clock received: simulated time ([0-9.]+) s", proc.output())
@@ -124,6 +126,10 @@ def test_replay_on_simulated_time_twice_as_fast_as_real_time(ros, tmp_path):
     predicted = int(comp.get("predictions.received", "0"))
     assert predicted >= frames - 10, comp
     assert int(comp.get("fallback.stale_predictions", "0")) <= 2, comp
+    # the recorder on sim time: the bag's time line is the recorded one, also for what came before /clock
+    info = bags.bag_info(tmp_path / "replayed")
+    assert info.topics["/joint_commands"][1] == len(stamps)
+    assert T0 * 1e9 <= info.start_ns and info.end_ns <= (T0 + frames * 0.1 + 1.0) * 1e9, info
     robot = diagnostics["/nao_sim"]  # every command accepted, none refused as a repeated stamp
     assert not any(k.startswith("rejected.") for k in robot) and int(robot["commands.accepted"]) == len(stamps), robot
 
