@@ -4,20 +4,28 @@ The paper's vision module: every 3 skeleton frames are smoothed into one by thei
 (`gwr_predictor.data.smoothing.MedianOf3`), then mapped to the Nao's arm joints
 (`gwr_predictor.data.angles.skeleton_to_angles`). The JointState is stamped with the smoothed frame's
 stamp (its middle frame), so downstream timing refers to when the person was in that pose.
+
+Every accepted skeleton frame is also published as a MarkerArray on `skeleton_markers` (joints and
+bones, frame `markers_frame_id`, the capture stamp) for RViz / Foxglove. With `input:=k4abt_markers`
+the input is an Azure Kinect / Orbbec body-tracking MarkerArray (`body_tracking_data`) instead: the
+body nearest to the sensor is mapped to the 15 joints (`gwr_predictor.data.k4abt`) and then takes
+exactly the path of a skeleton message (same checks, counters and smoothing).
 """
 
 from __future__ import annotations
 
 import numpy as np
 
+from gwr_predictor.data import k4abt
 from gwr_predictor.data.angles import skeleton_to_angles
 from gwr_predictor.data.skeleton_files import MAX_PLAUSIBLE_METRES
 from gwr_predictor.data.smoothing import MedianOf3
 from gwr_predictor.pipeline import conventions
 from gwr_predictor.pipeline.conventions import SKELETON_JOINTS, LayoutError
+from gwr_predictor.pipeline.markers import SKELETON_FRAME, skeleton_figure
 from gwr_predictor.robot.nao import ARM_JOINTS, clip_to_limits
 
-from . import messages
+from . import messages, standard_messages
 from .node_base import Param, PipelineNode, run_node, stream_qos
 
 PARAMS = (
@@ -25,6 +33,11 @@ PARAMS = (
           "a stamp gap larger than this starts a new sequence (the smoothing group restarts)", 0.0, 3600.0),
     Param("input_reliability", "reliable", "QoS of the skeleton subscription; best_effort also matches "
           "trackers that publish best-effort", choices=("reliable", "best_effort")),
+    Param("input", "skeleton", "skeleton: the labelled array on 'skeleton'; k4abt_markers: an Azure Kinect / "
+          "Orbbec body-tracking MarkerArray on 'body_tracking_data' (nearest body)",
+          choices=("skeleton", "k4abt_markers")),
+    Param("markers", True, "also publish every accepted skeleton frame as a MarkerArray on 'skeleton_markers'"),
+    Param("markers_frame_id", SKELETON_FRAME, "frame_id of the skeleton markers (the skeleton camera convention)"),
 )
 
 
@@ -37,9 +50,36 @@ class AngleExtractorNode(PipelineNode):
         self.last_stamp: float | None = None
         self._order: dict[tuple[str, ...], tuple[np.ndarray, np.ndarray, int]] = {}
         self.angles_pub = self.create_publisher(messages.JointState, conventions.TOPIC_ANGLES, stream_qos())
-        reliable = self.params["input_reliability"] == "reliable"
-        self.create_subscription(messages.Float64MultiArray, conventions.TOPIC_SKELETON, self.on_skeleton,
-                                 stream_qos(reliable=reliable))
+        self.markers_pub = (self.create_publisher(standard_messages.MarkerArray, conventions.TOPIC_SKELETON_MARKERS,
+                                                  stream_qos()) if self.params["markers"] else None)
+        qos = stream_qos(reliable=self.params["input_reliability"] == "reliable")
+        if self.params["input"] == "k4abt_markers":
+            self.create_subscription(standard_messages.MarkerArray, conventions.TOPIC_BODY_TRACKING,
+                                     self.on_body_markers, qos)
+        else:
+            self.create_subscription(messages.Float64MultiArray, conventions.TOPIC_SKELETON, self.on_skeleton, qos)
+
+    def on_body_markers(self, msg: standard_messages.MarkerArray) -> None:
+        """Body-tracking markers -> the nearest body's skeleton, then the skeleton path (same checks)."""
+        stamp, _, ids, xyz = standard_messages.read_body_markers(msg)
+        try:
+            body = k4abt.nearest_body(ids, xyz)
+        except k4abt.K4abtError as exc:
+            self.counters.reject("body_tracking.layout", str(exc))
+            return
+        if body is None:
+            self.counters.count("body_tracking.no_body")
+            return
+        if body.unknown_markers:
+            self.counters.count("body_tracking.unknown_markers_ignored", body.unknown_markers)
+        if body.n_bodies > 1:
+            self.counters.count("body_tracking.nearest_of_several")
+        try:
+            skeleton = messages.skeleton_msg(stamp, body.positions)
+        except ValueError as exc:  # a stamp no skeleton can carry (negative, non-finite)
+            self.counters.reject("body_tracking.stamp", str(exc))
+            return
+        self.on_skeleton(skeleton)
 
     def on_skeleton(self, msg: messages.Float64MultiArray) -> None:
         """Check the frame, smooth it; every third accepted frame gives one JointState."""
@@ -52,6 +92,10 @@ class AngleExtractorNode(PipelineNode):
             self.counters.count("sequence_gaps")
         self.last_stamp = stamp
         self.counters.count("skeleton.accepted")
+        if self.markers_pub is not None:
+            figure = skeleton_figure(positions)
+            self.markers_pub.publish(standard_messages.figure_markers(stamp, self.params["markers_frame_id"],
+                                                                      "skeleton", figure, (0.1, 0.8, 0.3, 1.0)))
         smoothed = self.smoother.push(stamp, positions)
         if smoothed is not None:
             self.publish_angles(*smoothed)

@@ -21,7 +21,7 @@ from rclpy.qos import QoSProfile
 
 from gwr_predictor.pipeline import bags, conventions
 
-from . import messages
+from . import messages, standard_messages
 from .node_base import NodeFatalError, Param, ParameterError, PipelineNode, run_node, stream_qos
 
 PARAMS = (
@@ -40,7 +40,8 @@ def topic_types(resolve: Callable[[str], str], names: list[str]) -> dict[str, st
     for entry in names:
         name, _, msgtype = entry.partition("@")
         if not msgtype:
-            msgtype = conventions.TOPIC_TYPES.get(name.rstrip("/").rsplit("/", 1)[-1], "")
+            last = name.rstrip("/").rsplit("/", 1)[-1]
+            msgtype = conventions.TOPIC_TYPES.get(last, conventions.OPTIONAL_TOPIC_TYPES.get(last, ""))
         if not msgtype:
             raise ValueError(f"topic {entry!r}: unknown type; give it as 'name@pkg/msg/Type'")
         try:
@@ -82,8 +83,10 @@ class BagRecorderNode(PipelineNode):
             raise NodeFatalError(str(exc)) from None
         qos = stream_qos(p["queue_depth"])
         for topic, msgtype in topics.items():
+            latched = topic.rsplit("/", 1)[-1] in conventions.LATCHED_TOPICS
             self.create_subscription(messages.message_class(msgtype), topic,
-                                     lambda raw, topic=topic: self.on_message(topic, raw), qos, raw=True)
+                                     lambda raw, topic=topic: self.on_message(topic, raw),
+                                     standard_messages.latched_qos() if latched else qos, raw=True)
         self.before_clock: list[tuple[str, bytes]] = []  # use_sim_time: received before the first /clock
         # the wall clock: what a crash may lose is wall time, and under sim time /clock may stop
         self.create_timer(p["flush_period_s"], self.flush, clock=Clock(clock_type=ClockType.STEADY_TIME))

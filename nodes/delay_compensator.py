@@ -4,6 +4,11 @@ Subscribes to the observed angles, the predictions and the robot's reported join
 prediction (and on an observation when no usable prediction exists) asks
 `gwr_predictor.robot.compensator.DelayCompensator` which pose to execute and publishes it as a
 JointState on `joint_commands`. Mode "none" forwards each observation (the uncompensated baseline).
+
+`output` chooses where commands go: `joint_state` (the simulator's `joint_commands`),
+`joint_trajectory` (a one-point `trajectory_msgs/JointTrajectory` on
+`joint_trajectory_controller/joint_trajectory`, what ros2_control's joint_trajectory_controller
+executes on a real robot: reach the pose `trajectory_time_s` after arrival) or `both`.
 """
 
 from __future__ import annotations
@@ -12,10 +17,11 @@ import numpy as np
 
 from gwr_predictor.pipeline import conventions
 from gwr_predictor.pipeline.conventions import LayoutError
+from gwr_predictor.pipeline.trajectory import command_trajectory
 from gwr_predictor.robot import compensator
 from gwr_predictor.robot.nao import ARM_JOINTS
 
-from . import messages
+from . import messages, standard_messages
 from .node_base import ArmAnglesGate, Param, PipelineNode, run_node, stream_qos
 
 PARAMS = (
@@ -25,6 +31,11 @@ PARAMS = (
     Param("frame_period_s", 0.1, "spacing of the predicted frames (s)", 0.001, 10.0),
     Param("stale_after_s", 0.5, "predictions older than this (now - their stamp) are not used", 0.0, 3600.0),
     Param("robot_state_timeout_s", 0.5, "a robot state older than this is ignored (variable mode)", 0.0, 3600.0),
+    Param("output", "joint_state", "joint_state: JointState on joint_commands (nao_sim); joint_trajectory: "
+          "JointTrajectory on joint_trajectory_controller/joint_trajectory (ros2_control); both",
+          choices=("joint_state", "joint_trajectory", "both")),
+    Param("trajectory_time_s", 0.1, "joint_trajectory output: time_from_start of the commanded pose (s); "
+          "about one command period, so the controller moves smoothly from command to command", 0.001, 10.0),
 )
 
 
@@ -46,7 +57,12 @@ class DelayCompensatorNode(PipelineNode):
         self.obs_stamp: float | None = None
         self.fallback_sent_for: float | None = None  # the observation last commanded as a fallback
         self.command_stamp = 0.0  # stamp of the last command
-        self.command_pub = self.create_publisher(messages.JointState, conventions.TOPIC_COMMAND, stream_qos())
+        output = p["output"]
+        self.command_pub = (self.create_publisher(messages.JointState, conventions.TOPIC_COMMAND, stream_qos())
+                            if output in ("joint_state", "both") else None)
+        self.trajectory_pub = (self.create_publisher(standard_messages.JointTrajectory,
+                                                     conventions.TOPIC_TRAJECTORY_COMMAND, stream_qos())
+                               if output in ("joint_trajectory", "both") else None)
         self.create_subscription(messages.JointState, conventions.TOPIC_ANGLES, self.on_observation, stream_qos())
         self.create_subscription(messages.Float64MultiArray, conventions.TOPIC_PREDICTIONS, self.on_predictions,
                                  stream_qos())
@@ -125,7 +141,13 @@ class DelayCompensatorNode(PipelineNode):
         # strictly increasing stamps even when two commands fall on one tick of a simulated clock
         # (/clock moves in steps), so that the robot does not reject the newer one as a repeat
         self.command_stamp = max(now, self.command_stamp + 1e-6)
-        self.command_pub.publish(messages.joint_state(self.command_stamp, ARM_JOINTS, out.angles))
+        if self.command_pub is not None:
+            self.command_pub.publish(messages.joint_state(self.command_stamp, ARM_JOINTS, out.angles))
+        if self.trajectory_pub is not None:
+            # stamp 0: the controller starts the trajectory when it arrives (one stamped in the past
+            # could end in the past and be refused); the pose is reached trajectory_time_s later
+            trajectory = command_trajectory(out.angles, self.params["trajectory_time_s"])
+            self.trajectory_pub.publish(standard_messages.joint_trajectory(0.0, ARM_JOINTS, trajectory))
 
 
 def main(args: list[str] | None = None) -> int:

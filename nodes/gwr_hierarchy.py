@@ -2,7 +2,10 @@
 
 Every accepted JointState of the arm angles is one `Hierarchy.step` (learn, then predict, as in
 the paper: training never stops). Each step publishes P(t+1..t+h) on `predictions` (stamped t)
-and the h-step prediction as a JointState on `predicted_angles` (stamped t + h * frame period).
+and the h-step prediction as a JointState on `predicted_angles` (stamped t + h * frame period);
+for standard tools also as a `trajectory_msgs/JointTrajectory` on `predicted_trajectory` (stamped t,
+points at t+1..t+h) and the predicted arm at t+h as a MarkerArray on `predicted_arm_markers`
+(frame `torso`, over the robot model).
 Missing frames inside a sequence are fed as missing samples, a gap longer than `max_gap_s` ends
 the sequence. The model is loaded from `checkpoint` at start and saved there atomically every
 `checkpoint_interval_s` and at shutdown; an unreadable checkpoint is moved aside, never overwritten.
@@ -24,10 +27,12 @@ from gwr_predictor.learning.checkpoint import CheckpointError, KindMismatchError
 from gwr_predictor.learning.hierarchy import Hierarchy
 from gwr_predictor.learning.params import HierarchyParams, hierarchy_parameter_specs
 from gwr_predictor.pipeline import conventions
+from gwr_predictor.pipeline.markers import ROBOT_FRAME, arm_figure
+from gwr_predictor.pipeline.trajectory import prediction_trajectory
 from gwr_predictor.predictors.blend import PREDICTORS, BlendedPredictor, gwr_member, load_predictor, make_predictor
 from gwr_predictor.robot.nao import ARM_JOINTS
 
-from . import messages
+from . import messages, standard_messages
 from .node_base import (
     ArmAnglesGate,
     NodeFatalError,
@@ -50,6 +55,8 @@ PARAMS = (
     Param("checkpoint", "", "model file: loaded at start if it exists, saved periodically and at shutdown; "
           "empty: none"),
     Param("checkpoint_interval_s", 60.0, "save the checkpoint this often (s); 0: only at shutdown", 0.0, 86400.0),
+    Param("standard_outputs", True, "also publish predicted_trajectory (JointTrajectory) and "
+          "predicted_arm_markers (MarkerArray) for viewers and controllers"),
     Param("status_period_s", 1.0, "period of the learner status (neurons, errors) (s)", 0.05, 3600.0),
 )
 
@@ -80,6 +87,11 @@ class GwrHierarchyNode(PipelineNode):
         self.pred_pub = self.create_publisher(messages.Float64MultiArray, conventions.TOPIC_PREDICTIONS, stream_qos())
         self.pred_angles_pub = self.create_publisher(messages.JointState, conventions.TOPIC_PREDICTED_ANGLES,
                                                      stream_qos())
+        if p["standard_outputs"]:
+            self.trajectory_pub = self.create_publisher(standard_messages.JointTrajectory,
+                                                        conventions.TOPIC_PREDICTED_TRAJECTORY, stream_qos())
+            self.arm_markers_pub = self.create_publisher(standard_messages.MarkerArray,
+                                                         conventions.TOPIC_PREDICTED_ARM_MARKERS, stream_qos())
         self.status_pub = self.create_publisher(messages.DiagnosticArray, conventions.TOPIC_LEARNER_STATUS,
                                                 status_qos())
         self.create_subscription(messages.JointState, conventions.TOPIC_ANGLES, self.on_angles, stream_qos())
@@ -141,6 +153,13 @@ class GwrHierarchyNode(PipelineNode):
         self.pred_pub.publish(messages.predictions_msg(stamp, predictions))
         self.pred_angles_pub.publish(messages.joint_state(stamp + self.horizon * self.params["frame_period_s"],
                                                           ARM_JOINTS, predictions[-1]))
+        if self.params["standard_outputs"]:
+            trajectory = prediction_trajectory(predictions, self.params["frame_period_s"])
+            self.trajectory_pub.publish(standard_messages.joint_trajectory(stamp, ARM_JOINTS, trajectory))
+            self.arm_markers_pub.publish(standard_messages.figure_markers(
+                stamp + self.horizon * self.params["frame_period_s"], ROBOT_FRAME, "predicted_arm",
+                arm_figure(predictions[-1]), (1.0, 0.5, 0.1, 0.9), lifetime_s=1.0, joint_size=0.025,
+                line_width=0.015))
         self.counters.count("predictions.published")
 
     def handle_gap(self, dt: float) -> None:

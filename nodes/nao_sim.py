@@ -5,6 +5,11 @@ kinematic model): commands reach its motors `delay_s` later (the paper's 600 ms 
 transport) plus `latency_s` of motor response. A timer advances it to the node clock in control
 periods (the physics runs at 240 Hz inside) and publishes what the robot reports on `joint_states`.
 `delay_amplitude_s` makes the delay vary as a sine (the variable-delay scenario of Sec. VI-D).
+
+For URDF viewers (RViz's RobotModel, Foxglove's 3D panel) it also publishes the URDF on
+`robot_description` (std_msgs/String, transient-local, as robot_state_publisher does) and
+`joint_states` carries every movable URDF joint: the 8 arm joints plus both WristYaw, which
+nothing commands (they hold their start pose).
 """
 
 from __future__ import annotations
@@ -14,9 +19,10 @@ from pathlib import Path
 
 from gwr_predictor.pipeline import conventions
 from gwr_predictor.robot.delayed_arm import RobotError, SimulatedRobot
-from gwr_predictor.robot.nao import ARM_JOINTS
+from gwr_predictor.robot.nao import ROBOT_ARM_JOINTS, robot_arm_positions
+from gwr_predictor.robot.urdf import default_urdf_path
 
-from . import messages
+from . import messages, standard_messages
 from .node_base import ArmAnglesGate, NodeFatalError, Param, ParameterError, PipelineNode, run_node, stream_qos
 
 PARAMS = (
@@ -59,6 +65,7 @@ class NaoSimNode(PipelineNode):
         self.t0: float | None = None  # node-clock time of robot time 0: the first tick (under sim time, /clock)
         self.gate = ArmAnglesGate(self.counters, "joint_commands")
         self.state_pub = self.create_publisher(messages.JointState, conventions.TOPIC_ROBOT_STATE, stream_qos())
+        self.publish_robot_description()
         self.create_subscription(messages.JointState, conventions.TOPIC_COMMAND, self.on_command, stream_qos())
         self.create_timer(1.0 / p["state_rate_hz"], self.on_tick)
         self.render_dir = Path(p["render_dir"]) if p["render_dir"] else None
@@ -99,8 +106,29 @@ class NaoSimNode(PipelineNode):
     def on_tick(self) -> None:
         """Advance and report the joint angles."""
         self.advance()
-        self.state_pub.publish(messages.joint_state(self.now_s(), ARM_JOINTS, self.robot.state()))
+        self.state_pub.publish(messages.joint_state(self.now_s(), ROBOT_ARM_JOINTS,
+                                                    robot_arm_positions(self.robot.state(), self.wrists())))
         self.counters.count("states.published")
+
+    def wrists(self) -> tuple[float, float]:
+        """(left, right) WristYaw: read from the simulator when there is one, else the start pose 0."""
+        if self.sim is None:
+            return (0.0, 0.0)
+        return tuple(self.sim.joint_positions(("LWristYaw", "RWristYaw")))
+
+    def publish_robot_description(self) -> None:
+        """The URDF the simulator runs, once, latched: a viewer that starts later still gets it."""
+        path = self.sim.urdf_path if self.sim is not None else default_urdf_path()
+        try:
+            urdf = Path(path).read_text(encoding="utf-8")
+        except OSError as exc:
+            raise NodeFatalError(f"cannot read the URDF {path}: {exc}") from None
+        self.description_pub = self.create_publisher(standard_messages.String, conventions.TOPIC_ROBOT_DESCRIPTION,
+                                                     standard_messages.latched_qos())
+        self.description_pub.publish(standard_messages.String(data=urdf))
+
+    def hardware_id(self) -> str:
+        return f"simulated Nao ({self.params['backend']}) on {super().hardware_id()}"
 
     def render(self) -> None:
         from gwr_predictor.robot.pybullet_nao import save_png

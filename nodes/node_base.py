@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import math
 import signal
+import socket
 import time
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
@@ -290,7 +291,8 @@ class PipelineNode(Node):
         self.params = declare_parameters(self, (*COMMON_PARAMS, *specs))
         self.counters = RejectionCounter(self.get_logger(), self.params["warn_throttle_s"])
         self.done = Future()
-        self._diag_pub = self.create_publisher(messages.DiagnosticArray, conventions.TOPIC_DIAGNOSTICS, status_qos())
+        # absolute: diagnostic_aggregator listens on /diagnostics whatever the node's namespace
+        self._diag_pub = self.create_publisher(messages.DiagnosticArray, conventions.DIAGNOSTICS_TOPIC, status_qos())
         self._diag_timer = self.create_timer(self.params["diagnostics_period_s"], self.publish_diagnostics,
                                              clock=Clock(clock_type=ClockType.STEADY_TIME))
         self.uses_sim_time = bool(self.get_parameter("use_sim_time").value)
@@ -304,11 +306,17 @@ class PipelineNode(Node):
         """Counters plus anything a node adds by overriding this."""
         return dict(self.counters.snapshot())
 
+    def hardware_id(self) -> str:
+        """What the status is about, for diagnostic tools: the machine the node runs on (nodes that
+        stand for a device, like the simulated robot, say so)."""
+        return socket.gethostname()
+
     def publish_diagnostics(self) -> None:
         rejected = self.counters.rejected
         level = messages.WARN if rejected else messages.OK
         status = messages.diagnostic_status(self.get_fully_qualified_name(), self.diagnostic_values(),
-                                            f"{rejected} inputs rejected" if rejected else "ok", level)
+                                            f"{rejected} inputs rejected" if rejected else "ok", level,
+                                            self.hardware_id())
         self._diag_pub.publish(messages.diagnostic_array(self.now_s(), [status]))
 
     def publish_final_diagnostics(self, timeout_s: float = 1.0) -> None:

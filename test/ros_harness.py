@@ -49,20 +49,20 @@ def _domain_range() -> tuple[int, int]:
 
 
 def allocate_domain_id() -> int:
-    """A domain id no running session of this pytest run holds (spread over runs by the pid); a
-    session releases its id once its processes are stopped, so a range of 10 ids serves a whole run."""
+    """A domain id not used before in this pytest run (spread over runs by the pid).
+
+    Once the whole range is used it starts over: tests run one after another and each stops its
+    processes at teardown, so a small range (GWR_TEST_DOMAINS=90-99) still runs the whole suite."""
     lo, hi = _domain_range()
     size = hi - lo + 1
+    if len(_used_domains) >= size:
+        _used_domains.clear()
     for _ in range(size):
         domain = (os.getpid() * 7 + next(_domain_counter)) % size + lo
         if domain not in _used_domains:
             _used_domains.add(domain)
             return domain
-    raise RuntimeError(f"all ROS domain ids {lo}..{hi} are held by running sessions")
-
-
-def release_domain_id(domain: int) -> None:
-    _used_domains.discard(domain)
+    raise RuntimeError(f"no free ROS domain id in {lo}..{hi}")  # unreachable: the set was cleared
 
 
 def ros_env(domain_id: int, log_dir: Path, extra: dict[str, str] | None = None) -> dict[str, str]:
@@ -296,7 +296,6 @@ class RosSession:
         finally:
             if self._probe is not None:
                 self._probe.close()
-            release_domain_id(self.domain_id)
 
 
 @pytest.fixture

@@ -2,9 +2,12 @@
 delay_compensator -> nao_sim (PyBullet), recorded by bag_recorder; clean SIGTERM with checkpoint."""
 
 import signal
+import xml.etree.ElementTree as ET
 
 import numpy as np
 import pytest
+from mcap.reader import make_reader
+from mcap_ros2.decoder import DecoderFactory
 
 from gwr_predictor.data import faults
 from gwr_predictor.data.demonstrator import default_subjects, demonstrate_one
@@ -103,6 +106,19 @@ def test_pipeline_flows_learns_moves_the_robot_and_records(ros, tmp_path):
     recorded = {t.lstrip("/"): n for t, (_, n) in info.topics.items()}
     assert set(recorded) == set(TOPIC_TYPES)
     assert all(n > 0 for n in recorded.values()), recorded
+    # an independent reader (mcap + mcap-ros2-support) decodes the standard views from the bag
+    first = {}
+    with open(next((tmp_path / "bag").glob("*.mcap")), "rb") as f:
+        for _, channel, _, msg in make_reader(f, decoder_factories=[DecoderFactory()]).iter_decoded_messages(
+                topics=["/robot_description", "/skeleton_markers", "/predicted_trajectory", "/joint_states"]):
+            first.setdefault(channel.topic, msg)
+    urdf = ET.fromstring(first["/robot_description"].data)
+    movable = {j.get("name") for j in urdf.findall("joint") if j.get("type") != "fixed"}
+    assert set(first["/joint_states"].name) == movable and len(movable) == 10
+    joints, bones = first["/skeleton_markers"].markers
+    assert joints.header.frame_id == "skeleton_camera" and len(joints.points) == 15 and len(bones.points) == 30
+    assert [p.time_from_start.nanosec for p in first["/predicted_trajectory"].points] == [
+        k * 100_000_000 for k in range(1, 7)]
     report = compute_report(read_run(tmp_path / "bag"))
     assert report.scored_predictions > 20
     assert report.robots[""]["mode"] == "fixed"

@@ -28,6 +28,17 @@ TOPIC_COMMAND = "joint_commands"  # JointState: what the robot is told to execut
 TOPIC_ROBOT_STATE = "joint_states"  # JointState: what the simulated Nao reports
 TOPIC_LEARNER_STATUS = "learner_status"  # diagnostic_msgs/DiagnosticArray, about 1 Hz
 TOPIC_DIAGNOSTICS = "diagnostics"  # diagnostic_msgs/DiagnosticArray: rejection counters of all nodes
+#: Diagnostics go to the absolute /diagnostics whatever a node's namespace (diagnostic_aggregator listens
+#: there); the status name (the node's fully qualified name) tells the namespaces apart.
+DIAGNOSTICS_TOPIC = "/" + TOPIC_DIAGNOSTICS
+# --- standard views and interfaces (RViz, Foxglove, ros2_control, body trackers) ----------------
+TOPIC_SKELETON_MARKERS = "skeleton_markers"  # visualization_msgs/MarkerArray: joints + bones, capture stamp
+TOPIC_PREDICTED_TRAJECTORY = "predicted_trajectory"  # trajectory_msgs/JointTrajectory: t+1..t+h
+TOPIC_PREDICTED_ARM_MARKERS = "predicted_arm_markers"  # MarkerArray: the Nao's arms at t+h, frame torso
+TOPIC_ROBOT_DESCRIPTION = "robot_description"  # std_msgs/String: the URDF, transient-local
+TOPIC_BODY_TRACKING = "body_tracking_data"  # MarkerArray in: Azure Kinect / Orbbec body tracking
+#: The compensator's optional command output for ros2_control (relative: remap or namespace it).
+TOPIC_TRAJECTORY_COMMAND = "joint_trajectory_controller/joint_trajectory"
 
 #: All pipeline topics with their ROS type names (for recorders and bag checks).
 TOPIC_TYPES: dict[str, str] = {
@@ -39,6 +50,18 @@ TOPIC_TYPES: dict[str, str] = {
     TOPIC_ROBOT_STATE: "sensor_msgs/msg/JointState",
     TOPIC_LEARNER_STATUS: "diagnostic_msgs/msg/DiagnosticArray",
     TOPIC_DIAGNOSTICS: "diagnostic_msgs/msg/DiagnosticArray",
+    TOPIC_SKELETON_MARKERS: "visualization_msgs/msg/MarkerArray",
+    TOPIC_PREDICTED_TRAJECTORY: "trajectory_msgs/msg/JointTrajectory",
+    TOPIC_PREDICTED_ARM_MARKERS: "visualization_msgs/msg/MarkerArray",
+    TOPIC_ROBOT_DESCRIPTION: "std_msgs/msg/String",
+}
+#: Topics a recorder should subscribe to transient-local (their one message is latched, as
+#: robot_state_publisher does with robot_description).
+LATCHED_TOPICS = frozenset({TOPIC_ROBOT_DESCRIPTION})
+#: Types of topics the pipeline can publish or read but does not by default (for `name@type`-free recording).
+OPTIONAL_TOPIC_TYPES: dict[str, str] = {
+    "joint_trajectory": "trajectory_msgs/msg/JointTrajectory",
+    TOPIC_BODY_TRACKING: "visualization_msgs/msg/MarkerArray",
 }
 
 # --- skeleton joints (OpenNI/NITE, 15 joints) --------------------------------------------------

@@ -163,7 +163,10 @@ class LatencyReport:
 def _source_stamp(msg: Any, msgtype: str) -> float:
     if msgtype == bags.FLOAT64_MULTIARRAY:
         return float(msg.data[0]) if msg.layout.data_offset >= 1 and len(msg.data) >= 1 else float("nan")
-    return bags.stamp_seconds(msg.header.stamp)
+    if hasattr(msg, "markers"):  # MarkerArray: the stamp is in each marker
+        return bags.stamp_seconds(msg.markers[0].header.stamp) if len(msg.markers) else float("nan")
+    header = getattr(msg, "header", None)  # std_msgs/String (robot_description) has none
+    return bags.stamp_seconds(header.stamp) if header is not None else float("nan")
 
 
 #: {node name: [(receive s, {key: value}), ...]} of the /diagnostics statuses in a bag, in receive order.

@@ -68,6 +68,19 @@ def clip_to_limits(angles: np.ndarray, names: tuple[str, ...] = ARM_JOINTS) -> n
     return np.clip(angles, lo, hi)
 
 
+def robot_arm_positions(angles: np.ndarray, wrist_yaw: np.ndarray | tuple[float, float] = (0.0, 0.0)) -> np.ndarray:
+    """The 8 `ARM_JOINTS` angles plus (left, right) WristYaw -> all 10 in `ROBOT_ARM_JOINTS` order: what a
+    joint_states for every movable URDF joint carries (the learner never commands the wrists)."""
+    angles = np.asarray(angles, dtype=float).ravel()
+    if angles.size != len(ARM_JOINTS):
+        raise ValueError(f"expected {len(ARM_JOINTS)} arm angles, got {angles.size}")
+    wrists = np.asarray(wrist_yaw, dtype=float).ravel()
+    if wrists.size != len(SIDES):
+        raise ValueError(f"expected one WristYaw per side ({len(SIDES)}), got {wrists.size}")
+    k = len(ARM_JOINT_SUFFIXES)
+    return np.concatenate([angles[:k], wrists[:1], angles[k:], wrists[1:]])
+
+
 def side_offsets(side: str) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Shoulder, elbow, wrist and hand offsets of one side ('L' or 'R')."""
     if side not in SIDES:
