@@ -118,7 +118,9 @@ def test_replay_on_simulated_time_twice_as_fast_as_real_time(ros, tmp_path):
     during = [(w, s) for w, s in arrivals if T0 + 0.5 <= s <= T0 + frames * 0.1 - 0.5]
     (w0, s0), (w1, s1) = during[0], during[-1]
     assert (s1 - s0) / (w1 - w0) == pytest.approx(2.0, rel=0.2)
-    assert len(during) >= 0.8 * 50 * (s1 - s0)  # state_rate_hz 50 per simulated second
+    # state_rate_hz 50 per *simulated* second: 0.02 s of recorded time between states (a wall-clock
+    # timer would give 0.04); the median, because a loaded machine skips a tick now and then
+    assert float(np.median(np.diff([st for _, st in during]))) == pytest.approx(0.02, abs=0.006)
     # commands are stamped on the recorded time line, and predictions were fresh by that clock
     stamps = [messages.read_joint_state(m)[0] for m in commands]
     assert len(stamps) >= frames - 5 and T0 <= min(stamps) and max(stamps) <= T0 + frames * 0.1 + 1.0
