@@ -4,13 +4,17 @@ The library is pure Python + numpy (no rclpy), one subpackage per concern, in th
 
 - `data`: demonstrator, skeleton files, median of 3, the 8 Nao arm angles;
 - `learning`: the paper's GWR -> Predictive GWR -> hierarchy, parameters, checkpoints;
-- `predictors`: baselines and blends with the same `step` protocol;
+- `predictors`: baselines, blends and the one registry of predictors by name (`make_predictor`);
 - `evaluation`: the online evaluation loop, metrics and the paper's experiments;
 - `robot`: Nao kinematics/URDF, PyBullet simulator, delayed arm, delay compensator;
 - `pipeline`: message conventions, MCAP bags, run reports and latency (ROS-free);
 - `commands`: the `gwr-predictor` command line over all of the above.
 
-ROS nodes live in `gwr_predictor.nodes` and only convert messages.
+ROS nodes live in `gwr_predictor.nodes` and only convert messages. Every predictor follows
+`Predictor` (`protocol.py`); every error the package raises derives from `GwrPredictorError`.
+
+Start here: `make_predictor("hierarchy")` (or any `predictor_names()`), `compare_online(models,
+demo_angle_sequences(...))`, `load_predictor(name, checkpoint)`.
 """
 
 from gwr_predictor._exports import lazy_exports
@@ -24,12 +28,17 @@ _EXPORTS = {
     "GWR": "learning.gwr",
     "PredictiveGWR": "learning.predictive_gwr",
     "HoldLast": "predictors.baselines",
-    "make_predictor": "predictors.blend",
-    "load_predictor": "predictors.blend",
+    "make_predictor": "predictors.registry",
+    "load_predictor": "predictors.registry",
     "compare_online": "evaluation.online",
     "skeleton_to_angles": "data.angles",
     "load_skeleton": "data.skeleton_files",
     "ARM_JOINTS": "robot.nao",
+    "GwrPredictorError": "errors",
+    "Predictor": "protocol",
+    "register": "predictors.registry",
+    "predictor_names": "predictors.registry",
+    "demo_angle_sequences": "data.datasets",
 }
 __all__ = ["__version__", *sorted(_EXPORTS)]
 __getattr__, __dir__ = lazy_exports(__name__, _EXPORTS)

@@ -11,7 +11,7 @@ the sequence. The model is loaded from `checkpoint` at start and saved there ato
 `checkpoint_interval_s` and at shutdown; an unreadable checkpoint is moved aside, never overwritten.
 
 `predictor` picks the model: `hierarchy` (the paper) or a per-step inverse-MSE blend of a GWR
-predictor with RLS-AR (`blend_hierarchy_rls`, `blend_flat_rls`; beyond the paper, see ensemble.py).
+predictor with RLS-AR (`blend_hierarchy_rls`, `blend_flat_rls`; beyond the paper, see predictors/blend.py).
 A checkpoint of another kind than `predictor` stops the node (it is neither used nor moved aside).
 """
 
@@ -29,7 +29,8 @@ from gwr_predictor.learning.params import HierarchyParams, hierarchy_parameter_s
 from gwr_predictor.pipeline import conventions
 from gwr_predictor.pipeline.markers import ROBOT_FRAME, arm_figure
 from gwr_predictor.pipeline.trajectory import prediction_trajectory
-from gwr_predictor.predictors.blend import PREDICTORS, BlendedPredictor, gwr_member, load_predictor, make_predictor
+from gwr_predictor.predictors.blend import BlendedPredictor, gwr_member
+from gwr_predictor.predictors.registry import learner_names, load_predictor, make_predictor
 from gwr_predictor.robot.nao import ARM_JOINTS
 
 from . import messages, standard_messages
@@ -47,7 +48,7 @@ from .node_base import (
 PARAMS = (
     Param("predictor", "hierarchy", "model: 'hierarchy' (GWR1 -> GWR2 -> P-GWR, the paper) or an online "
           "per-step inverse-MSE blend with RLS-AR ('blend_hierarchy_rls', 'blend_flat_rls'; beyond the paper)",
-          choices=tuple(PREDICTORS)),
+          choices=learner_names()),
     Param("seed", 0, "seed of the networks' initial random neurons", 0, 2**31 - 1),
     Param("learn", True, "learn from every frame (false: predict with the networks as they are)"),
     Param("frame_period_s", 1.0 / conventions.ANGLE_FPS, "spacing of the angle frames (s)", 0.001, 10.0),

@@ -36,6 +36,7 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPo
 from rclpy.signals import SignalHandlerOptions
 from rclpy.task import Future
 
+from gwr_predictor.errors import GwrPredictorError
 from gwr_predictor.pipeline import conventions
 from gwr_predictor.pipeline.conventions import LayoutError
 from gwr_predictor.robot.nao import ARM_JOINTS, limits_array
@@ -47,11 +48,11 @@ EXIT_FATAL = 1
 EXIT_BAD_PARAMETER = 2
 
 
-class ParameterError(Exception):
+class ParameterError(GwrPredictorError):
     """A parameter value the node cannot run with; the message names the parameter and the allowed values."""
 
 
-class NodeFatalError(Exception):
+class NodeFatalError(GwrPredictorError):
     """A condition that stops the node (unwritable path, full disk, unreadable file); the message says which."""
 
 

@@ -52,6 +52,31 @@ def test_model_loaded_mid_stream_continues_bit_for_bit(tmp_path, cls, mode):
     same_state(model, twin)
 
 
+def test_layers_are_saved_in_the_gwr_state_format_and_older_files_still_load(tmp_path):
+    """Each layer is stored as its GWR.state (arrays + header values); a file written before the
+    header held the layers' values (same format version) loads to the same model."""
+    from gwr_predictor.learning.gwr import GWR
+
+    model = trained()
+    header, arrays = model.state()
+    for name in model.layer_names:
+        own = getattr(model, name).state()
+        assert header["layers"][name] == {k: v for k, v in own.items() if k not in GWR.STATE_ARRAYS}
+        for a in GWR.STATE_ARRAYS:
+            np.testing.assert_array_equal(arrays[f"{name}.{a}"], own[a])
+    older = tmp_path / "older.npz"
+    write_checkpoint(older, model.kind, {k: v for k, v in header.items() if k != "layers"}, arrays)
+    twin = Hierarchy.load(older)
+    same_state(model, twin)
+    for x in movement(60, offset=250):
+        np.testing.assert_array_equal(model.step(x), twin.step(x))
+    header["layers"]["gwr2"]["match_dim"] -= 1  # a header that contradicts the parameters
+    bad = tmp_path / "bad.npz"
+    write_checkpoint(bad, model.kind, header, arrays)
+    with pytest.raises(CheckpointError, match=r"layer gwr2 has match_dim"):
+        Hierarchy.load(bad)
+
+
 def test_random_state_and_frozen_layers_survive(tmp_path):
     model = trained()
     model.freeze_layers(("gwr1",))

@@ -196,12 +196,12 @@ def test_make_blend_on_demonstrator_subset():
     seqs = demo_angle_sequences(patterns=("wave_one", "raise_front_both", "rotate_cw_one"), subjects=2,
                                 repetitions=3)
     train, test = seqs[:-4], seqs[-4:]
-    for kind in ("hierarchy+rls", "flat+rls"):
+    for kind in ("blend_hierarchy_rls", "blend_flat_rls"):
         blend = make_blend(kind, seed=0)
         assert blend.horizon == 6
         train_online(blend, train, passes=2, progress=False)
         members = copy.deepcopy(blend.members)  # independent copies: they learn exactly as the blend's own
-        assert len(blend.neuron_counts) == (3 if kind == "hierarchy+rls" else 1)
+        assert len(blend.neuron_counts) == (3 if kind == "blend_hierarchy_rls" else 1)
         res = compare_online({"blend": blend, **members}, test, progress=False)
         mse = {m: r.stats.mse[-1] for m, r in res.items()}
         worse = max(mse[m] for m in members)
@@ -209,7 +209,7 @@ def test_make_blend_on_demonstrator_subset():
         assert mse["blend"] <= worse, (kind, mse)
         assert mse["blend"] <= better * 1.1, (kind, mse)
         assert res["blend"].scored_frames > 100
-        assert set(blend.errors()["members"]) == {kind.split("+")[0]}
+        assert set(blend.errors()["members"]) == {{"blend_hierarchy_rls": "hierarchy", "blend_flat_rls": "flat"}[kind]}
         np.testing.assert_allclose(sum(blend.weights().values()), 1.0)
         p = blend.predict()
         assert p is not None and p.shape == (6, 8)
@@ -221,7 +221,7 @@ def _arm_frames(n: int, seed: int = 0) -> np.ndarray:
     return 0.3 * np.sin(t[:, None] * np.arange(1, 9) * 0.5) + 0.01 * rng.standard_normal((n, 8))
 
 
-@pytest.mark.parametrize("kind", ["hierarchy+rls", "flat+rls"])
+@pytest.mark.parametrize("kind", ["blend_hierarchy_rls", "blend_flat_rls"])
 def test_blend_saved_mid_stream_continues_bit_for_bit(tmp_path, kind):
     frames = _arm_frames(160)
     frames[50] = np.nan  # a missing sample before the save, one right after it
@@ -248,7 +248,7 @@ def test_blend_saved_mid_stream_continues_bit_for_bit(tmp_path, kind):
 
 
 def test_fresh_blend_round_trips_before_any_frame(tmp_path):
-    a = make_blend("hierarchy+rls", seed=1, blend=BlendParams(decay=0.95, floor=1e-5, adapt_frozen=False))
+    a = make_blend("blend_hierarchy_rls", seed=1, blend=BlendParams(decay=0.95, floor=1e-5, adapt_frozen=False))
     a.save(tmp_path / "b.npz")
     b = BlendedPredictor.load(tmp_path / "b.npz")
     assert b.params == a.params and b._pending is None
@@ -264,7 +264,7 @@ def test_checkpoint_kind_mismatch_names_the_file_and_the_kind(tmp_path):
     from gwr_predictor.learning.hierarchy import FlatPredictor, Hierarchy
 
     blend_path, plain_path = tmp_path / "blend.npz", tmp_path / "plain.npz"
-    make_blend("hierarchy+rls").save(blend_path)
+    make_blend("blend_hierarchy_rls").save(blend_path)
     Hierarchy().save(plain_path)
     expected = f"{plain_path}: holds a 'Hierarchy', expected a 'BlendedPredictor'"
     with pytest.raises(CheckpointError, match=re.escape(expected)):
@@ -286,13 +286,14 @@ def test_blend_with_unsaveable_members_refuses_to_save(tmp_path):
 
 def test_make_predictor_names_the_hierarchy_and_both_blends():
     from gwr_predictor.learning.hierarchy import FlatPredictor, Hierarchy
-    from gwr_predictor.predictors.blend import PREDICTORS, gwr_member, make_predictor
+    from gwr_predictor.predictors.blend import gwr_member
+    from gwr_predictor.predictors.registry import UnknownPredictorError, learner_names, make_predictor
 
     assert isinstance(make_predictor("hierarchy"), Hierarchy)
     assert isinstance(gwr_member(make_predictor("blend_hierarchy_rls")), Hierarchy)
     assert isinstance(gwr_member(make_predictor("blend_flat_rls")), FlatPredictor)
-    assert set(PREDICTORS) == {"hierarchy", "blend_hierarchy_rls", "blend_flat_rls"}
-    with pytest.raises(BlendError, match="unknown predictor 'nope'"):
+    assert set(learner_names()) == {"hierarchy", "blend_hierarchy_rls", "blend_flat_rls"}
+    with pytest.raises(UnknownPredictorError, match="unknown predictor 'nope'"):
         make_predictor("nope")
 
 
@@ -311,7 +312,7 @@ def test_pretrain_writes_a_blend_checkpoint_the_blend_loader_reads(tmp_path):
 
 def test_load_predictor_refuses_a_blend_of_other_members(tmp_path):
     from gwr_predictor.learning.checkpoint import KindMismatchError
-    from gwr_predictor.predictors.blend import load_predictor, make_predictor
+    from gwr_predictor.predictors.registry import load_predictor, make_predictor
 
     path = tmp_path / "flat.npz"
     make_predictor("blend_flat_rls").save(path)
@@ -321,3 +322,43 @@ def test_load_predictor_refuses_a_blend_of_other_members(tmp_path):
         load_predictor("blend_hierarchy_rls", path)
     with pytest.raises(KindMismatchError, match="expected a 'Hierarchy'"):
         load_predictor("hierarchy", path)
+
+
+def test_registered_predictor_is_available_to_evaluate_by_name(tmp_path, capsys):
+    import json
+
+    from gwr_predictor.commands.cli import main
+    from gwr_predictor.errors import GwrPredictorError
+    from gwr_predictor.predictors import registry
+
+    class Zero:
+        """Predicts the origin: worse than hold-last on any motion away from it."""
+
+        def __init__(self, horizon: int, joints: int = 8) -> None:
+            self.out = np.zeros((horizon, joints))
+
+        def step(self, x, learn=True):
+            return self.out
+
+        def reset_sequence(self):
+            pass
+
+    name = "zero_test_only"
+    registry.register(name, lambda params, seed: Zero(params.horizon), "predicts zeros")
+    try:
+        with pytest.raises(GwrPredictorError, match="already registered"):
+            registry.register(name, lambda params, seed: Zero(params.horizon))
+        assert name in registry.names() and name not in registry.learner_names()
+        frames = 0.5 + _arm_frames(60)
+        csv = tmp_path / "angles.csv"
+        from gwr_predictor.robot.nao import ARM_JOINTS
+
+        csv.write_text("time," + ",".join(ARM_JOINTS) + "\n" + "\n".join(
+            f"{0.1 * t:.1f}," + ",".join(f"{v:.5f}" for v in row) for t, row in enumerate(frames)) + "\n")
+        assert main(["evaluate", str(csv), "--methods", f"hold,{name}", "--no-progress"]) == 0
+        out = capsys.readouterr().out
+        assert "| predicts zeros |" in out
+        mae = json.loads(out.strip().splitlines()[-1])["mae_rad"]
+        assert mae[name][0] > mae["hold"][0]
+    finally:
+        registry._REGISTRY.pop(name, None)

@@ -49,3 +49,17 @@ def test_library_never_imports_rclpy():
                 top = m.split(".")[0]
                 assert top not in {"rclpy", "sensor_msgs", "std_msgs", "diagnostic_msgs"}, (
                     f"{path.relative_to(ROOT)} imports {m}: the library must stay ROS-free")
+
+
+def test_every_public_name_of_the_package_and_its_subpackages_resolves():
+    import importlib
+
+    for pkg in ("gwr_predictor", "gwr_predictor.learning", "gwr_predictor.predictors", "gwr_predictor.evaluation",
+                "gwr_predictor.data", "gwr_predictor.robot", "gwr_predictor.pipeline"):
+        module = importlib.import_module(pkg)
+        for name in module.__all__:
+            assert getattr(module, name) is not None, f"{pkg}.{name}"
+    import gwr_predictor
+
+    starters = {"make_predictor", "load_predictor", "register", "Predictor", "GwrPredictorError"}
+    assert starters <= set(gwr_predictor.__all__)

@@ -2,6 +2,8 @@
 
 Each sub-command lives in its own module exposing `configure(parser)` and `run(args) -> int`,
 imported only when chosen so that `gwr-predictor angles` does not pay for pybullet or matplotlib.
+Any `GwrPredictorError` a command lets through (bad file, corrupt checkpoint, bad parameter) is
+printed as one line on stderr with exit code 2; anything else is a bug and keeps its traceback.
 """
 
 from __future__ import annotations
@@ -9,6 +11,8 @@ from __future__ import annotations
 import argparse
 import importlib
 import sys
+
+from gwr_predictor.errors import GwrPredictorError
 
 # name -> (module, one-line help)
 COMMANDS: dict[str, tuple[str, str]] = {
@@ -41,7 +45,13 @@ def main(argv: list[str] | None = None) -> int:
     module = importlib.import_module(COMMANDS[name][0])
     parser = argparse.ArgumentParser(prog=f"gwr-predictor {name}", description=COMMANDS[name][1])
     module.configure(parser)
-    return int(module.run(parser.parse_args(rest)) or 0)
+    args = parser.parse_args(rest)
+    try:
+        return int(module.run(args) or 0)
+    except GwrPredictorError as exc:
+        message = " ".join(str(exc).split())  # one line, even for multi-line messages
+        print(f"gwr-predictor {name}: error: {message}", file=sys.stderr)
+        return 2
 
 
 if __name__ == "__main__":

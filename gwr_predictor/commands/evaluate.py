@@ -16,15 +16,17 @@ from pathlib import Path
 import numpy as np
 
 from gwr_predictor.commands.experiment import parse_overrides
+from gwr_predictor.errors import GwrPredictorError
 from gwr_predictor.evaluation.experiments import common
 from gwr_predictor.evaluation.experiments.output import markdown_table, to_jsonable
 from gwr_predictor.evaluation.online import EvaluationError, compare_online
+from gwr_predictor.predictors import registry
 from gwr_predictor.robot.nao import ARM_JOINTS
 
 DEFAULT_METHODS = ("hold", "const_velocity", "rls_ar", common.HIERARCHY)
 
 
-class RecordingError(ValueError):
+class RecordingError(GwrPredictorError, ValueError):
     """A file that is neither an angle CSV nor a skeleton recording; the message says why."""
 
 
@@ -33,7 +35,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--passes", type=int, default=1, help="times the recordings are presented (default 1)")
     parser.add_argument("--horizon", type=int, default=None, help="frames ahead (default: the model's, 6)")
     parser.add_argument("--methods", default=",".join(DEFAULT_METHODS),
-                        help=f"comma-separated subset of {','.join(common.ALL_METHODS)}")
+                        help=f"comma-separated subset of {','.join(common.all_methods())}")
     parser.add_argument("--checkpoint", type=Path, default=None,
                         help="start the hierarchy (also the one inside blend_hierarchy_rls) from this checkpoint")
     parser.add_argument("--param", action="append", default=[], metavar="KEY=VALUE",
@@ -73,8 +75,8 @@ def load_recording(path: Path) -> np.ndarray:
 def run(args: argparse.Namespace) -> int:
     try:
         methods = tuple(m.strip() for m in args.methods.split(",") if m.strip())
-        if unknown := [m for m in methods if m not in common.ALL_METHODS]:
-            raise ValueError(f"unknown methods {unknown}; choose from {', '.join(common.ALL_METHODS)}")
+        if unknown := [m for m in methods if m not in common.all_methods()]:
+            raise ValueError(f"unknown methods {unknown}; choose from {', '.join(common.all_methods())}")
         if args.passes < 1:
             raise ValueError(f"--passes must be >= 1, got {args.passes}")
         recordings = [load_recording(p) for p in args.files]
@@ -82,16 +84,13 @@ def run(args: argparse.Namespace) -> int:
         models = {}
         for m in methods:
             if m == common.HIERARCHY and args.checkpoint is not None:
-                from gwr_predictor.learning.hierarchy import Hierarchy
-
-                models[m] = Hierarchy.load(args.checkpoint)
+                models[m] = registry.load_predictor(common.HIERARCHY, args.checkpoint)
             elif m == common.BLEND and args.checkpoint is not None:
-                from gwr_predictor.learning.hierarchy import Hierarchy
                 from gwr_predictor.predictors.blend import BlendedPredictor
 
                 blend = common.make_model(m, params, args.seed)
-                models[m] = BlendedPredictor({**blend.members, "hierarchy": Hierarchy.load(args.checkpoint)},
-                                             blend.params)
+                hierarchy = registry.load_predictor(common.HIERARCHY, args.checkpoint)
+                models[m] = BlendedPredictor({**blend.members, "hierarchy": hierarchy}, blend.params)
             else:
                 models[m] = common.make_model(m, params, args.seed)
         horizon = args.horizon or params.horizon
@@ -102,7 +101,7 @@ def run(args: argparse.Namespace) -> int:
         print(f"error ({kind}): {exc}", file=sys.stderr)
         return 2
     steps = sorted({1, *range(2, horizon + 1, max(1, horizon // 6)), horizon})
-    rows = [[common.LABELS[m], *[r.stats.mae[k - 1] for k in steps], r.coverage] for m, r in results.items()]
+    rows = [[common.label(m), *[r.stats.mae[k - 1] for k in steps], r.coverage] for m, r in results.items()]
     first = next(iter(results.values()))
     print(f"{len(recordings)} recording(s), {first.frames} frames fed ({args.passes} pass(es)), "
           f"{first.scored_frames} scored on the same frames by every method. MAE (rad) per horizon step:")

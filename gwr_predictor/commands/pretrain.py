@@ -22,7 +22,8 @@ import numpy as np
 from gwr_predictor.data.datasets import demo_angle_sequences
 from gwr_predictor.data.demonstrator import PATTERNS, DemonstratorError
 from gwr_predictor.learning.params import HierarchyParams, hierarchy_parameter_specs
-from gwr_predictor.predictors.blend import PREDICTORS, gwr_member, make_predictor
+from gwr_predictor.predictors.blend import gwr_member
+from gwr_predictor.predictors.registry import learner_names, make_predictor
 
 NODE_NAME = "gwr_hierarchy"
 
@@ -41,7 +42,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--max-seconds", type=float, default=120.0, help="stop after the epoch that exceeds this")
     parser.add_argument("--seed", type=int, default=None, help="model seed (default: the params file's, else 0)")
     parser.add_argument("--data-seed", type=int, default=0, help="demonstrator seed (default 0, as the live source)")
-    parser.add_argument("--predictor", choices=tuple(PREDICTORS), default=None,
+    parser.add_argument("--predictor", choices=learner_names(), default=None,
                         help="model to train (default: the params file's 'predictor', else hierarchy); must match "
                              "the node's 'predictor' parameter")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
@@ -92,8 +93,8 @@ def run(args: argparse.Namespace) -> int:
         print("error: --epochs must be >= 1", file=sys.stderr)
         return 2
     predictor = args.predictor or str(flat.get("predictor", "hierarchy"))
-    if predictor not in PREDICTORS:
-        print(f"error: predictor {predictor!r} is not one of {', '.join(PREDICTORS)}", file=sys.stderr)
+    if predictor not in learner_names():
+        print(f"error: predictor {predictor!r} is not one of {', '.join(learner_names())}", file=sys.stderr)
         return 2
     model = make_predictor(predictor, params, seed=seed)
     learner = gwr_member(model)  # neurons and C.P.E. of the GWR learner (the model, or the blend's member)

@@ -20,7 +20,8 @@ from typing import Any
 import numpy as np
 from tqdm import tqdm
 
-from gwr_predictor.commands.bench import peak_rss_mb, synthetic_demonstrations
+from gwr_predictor.commands.bench import peak_rss_mb
+from gwr_predictor.data.synthetic import synthetic_demonstrations
 from gwr_predictor.learning.hierarchy import Hierarchy
 from gwr_predictor.learning.params import HierarchyParams
 

@@ -1,6 +1,7 @@
 """Where the learner's frames come from: demonstrator -> skeleton files -> median of 3 -> Nao angles.
 
-Also the angle CSV files, the memoised demonstrator data set and simulated sensor faults.
+Also the angle CSV files, the memoised demonstrator data set, simulated sensor faults and the
+bench's synthetic arm demonstrations.
 """
 
 from gwr_predictor._exports import lazy_exports
@@ -28,6 +29,8 @@ _EXPORTS = {
     "drop_chunks": "faults",
     "joint_dropouts": "faults",
     "FaultParameterError": "faults",
+    "synthetic_demonstrations": "synthetic",
+    "synthetic_arm_stream": "synthetic",
 }
 __all__ = sorted(_EXPORTS)
 __getattr__, __dir__ = lazy_exports(__name__, _EXPORTS)

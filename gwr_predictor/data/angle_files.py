@@ -16,10 +16,11 @@ from typing import TextIO
 import numpy as np
 
 from gwr_predictor.data.skeleton_files import parse_float_table
+from gwr_predictor.errors import GwrPredictorError
 from gwr_predictor.robot.nao import ARM_JOINTS, JOINT_LIMITS
 
 
-class AngleFileError(ValueError):
+class AngleFileError(GwrPredictorError, ValueError):
     """An angle file that cannot be used; the message names the file, line and column."""
 
 

@@ -27,6 +27,7 @@ from typing import NamedTuple
 import numpy as np
 
 from gwr_predictor.data.skeleton_files import CAMERA_CONVENTION, SkeletonSequence
+from gwr_predictor.errors import GwrPredictorError
 from gwr_predictor.pipeline.conventions import SKELETON_FPS, SKELETON_JOINTS
 from gwr_predictor.robot.nao import rot_x, rot_y, rot_z
 
@@ -48,7 +49,7 @@ HUMAN_RANGES: dict[str, tuple[float, float]] = {
 }
 
 
-class DemonstratorError(ValueError):
+class DemonstratorError(GwrPredictorError, ValueError):
     """A bad pattern name, subject profile or generation parameter; the message names it."""
 
 

@@ -11,13 +11,14 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from gwr_predictor.errors import GwrPredictorError
 from gwr_predictor.pipeline.conventions import ANGLE_FPS
 
 #: One second of 10 fps frames, the chunk the paper removes.
 CHUNK_FRAMES = int(ANGLE_FPS)
 
 
-class FaultParameterError(ValueError):
+class FaultParameterError(GwrPredictorError, ValueError):
     """A fault-injection parameter outside its range; the message names it and the range."""
 
 

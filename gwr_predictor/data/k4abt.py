@@ -23,6 +23,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from gwr_predictor.errors import GwrPredictorError
 from gwr_predictor.pipeline.conventions import SKELETON_JOINTS
 
 #: The 32 joints of the Azure Kinect Body Tracking SDK, in index order (k4abt_joint_id_t).
@@ -63,7 +64,7 @@ CAMERA_TO_SKELETON = np.diag([-1.0, -1.0, 1.0])
 _PELVIS = K4ABT_JOINTS.index("PELVIS")
 
 
-class K4abtError(ValueError):
+class K4abtError(GwrPredictorError, ValueError):
     """Marker ids or positions that cannot be body-tracking joints; the message says which."""
 
 

@@ -29,6 +29,7 @@ from pathlib import Path
 
 import numpy as np
 
+from gwr_predictor.errors import GwrPredictorError
 from gwr_predictor.pipeline.conventions import SKELETON_JOINTS
 
 CAMERA_CONVENTION = "openni-rh"
@@ -40,7 +41,7 @@ MAX_PLAUSIBLE_METRES = 20.0
 AXES = ("x", "y", "z")
 
 
-class SkeletonFileError(ValueError):
+class SkeletonFileError(GwrPredictorError, ValueError):
     """A skeleton file that cannot be used; the message names the file and the offending field."""
 
 

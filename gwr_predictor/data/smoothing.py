@@ -12,11 +12,13 @@ from __future__ import annotations
 
 import numpy as np
 
+from gwr_predictor.errors import GwrPredictorError
+
 GROUP = 3
 MIN_TRACKED = 2
 
 
-class SmoothingError(ValueError):
+class SmoothingError(GwrPredictorError, ValueError):
     """Inputs whose shapes do not fit together; the message names the argument."""
 
 

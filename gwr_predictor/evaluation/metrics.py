@@ -12,8 +12,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from gwr_predictor.errors import GwrPredictorError
 
-class MetricsError(ValueError):
+
+class MetricsError(GwrPredictorError, ValueError):
     """Arrays whose shapes or contents cannot be scored; the message names what differs."""
 
 

@@ -13,26 +13,19 @@ from __future__ import annotations
 import time
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Any, Protocol, runtime_checkable
+from typing import Any
 
 import numpy as np
 from tqdm import tqdm
 
+from gwr_predictor.errors import GwrPredictorError
 from gwr_predictor.evaluation.metrics import HorizonStats, future_windows, horizon_stats
 from gwr_predictor.pipeline.conventions import DEFAULT_HORIZON
+from gwr_predictor.protocol import Predictor
 
 
-class EvaluationError(ValueError):
+class EvaluationError(GwrPredictorError, ValueError):
     """Inputs the evaluation loop cannot use (shapes, horizons); the message names the culprit."""
-
-
-@runtime_checkable
-class Predictor(Protocol):
-    """What the loop needs: one sample in, predictions for the next frames out."""
-
-    def step(self, x: np.ndarray | None, learn: bool = True) -> np.ndarray | None: ...
-
-    def reset_sequence(self) -> None: ...
 
 
 @dataclass(frozen=True)

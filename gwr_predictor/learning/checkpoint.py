@@ -21,14 +21,19 @@ from typing import Any
 
 import numpy as np
 
+from gwr_predictor.errors import GwrPredictorError
+
 MAGIC = "gwr_predictor.checkpoint"
 #: 2: HierarchyParams gained `target` and `readout_k`, and the frame buffer `xbuf` keeps one frame
 #: more (the base of delta targets). Version 1 files are refused: their parameters lack the new keys.
+#: Within 2, a model's layers are stored in the network's own format (`GWR.state`: arrays
+#: `<layer>.weights/counters/edges`, the other values in the header's `layers`); files without
+#: `layers` take those values from the parameters, as they were written.
 FORMAT_VERSION = 2
 HEADER_KEY = "__header__"
 
 
-class CheckpointError(Exception):
+class CheckpointError(GwrPredictorError):
     """A checkpoint that cannot be written or read; the message names the file and the cause."""
 
 

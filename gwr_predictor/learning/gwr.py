@@ -35,13 +35,14 @@ from typing import Any
 
 import numpy as np
 
+from gwr_predictor.errors import GwrPredictorError
 from gwr_predictor.learning.params import MAX_EDGE_AGE_LIMIT, GWRParams
 
 _NO_EDGE = -1
 _MIN_CAPACITY = 64
 
 
-class InputError(ValueError):
+class InputError(GwrPredictorError, ValueError):
     """An input vector of the wrong shape or with non-finite values."""
 
 
@@ -392,8 +393,12 @@ class GWR:
         return last
 
     # --- persistence ----------------------------------------------------------------------------
+    #: The array members of `state()`; the others are plain JSON-able values.
+    STATE_ARRAYS = ("weights", "counters", "edges")
+
     def state(self) -> dict[str, Any]:
-        """Arrays and plain values that reproduce this network exactly (see `from_state`)."""
+        """Arrays and plain values that reproduce this network exactly (see `from_state`); the one
+        persistence format of a network, used by every checkpoint that holds one."""
         return {
             "weights": self.weights.copy(),
             "counters": self.counters.copy(),

@@ -24,6 +24,7 @@ sequence boundary and also drops those pending predictions. Networks are never c
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import os
 from collections import deque
@@ -378,18 +379,18 @@ class _OnlinePredictor:
         }
         arrays: dict[str, np.ndarray] = {"xbuf": self._xbuf, "regs": reg_arr, **self._errors.arrays(),
                                          **self._window_arrays()}
-        for name in self.layer_names:
-            net = getattr(self, name)
-            arrays[f"{name}.weights"] = net.weights
-            arrays[f"{name}.counters"] = net.counters
-            arrays[f"{name}.edges"] = net.edge_array()
+        header["layers"] = {}
+        for name in self.layer_names:  # each layer in its own format, GWR.state
+            net_state = getattr(self, name).state()
+            arrays.update({f"{name}.{a}": net_state.pop(a) for a in GWR.STATE_ARRAYS})
+            header["layers"][name] = net_state
         return header, arrays
 
     @classmethod
     def required_arrays(cls) -> list[str]:
         """Names of the arrays `state` always holds."""
         required = ["xbuf", "regs", *ErrorTracker.ARRAYS]
-        return required + [f"{n}.{a}" for n in cls.layer_names for a in ("weights", "counters", "edges")]
+        return required + [f"{n}.{a}" for n in cls.layer_names for a in GWR.STATE_ARRAYS]
 
     @classmethod
     def load(cls, path: str | os.PathLike[str]) -> Any:
@@ -418,14 +419,17 @@ class _OnlinePredictor:
         model._restore_extra(header)
         model._rng = np.random.default_rng(0)  # only for the layer templates; replaced below
         model._configure()
+        layers = header.get("layers", {})
         for name in cls.layer_names:
             template = model._new_layer(name)  # sizes and distance factor from the parameters
-            net = type(template).from_arrays(
-                arrays[f"{name}.weights"], template.params, edges=arrays[f"{name}.edges"],
-                counters=arrays[f"{name}.counters"], match_dim=template.match_dim,
-                distance_factor=template.distance_factor)
-            if net.dim != template.dim:
-                raise ValueError(f"layer {name} has {net.dim}-d weights, parameters say {template.dim}")
+            # files written before the layers' GWR.state was in the header: its values from the parameters
+            saved = layers.get(name) or {"match_dim": template.match_dim, "params": dataclasses.asdict(template.params),
+                                         "distance_factor": template.distance_factor}
+            net = type(template).from_state({**saved, **{a: arrays[f"{name}.{a}"] for a in GWR.STATE_ARRAYS}})
+            for what in ("dim", "match_dim", "distance_factor", "params"):
+                if getattr(net, what) != getattr(template, what):
+                    raise ValueError(f"layer {name} has {what} {getattr(net, what)!r}, "
+                                     f"the parameters say {getattr(template, what)!r}")
             setattr(model, name, net)
         c = header["counters"]
         model._t, model._frames, model._missing = int(c["t"]), int(c["frames"]), int(c["missing"])
@@ -529,33 +533,24 @@ class Hierarchy(_OnlinePredictor):
         a2, x2, o2, w2 = self.gwr2.search_views()
         q1, q2 = x1[:-1], x2[:-1]  # where the queries go ([query | -1/2] is the product's operand)
         dot = np.dot
+        bmu_readout = self._readout_k == 1  # the BMU read-out (Eq. 10), inlined as well
+        a3, x3, o3, _ = self.pgwr.search_views() if bmu_readout else (None, None, None, None)
+        q3, wo, delta, readout = x3[:-1] if bmu_readout else None, self.pgwr.weights_out, self._delta, self._readout
         prev = out[0]
-        if self._readout_k == 1:  # the BMU read-out (Eq. 10), inlined as well
-            a3, x3, o3, _ = self.pgwr.search_views()
-            q3 = x3[:-1]
-            wo, delta = self.pgwr.weights_out, self._delta
-            for k in range(1, h):
-                s -= 1
-                q1[...] = prev
-                rows1[s][...] = w1[dot(a1, x1, out=o1).argmax()]
-                q2[...] = wins1[s]
-                rows2[s][...] = w2[dot(a2, x2, out=o2).argmax()]
-                q3[...] = wins2[s]
-                cur = out[k]
-                cur[...] = wo[dot(a3, x3, out=o3).argmax()]
-                if delta:
-                    cur += prev
-                prev = cur
-            return
-        readout = self._readout
-        for k in range(1, h):
+        for k in range(1, h):  # predicted frame -> GWR1 BMU -> GWR2 BMU -> P-GWR read-out
             s -= 1
             q1[...] = prev
             rows1[s][...] = w1[dot(a1, x1, out=o1).argmax()]
             q2[...] = wins1[s]
             rows2[s][...] = w2[dot(a2, x2, out=o2).argmax()]
             cur = out[k]
-            readout(wins2[s], prev, cur)
+            if bmu_readout:
+                q3[...] = wins2[s]
+                cur[...] = wo[dot(a3, x3, out=o3).argmax()]
+                if delta:
+                    cur += prev
+            else:
+                readout(wins2[s], prev, cur)
             prev = cur
 
     def _window_arrays(self) -> dict[str, np.ndarray]:

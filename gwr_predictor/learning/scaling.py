@@ -30,17 +30,6 @@ class InputScaling:
     n_joints: int
     normalise_distance: bool = False
 
-    def to_model(self, radians: np.ndarray) -> np.ndarray:
-        return np.asarray(radians, dtype=float) * self.input_scale
-
-    def to_radians(self, units: np.ndarray) -> np.ndarray:
-        return np.asarray(units, dtype=float) / self.input_scale
-
-    def insertion_distance_rad(self, activation_threshold: float, frames: int = 1) -> float:
-        """Distance in radians (over the whole input of a layer seeing `frames` frames) beyond
-        which a neuron is inserted (given a trained BMU)."""
-        return -math.log(activation_threshold) / (self.input_scale * self.distance_factor(frames))
-
     def distance_factor(self, frames: int) -> float:
         """Multiplier of a layer's Euclidean distance in its activity exp(-c ||x - w||)."""
         return 1.0 / math.sqrt(frames) if self.normalise_distance else 1.0

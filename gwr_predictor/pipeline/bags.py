@@ -35,6 +35,7 @@ from rosbags.rosbag2.errors import ReaderError, WriterError
 from rosbags.rosbag2.metadata import parse_qos
 from rosbags.typesys import Stores, get_typestore
 
+from gwr_predictor.errors import GwrPredictorError
 from gwr_predictor.pipeline.conventions import ArrayDim, PackedArray
 
 JOINT_STATE = "sensor_msgs/msg/JointState"
@@ -45,7 +46,7 @@ _MCAP_MAGIC = b"\x89MCAP0\r\n"
 TYPESTORE = get_typestore(Stores.ROS2_JAZZY)
 
 
-class BagError(RuntimeError):
+class BagError(GwrPredictorError, RuntimeError):
     """A bag that cannot be written or read; the message names the bag path and the cause."""
 
 

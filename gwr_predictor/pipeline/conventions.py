@@ -17,6 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from gwr_predictor.errors import GwrPredictorError
 from gwr_predictor.robot.nao import ARM_JOINTS
 
 # --- topics (relative names, so a namespace or remapping moves the whole pipeline) -------------
@@ -82,7 +83,7 @@ XYZ_LABEL = "xyz"
 HORIZON_LABEL = "horizon"
 
 
-class LayoutError(ValueError):
+class LayoutError(GwrPredictorError, ValueError):
     """A MultiArray whose layout does not match the convention; the message says what differs."""
 
 

@@ -12,10 +12,11 @@ from pathlib import Path
 
 import numpy as np
 
+from gwr_predictor.errors import GwrPredictorError
 from gwr_predictor.robot.nao import ARM_JOINTS, JOINT_LIMITS
 
 
-class PlotError(ValueError):
+class PlotError(GwrPredictorError, ValueError):
     """A series whose shape does not fit the joint names; the message names the series."""
 
 

@@ -25,13 +25,14 @@ from typing import Any
 
 import numpy as np
 
+from gwr_predictor.errors import GwrPredictorError
 from gwr_predictor.pipeline import bags, conventions
 from gwr_predictor.pipeline.conventions import LayoutError
 from gwr_predictor.robot.nao import ARM_JOINTS
 from gwr_predictor.robot.tracking import LagError, estimate_lag, tracking_error
 
 
-class ReportError(ValueError):
+class ReportError(GwrPredictorError, ValueError):
     """A bag that cannot be summarised (missing topics, too little data); the message names it."""
 
 

@@ -13,8 +13,11 @@ _EXPORTS = {
     "BlendParams": "blend",
     "BlendError": "blend",
     "make_blend": "blend",
-    "make_predictor": "blend",
-    "load_predictor": "blend",
+    "make_predictor": "registry",
+    "load_predictor": "registry",
+    "register": "registry",
+    "learner_names": "registry",
+    "UnknownPredictorError": "registry",
 }
 __all__ = sorted(_EXPORTS)
 __getattr__, __dir__ = lazy_exports(__name__, _EXPORTS)

@@ -16,13 +16,14 @@ from typing import Any, ClassVar
 
 import numpy as np
 
+from gwr_predictor.errors import GwrPredictorError
 from gwr_predictor.pipeline.conventions import DEFAULT_HORIZON
 from gwr_predictor.robot.nao import ARM_JOINTS
 
 N_JOINTS = len(ARM_JOINTS)
 
 
-class BaselineError(ValueError):
+class BaselineError(GwrPredictorError, ValueError):
     """Invalid baseline parameters or an input of the wrong shape."""
 
 

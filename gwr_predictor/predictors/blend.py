@@ -25,12 +25,13 @@ from typing import Any
 
 import numpy as np
 
-from gwr_predictor.evaluation.online import Predictor
+from gwr_predictor.errors import GwrPredictorError
 from gwr_predictor.learning.checkpoint import CheckpointError, read_checkpoint, write_checkpoint
 from gwr_predictor.pipeline.conventions import DEFAULT_HORIZON
+from gwr_predictor.protocol import Predictor
 
 
-class BlendError(ValueError):
+class BlendError(GwrPredictorError, ValueError):
     """Invalid blend parameters or members, or a member output of the wrong shape."""
 
 
@@ -316,28 +317,30 @@ def _member_class(kind: Any) -> type | None:
     return _member_classes().get(kind) if isinstance(kind, str) else None
 
 
-BLEND_KINDS = ("hierarchy+rls", "flat+rls")
+#: Registry name of each blend (predictors/registry.py) -> the name of its GWR member.
+BLENDS = {"blend_hierarchy_rls": "hierarchy", "blend_flat_rls": "flat"}
 
 
-def make_blend(kind: str = "hierarchy+rls", params: Any = None, seed: int = 0, horizon: int | None = None,
+def make_blend(kind: str = "blend_hierarchy_rls", params: Any = None, seed: int = 0, horizon: int | None = None,
                blend: BlendParams | None = None) -> BlendedPredictor:
     """A fresh blend of a GWR predictor and RLS-AR.
 
-    `kind` "hierarchy+rls" (GWR1 -> GWR2 -> P-GWR) or "flat+rls" (P-GWR alone on raw frames); `params`
-    the `HierarchyParams` (None = defaults); `horizon` defaults to the params' horizon (and, if given,
-    overrides it for the GWR member too). The RLS regressor spans the hierarchy's `span` frames.
+    `kind` "blend_hierarchy_rls" (GWR1 -> GWR2 -> P-GWR) or "blend_flat_rls" (P-GWR alone on raw
+    frames), the registry's names; `params` the `HierarchyParams` (None = defaults); `horizon`
+    defaults to the params' horizon (and, if given, overrides it for the GWR member too). The RLS
+    regressor spans the hierarchy's `span` frames.
     """
     from gwr_predictor.learning.hierarchy import FlatPredictor, Hierarchy
     from gwr_predictor.learning.params import HierarchyParams
     from gwr_predictor.predictors.baselines import RLSAutoregressive, RLSParams
 
-    if kind not in BLEND_KINDS:
-        raise BlendError(f"unknown blend kind {kind!r}; choose from {', '.join(BLEND_KINDS)}")
+    if kind not in BLENDS:
+        raise BlendError(f"unknown blend kind {kind!r}; choose from {', '.join(BLENDS)}")
     params = params or HierarchyParams()
     if horizon is not None and horizon != params.horizon:
         params = params.replace(horizon=horizon)
-    gwr_cls = Hierarchy if kind == "hierarchy+rls" else FlatPredictor
-    members = {kind.split("+")[0]: gwr_cls(params, seed=seed),
+    gwr_cls = Hierarchy if BLENDS[kind] == "hierarchy" else FlatPredictor
+    members = {BLENDS[kind]: gwr_cls(params, seed=seed),
                "rls": RLSAutoregressive(RLSParams(order=params.span), params.horizon, params.n_joints)}
     bp = blend or BlendParams()
     if bp.horizon != params.horizon:
@@ -345,41 +348,22 @@ def make_blend(kind: str = "hierarchy+rls", params: Any = None, seed: int = 0, h
     return BlendedPredictor(members, bp)
 
 
-#: The learner node's and `pretrain`'s `predictor` names -> blend kind (None: the paper's hierarchy).
-PREDICTORS: dict[str, str | None] = {"hierarchy": None, "blend_hierarchy_rls": "hierarchy+rls",
-                                     "blend_flat_rls": "flat+rls"}
+def load_blend(kind: str, path: str | os.PathLike[str]) -> BlendedPredictor:
+    """The blend `kind` (a `BLENDS` name) saved at `path`; KindMismatchError if it holds other members."""
+    from gwr_predictor.learning.checkpoint import KindMismatchError
 
-
-def make_predictor(name: str, params: Any = None, seed: int = 0) -> Any:
-    """A fresh online predictor by its `PREDICTORS` name: the hierarchy or one of the blends."""
-    from gwr_predictor.learning.hierarchy import Hierarchy
-
-    if name not in PREDICTORS:
-        raise BlendError(f"unknown predictor {name!r}; choose from {', '.join(PREDICTORS)}")
-    kind = PREDICTORS[name]
-    return Hierarchy(params, seed=seed) if kind is None else make_blend(kind, params, seed=seed)
+    if kind not in BLENDS:
+        raise BlendError(f"unknown blend kind {kind!r}; choose from {', '.join(BLENDS)}")
+    model = BlendedPredictor.load(path)
+    expected = (BLENDS[kind], "rls")
+    if tuple(model.names) != expected:
+        raise KindMismatchError(f"{path}: holds a blend of {list(model.names)}, expected one of {list(expected)}",
+                                model.names, kind)
+    return model
 
 
 def gwr_member(model: Any) -> Any:
     """The GWR learner inside `model`: the model itself, or the blend's member that has neurons."""
     if isinstance(model, BlendedPredictor):
         return next(m for m in model.members.values() if getattr(m, "neuron_counts", None) is not None)
-    return model
-
-
-def load_predictor(name: str, path: str | os.PathLike[str]) -> Any:
-    """The predictor `name` saved at `path`; KindMismatchError if the file holds another kind or blend."""
-    from gwr_predictor.learning.checkpoint import KindMismatchError
-    from gwr_predictor.learning.hierarchy import Hierarchy
-
-    if name not in PREDICTORS:
-        raise BlendError(f"unknown predictor {name!r}; choose from {', '.join(PREDICTORS)}")
-    kind = PREDICTORS[name]
-    if kind is None:
-        return Hierarchy.load(path)
-    model = BlendedPredictor.load(path)
-    expected = tuple(kind.split("+"))
-    if tuple(model.names) != expected:
-        raise KindMismatchError(f"{path}: holds a blend of {list(model.names)}, expected one of {list(expected)}",
-                                model.names, name)
     return model

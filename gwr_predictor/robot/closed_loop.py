@@ -17,22 +17,14 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, replace
-from typing import Protocol
 
 import numpy as np
 
+from gwr_predictor.protocol import Predictor
 from gwr_predictor.robot.compensator import DelayCompensator, Mode
 from gwr_predictor.robot.delayed_arm import RobotError, RobotParams, SimulatedRobot
 from gwr_predictor.robot.nao import ARM_JOINTS
 from gwr_predictor.robot.tracking import estimate_lag, tracking_error
-
-
-class Predictor(Protocol):
-    """What the loop needs from a predictor (the GWR hierarchy, a baseline or an oracle)."""
-
-    def step(self, x: np.ndarray, learn: bool = True) -> np.ndarray | None: ...
-
-    def reset_sequence(self) -> None: ...
 
 
 @dataclass(frozen=True)

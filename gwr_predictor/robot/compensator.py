@@ -33,6 +33,7 @@ from typing import Literal, NamedTuple
 
 import numpy as np
 
+from gwr_predictor.errors import GwrPredictorError
 from gwr_predictor.robot.nao import ARM_JOINTS, clip_to_limits
 
 MODES = ("none", "fixed", "variable")
@@ -44,7 +45,7 @@ STALE_PREDICTIONS = "stale_predictions"
 NO_ROBOT_STATE = "no_robot_state"
 
 
-class CompensatorError(ValueError):
+class CompensatorError(GwrPredictorError, ValueError):
     """Invalid compensator parameters or input shapes; the message names the field and range."""
 
 

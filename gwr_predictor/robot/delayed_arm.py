@@ -18,12 +18,13 @@ from typing import Any, Literal
 
 import numpy as np
 
+from gwr_predictor.errors import GwrPredictorError
 from gwr_predictor.robot.nao import ARM_JOINTS, VELOCITY_LIMITS, clip_to_limits
 
 BACKENDS = ("kinematic", "pybullet")
 
 
-class RobotError(ValueError):
+class RobotError(GwrPredictorError, ValueError):
     """Invalid robot / delay parameters or inputs; the message names the field and its range."""
 
 

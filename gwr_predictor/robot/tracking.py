@@ -11,8 +11,10 @@ import math
 
 import numpy as np
 
+from gwr_predictor.errors import GwrPredictorError
 
-class LagError(ValueError):
+
+class LagError(GwrPredictorError, ValueError):
     """Inputs that cannot be compared (shapes, lengths, parameters); the message says which."""
 
 

@@ -9,6 +9,8 @@ from __future__ import annotations
 import importlib
 from types import ModuleType
 
+from gwr_predictor.errors import GwrPredictorError
+
 #: name -> one-line description (the module is gwr_predictor.evaluation.experiments.<name>).
 EXPERIMENTS: dict[str, str] = {
     "incremental": "Sec. VI-B: patterns learned one after another; C.P.E., P.E. and neurons per epoch",
@@ -22,7 +24,7 @@ EXPERIMENTS: dict[str, str] = {
 }
 
 
-class UnknownExperiment(KeyError):
+class UnknownExperiment(GwrPredictorError, KeyError):
     """A name that is not in EXPERIMENTS."""
 
 

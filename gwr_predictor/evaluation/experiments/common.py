@@ -1,9 +1,10 @@
 """What the experiments share: parameters with overrides, model factories, data, orders.
 
-Every model is built here, so that all experiments compare the same methods under the same names:
-"hierarchy" (GWR1 -> GWR2 -> P-GWR), "pgwr_flat" (the P-GWR alone on raw frames, the ablation),
-the baselines of `gwr_predictor.predictors.baselines`, and the per-step inverse-MSE blends of a GWR predictor with
-RLS-AR (`gwr_predictor.predictors.blend`): "blend_hierarchy_rls", "blend_flat_rls".
+Every model is built from the one predictor registry (`gwr_predictor.predictors.registry`), so
+that all experiments, `evaluate`, `pretrain` and the learner node use the same names: "hierarchy"
+(GWR1 -> GWR2 -> P-GWR), "pgwr_flat" (the P-GWR alone on raw frames, the ablation), the baselines
+"hold", "const_velocity", "rls_ar", and the per-step inverse-MSE blends of a GWR predictor with
+RLS-AR: "blend_hierarchy_rls", "blend_flat_rls".
 """
 
 from __future__ import annotations
@@ -14,20 +15,25 @@ from typing import Any
 
 import numpy as np
 
-from gwr_predictor.evaluation.online import Predictor
 from gwr_predictor.learning.params import HierarchyParams
-from gwr_predictor.predictors.baselines import make_baselines
+from gwr_predictor.predictors import registry
+from gwr_predictor.protocol import Predictor
 
 HIERARCHY = "hierarchy"
 FLAT = "pgwr_flat"
 BASELINES = ("hold", "const_velocity", "rls_ar")
 BLEND = "blend_hierarchy_rls"
 BLEND_FLAT = "blend_flat_rls"
-BLENDS = {BLEND: "hierarchy+rls", BLEND_FLAT: "flat+rls"}  # method name -> ensemble.make_blend kind
-ALL_METHODS = (*BASELINES, FLAT, HIERARCHY, BLEND, BLEND_FLAT)
-LABELS = {"hold": "hold last", "const_velocity": "constant velocity", "rls_ar": "RLS-AR",
-          FLAT: "P-GWR alone", HIERARCHY: "GWR hierarchy", BLEND: "blend hierarchy + RLS-AR",
-          BLEND_FLAT: "blend P-GWR alone + RLS-AR"}
+
+
+def all_methods() -> tuple[str, ...]:
+    """Every predictor the experiments and `evaluate` can run: the registry's names."""
+    return registry.names()
+
+
+def label(name: str) -> str:
+    """The predictor's row label in tables and plots."""
+    return registry.label(name)
 
 
 def make_params(overrides: Iterable[tuple[str, object]] = (), **changes: Any) -> HierarchyParams:
@@ -37,23 +43,8 @@ def make_params(overrides: Iterable[tuple[str, object]] = (), **changes: Any) ->
 
 
 def make_model(name: str, params: HierarchyParams, seed: int) -> Predictor:
-    """A fresh predictor called `name` (one of ALL_METHODS) for `params`."""
-    if name == HIERARCHY:
-        from gwr_predictor.learning.hierarchy import Hierarchy
-
-        return Hierarchy(params, seed=seed)
-    if name == FLAT:
-        from gwr_predictor.learning.hierarchy import FlatPredictor
-
-        return FlatPredictor(params, seed=seed)
-    if name in BLENDS:
-        from gwr_predictor.predictors.blend import make_blend
-
-        return make_blend(BLENDS[name], params, seed=seed)
-    baselines = make_baselines(params.horizon, params.span)
-    if name not in baselines:
-        raise KeyError(f"unknown method {name!r}; choose from {', '.join(ALL_METHODS)}")
-    return baselines[name]  # type: ignore[return-value]
+    """A fresh predictor called `name` (a registry name) for `params`."""
+    return registry.make_predictor(name, params, seed)
 
 
 def make_models(names: Sequence[str], params: HierarchyParams, seed: int) -> dict[str, Predictor]:

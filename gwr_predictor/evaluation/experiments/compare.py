@@ -34,7 +34,7 @@ class Config:
     heldout_subjects: int = 1
     heldout_repetitions: int = 2
     epochs: int = 5
-    methods: tuple[str, ...] = common.ALL_METHODS
+    methods: tuple[str, ...] = common.all_methods()
     overrides: tuple[tuple[str, object], ...] = ()
 
 
@@ -79,7 +79,7 @@ def run(config: Config, out: Path, seed: int = 0, progress: bool = True) -> Expe
     headers = ["method", *[f"{CONDITION_LABELS[c.split('/')[0]]} ({c.split('/')[1]})" for c in conds]]
 
     def table(metric: str) -> str:
-        return markdown_table(headers, [[common.LABELS[m], *[r["conditions"][c][m][metric][-1] for c in conds]]
+        return markdown_table(headers, [[common.label(m), *[r["conditions"][c][m][metric][-1] for c in conds]]
                                         for m in methods], digits=3 if metric == "mae" else 4)
 
     best = {c: min(methods, key=lambda m, c=c: r["conditions"][c][m]["mae"][-1]) for c in conds}
@@ -87,9 +87,9 @@ def run(config: Config, out: Path, seed: int = 0, progress: bool = True) -> Expe
     md = [f"MAE (rad) at the {horizon}-frame ({100 * horizon} ms) horizon, every method scored on the same "
           f"frames. Splits: {r['splits']}; {config.epochs} training epochs of {r['frames_per_epoch']} frames; "
           f"neurons: {r['neurons']}.", "", table("mae"), "",
-          "Best MAE per column: " + ", ".join(f"{c}: {common.LABELS[m]}" for c, m in best.items()) + ".", "",
+          "Best MAE per column: " + ", ".join(f"{c}: {common.label(m)}" for c, m in best.items()) + ".", "",
           "MSE (rad²) at the same horizon, same frames (large errors weigh more):", "", table("mse"), "",
-          "Best MSE per column: " + ", ".join(f"{c}: {common.LABELS[m]}" for c, m in best_mse.items()) + "."]
+          "Best MSE per column: " + ", ".join(f"{c}: {common.label(m)}" for c, m in best_mse.items()) + "."]
     out = Path(out)
     figs = [_plot_horizons(r, methods, out), _plot_curve(r, methods, out)]
     return ExperimentOutput(NAME, "Hierarchy vs baselines and ablation", _config_dict(config), r, md, figs)
@@ -109,7 +109,7 @@ def _plot_horizons(r: dict[str, Any], methods: tuple[str, ...], out: Path) -> st
         for ax, c in zip(axes[row], conds, strict=True):
             for m in methods:
                 vals = r["conditions"][c][m][metric]
-                ax.plot(np.arange(1, len(vals) + 1), vals, marker="o", ms=3, label=common.LABELS[m])
+                ax.plot(np.arange(1, len(vals) + 1), vals, marker="o", ms=3, label=common.label(m))
             if row == 0:
                 ax.set_title(c.replace("_", " "))
             else:
@@ -125,7 +125,7 @@ def _plot_curve(r: dict[str, Any], methods: tuple[str, ...], out: Path) -> str:
     ax = axes[0][0]
     for m in methods:
         curve = r["learning_curve_mae_h"][m]
-        ax.plot(np.arange(1, len(curve) + 1), curve, marker="o", ms=3, label=common.LABELS[m])
+        ax.plot(np.arange(1, len(curve) + 1), curve, marker="o", ms=3, label=common.label(m))
     ax.set_xlabel("training epoch (online error while learning)")
     ax.set_ylabel("MAE at the horizon (rad)")
     ax.grid(alpha=0.3)

@@ -103,7 +103,7 @@ def run(config: Config, out: Path, seed: int = 0, progress: bool = True) -> Expe
     rows = [[f"{lv['loss']:.0%}", lv["kept_fraction"], lv["coverage"][hier],
              *[mse(lv, k, m) for k in ("online", "clean", "heldout") for m in shown],
              change(lv, "online"), change(lv, "clean")] for lv in levels]
-    heads = ["loss", "kept", "hierarchy coverage", *[f"{k} {common.LABELS[m]}" for k in ("online", "clean", "heldout")
+    heads = ["loss", "kept", "hierarchy coverage", *[f"{k} {common.label(m)}" for k in ("online", "clean", "heldout")
                                                      for m in shown], "hier. online vs 0 %", "hier. clean vs 0 %"]
     within = [lv["loss"] for lv in levels
               if lv["loss"] <= 0.3 and mse(lv, "online", hier) <= 1.1 * mse(levels[0], "online", hier)]
@@ -125,7 +125,7 @@ def _plot(levels: list[dict[str, Any]], methods: tuple[str, ...], out: Path) -> 
     for ax, kind, title in ((axes[0][0], "online", "online, while learning"),
                             (axes[0][1], "clean", "frozen, on complete sequences")):
         for m in methods:
-            ax.plot(x, [lv[kind][m]["mse"][-1] for lv in levels], marker="o", ms=3, label=common.LABELS[m])
+            ax.plot(x, [lv[kind][m]["mse"][-1] for lv in levels], marker="o", ms=3, label=common.label(m))
         if kind == "clean":
             ax.plot(x, [lv["heldout"][common.HIERARCHY]["mse"][-1] for lv in levels], "--", marker="x", ms=3,
                     color=f"C{methods.index(common.HIERARCHY)}", label="GWR hierarchy, held-out reps")

@@ -100,7 +100,7 @@ def run(config: Config, out: Path, seed: int = 0, progress: bool = True) -> Expe
             cells = {x["rule"]: x for x in r["runs"] if x["predictor"] == name and x["delay_s"] == delay}
             table.append([f"{1000 * delay:.0f} ms", *[f"{1000 * cells[k]['lag_s']:.0f} ms / {cells[k]['mae']:.3f}"
                                                        for k in config.rules]])
-        md += ["", f"**{common.LABELS[name]}** (lag / MAE rad)", "",
+        md += ["", f"**{common.label(name)}** (lag / MAE rad)", "",
                markdown_table(["delay", *config.rules], table)]
     return ExperimentOutput(NAME, "Closed-loop delay compensation", asdict(config), r, md,
                             [_plot(r, config, Path(out))])
@@ -112,7 +112,7 @@ def _plot(r: dict[str, Any], config: Config, out: Path) -> str:
     for name, style in zip(config.predictors, ("-", "--"), strict=False):
         for i, rule in enumerate(config.rules):
             sel = [x for x in r["runs"] if x["predictor"] == name and x["rule"] == rule]
-            label = f"{rule} ({common.LABELS[name]})"
+            label = f"{rule} ({common.label(name)})"
             axes[0][0].plot(d, [1000 * x["lag_s"] for x in sel], style, color=f"C{i}", marker="o", ms=3, label=label)
             axes[0][1].plot(d, [x["mae"] for x in sel], style, color=f"C{i}", marker="o", ms=3, label=label)
     axes[0][0].plot(d, d, "k:", lw=0.8, label="lag = delay")

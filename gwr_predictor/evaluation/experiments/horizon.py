@@ -21,7 +21,11 @@ from gwr_predictor.evaluation.online import compare_online
 
 NAME = "horizon"
 RECURSIVE, VECTOR = "hierarchy_recursive", "hierarchy_vector"
-LABELS = {**common.LABELS, RECURSIVE: "hierarchy (recursive)", VECTOR: "hierarchy (vector)"}
+_LABELS = {RECURSIVE: "hierarchy (recursive)", VECTOR: "hierarchy (vector)"}
+
+
+def _label(name: str) -> str:
+    return _LABELS.get(name) or common.label(name)
 
 
 @dataclass(frozen=True)
@@ -72,7 +76,7 @@ def run(config: Config, out: Path, seed: int = 0, progress: bool = True) -> Expe
     md = [f"MAE ± std (rad) of the absolute error per horizon step (frames of 100 ms), models frozen after "
           f"{config.epochs} epochs on the training split; neurons {r['neurons']}."]
     for split_name, res in ev.items():
-        rows = [[LABELS[m], *[f"{res[m]['mae'][k - 1]:.3f} ± {res[m]['std'][k - 1]:.3f}" for k in steps],
+        rows = [[_label(m), *[f"{res[m]['mae'][k - 1]:.3f} ± {res[m]['std'][k - 1]:.3f}" for k in steps],
                  max(res[m]["mae"])] for m in res]
         md += ["", f"**{split_name.replace('_', ' ')}**", "",
                markdown_table(["method", *[f"h={k}" for k in steps], "max MAE"], rows)]
@@ -90,7 +94,7 @@ def _plot(ev: dict[str, Any], horizon: int, out: Path) -> str:
             if m not in res:
                 continue
             mae, std = np.array(res[m]["mae"], float), np.array(res[m]["std"], float)
-            line, = ax.plot(k, mae, style, marker="o", ms=3, label=LABELS[m])
+            line, = ax.plot(k, mae, style, marker="o", ms=3, label=_label(m))
             if m in (RECURSIVE, VECTOR):
                 ax.fill_between(k, mae - std, mae + std, color=line.get_color(), alpha=0.15)
         ax.axhline(0.25, color="k", lw=0.8, ls="--")

@@ -20,8 +20,10 @@ from typing import Any
 
 import numpy as np
 
+from gwr_predictor.errors import GwrPredictorError
 
-class ReportError(RuntimeError):
+
+class ReportError(GwrPredictorError, RuntimeError):
     """An output that cannot be written; the message names the file."""
 
 

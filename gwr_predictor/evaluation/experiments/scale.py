@@ -57,7 +57,7 @@ def run(config: Config, out: Path, seed: int = 0, progress: bool = True) -> Expe
             dist = -math.log(a_t) / p["input_scale"]
             dists = [dist * (math.sqrt(f) if p["normalise_distance"] else 1.0) for f in (1, tau1, tau1 * tau2)]
             rows.append([f"{p['input_scale']:g}", "yes" if p["normalise_distance"] else "no",
-                         "/".join(f"{d:.2f}" for d in dists), common.LABELS[m],
+                         "/".join(f"{d:.2f}" for d in dists), common.label(m),
                          "–" if neurons is None else "/".join(str(n) for n in neurons),
                          *[p["conditions"][c][m][k][-1] for k in ("mae", "mse") for c in SHOWN
                            if c in p["conditions"]]])
@@ -94,13 +94,13 @@ def _plot(points: list[dict[str, Any]], methods: tuple[str, ...], out: Path) -> 
     cond = SHOWN[1]
     for color, m in zip(colors, methods, strict=False):
         if m == "rls_ar":
-            ax.axhline(points[0]["conditions"][cond][m]["mae"][-1], color=color, lw=1, label=common.LABELS[m])
+            ax.axhline(points[0]["conditions"][cond][m]["mae"][-1], color=color, lw=1, label=common.label(m))
             continue
         for norm, style in ((True, "-o"), (False, "--s")):
             sel = [p for p in points if p["normalise_distance"] == norm]
             if sel:
                 ax.plot([p["input_scale"] for p in sel], [p["conditions"][cond][m]["mae"][-1] for p in sel], style,
-                        color=color, ms=4, label=f"{common.LABELS[m]}{'' if norm else ' (not normalised)'}")
+                        color=color, ms=4, label=f"{common.label(m)}{'' if norm else ' (not normalised)'}")
     ax.set_xscale("log")
     ax.set_xlabel("input_scale (model units per rad)")
     ax.set_ylabel("MAE at 600 ms, held-out repetitions (rad)")

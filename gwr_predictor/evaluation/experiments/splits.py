@@ -13,8 +13,10 @@ from collections.abc import Hashable, Sequence
 from dataclasses import dataclass
 from typing import Any
 
+from gwr_predictor.errors import GwrPredictorError
 
-class SplitError(ValueError):
+
+class SplitError(GwrPredictorError, ValueError):
     """A split that would be empty or would leak data between sets."""
 
 

@@ -83,7 +83,7 @@ def run(config: Config, out: Path, seed: int = 0, progress: bool = True) -> Expe
     rows = []
     for r in runs:
         for m, v in r["methods"].items():
-            rows.append([r["pattern"], common.LABELS[m], v["settling_frame"], v["beats_hold_from"],
+            rows.append([r["pattern"], common.label(m), v["settling_frame"], v["beats_hold_from"],
                          *v["mae_per_presentation"],
                          f"{v['trend']['slope'] * 100:+.4f}"])
     heads = ["unseen pattern", "method", "settles at frame", "better than hold from frame",
@@ -110,7 +110,7 @@ def _plot(r: dict[str, Any], config: Config, out: Path) -> str:
         err = np.asarray(v["error"], float)
         frames = np.arange(err.size)
         smooth = moving_average(err, config.window, centered=True)
-        line, = ax.plot(frames, smooth, lw=1.2, label=f"{common.LABELS[m]} (smoothed)")
+        line, = ax.plot(frames, smooth, lw=1.2, label=f"{common.label(m)} (smoothed)")
         if m == common.HIERARCHY:
             ax.plot(frames, err, color=line.get_color(), lw=0.5, alpha=0.35)
             ax.plot(frames, v["trend"]["intercept"] + v["trend"]["slope"] * frames, "r--", lw=1, label="trend")

@@ -1,0 +1,148 @@
+"""The one predictor registry: every online predictor of the package under one name.
+
+The same names are used everywhere a user picks a predictor: the learner node's `predictor`
+parameter, `gwr-predictor pretrain --predictor`, `gwr-predictor evaluate --methods` and the
+experiments' method lists, and the reports' rows. A name maps to a factory `(params, seed) -> fresh
+predictor` (the `Predictor` protocol), a label for tables and, for the predictors that can be saved,
+a checkpoint loader; those are the `learner_names()` the node and `pretrain` accept.
+
+Built in: the baselines `hold`, `const_velocity`, `rls_ar`; the paper's `hierarchy`
+(GWR1 -> GWR2 -> P-GWR); its ablation `pgwr_flat` (the P-GWR alone on raw frames); the per-step
+blends `blend_hierarchy_rls` and `blend_flat_rls` (beyond the paper). `register` adds one.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+from gwr_predictor.errors import GwrPredictorError
+from gwr_predictor.protocol import Predictor
+
+#: (HierarchyParams, seed) -> a fresh predictor; every factory takes the same arguments.
+Factory = Callable[[Any, int], Predictor]
+#: checkpoint path -> the saved predictor (checkpoint.KindMismatchError if the file holds another).
+Loader = Callable[[str | os.PathLike[str]], Predictor]
+
+
+class UnknownPredictorError(GwrPredictorError, ValueError):
+    """A predictor name that is not registered; the message lists the registered ones."""
+
+
+@dataclass(frozen=True)
+class Entry:
+    """One registered predictor: its factory, its label in tables and, if it can be saved, its loader."""
+
+    name: str
+    factory: Factory
+    label: str
+    loader: Loader | None = None
+
+
+_REGISTRY: dict[str, Entry] = {}
+
+
+def register(name: str, factory: Factory, label: str | None = None, loader: Loader | None = None) -> None:
+    """Make `name` available to the node, pretrain, evaluate and the experiments; names are unique."""
+    if not name.isidentifier():
+        raise GwrPredictorError(f"predictor name {name!r} must be an identifier (letters, digits, '_')")
+    if name in _REGISTRY:
+        raise GwrPredictorError(f"predictor {name!r} is already registered")
+    _REGISTRY[name] = Entry(name, factory, label or name, loader)
+
+
+def entry(name: str) -> Entry:
+    try:
+        return _REGISTRY[name]
+    except KeyError:
+        raise UnknownPredictorError(f"unknown predictor {name!r}; choose from {', '.join(_REGISTRY)}") from None
+
+
+def names() -> tuple[str, ...]:
+    """Every registered name, in registration order (baselines first)."""
+    return tuple(_REGISTRY)
+
+
+predictor_names = names  # the name exported at the package's top level
+
+
+def learner_names() -> tuple[str, ...]:
+    """The names that can be saved and loaded: what the learner node and `pretrain` accept."""
+    return tuple(n for n, e in _REGISTRY.items() if e.loader is not None)
+
+
+def label(name: str) -> str:
+    return entry(name).label
+
+
+def make_predictor(name: str, params: Any = None, seed: int = 0) -> Predictor:
+    """A fresh predictor `name` for `params` (HierarchyParams; None = defaults)."""
+    if params is None:
+        from gwr_predictor.learning.params import HierarchyParams
+
+        params = HierarchyParams()
+    return entry(name).factory(params, seed)
+
+
+def load_predictor(name: str, path: str | os.PathLike[str]) -> Predictor:
+    """The predictor `name` saved at `path`; KindMismatchError if the file holds another kind or blend."""
+    e = entry(name)
+    if e.loader is None:
+        raise UnknownPredictorError(f"predictor {name!r} cannot be loaded from a checkpoint; "
+                                    f"choose from {', '.join(learner_names())}")
+    return e.loader(path)
+
+
+# --- the built-in predictors (imports deferred: choosing `hold` must not load the GWR code) -------
+def _baseline(name: str) -> Factory:
+    def make(params: Any, seed: int) -> Predictor:
+        from gwr_predictor.predictors.baselines import make_baselines
+
+        return make_baselines(params.horizon, params.span)[name]  # type: ignore[return-value]
+
+    return make
+
+
+def _hierarchy(params: Any, seed: int) -> Predictor:
+    from gwr_predictor.learning.hierarchy import Hierarchy
+
+    return Hierarchy(params, seed=seed)
+
+
+def _load_hierarchy(path: str | os.PathLike[str]) -> Predictor:
+    from gwr_predictor.learning.hierarchy import Hierarchy
+
+    return Hierarchy.load(path)
+
+
+def _flat(params: Any, seed: int) -> Predictor:
+    from gwr_predictor.learning.hierarchy import FlatPredictor
+
+    return FlatPredictor(params, seed=seed)
+
+
+def _blend(name: str) -> tuple[Factory, Loader]:
+    def make(params: Any, seed: int) -> Predictor:
+        from gwr_predictor.predictors.blend import make_blend
+
+        return make_blend(name, params, seed=seed)
+
+    def load(path: str | os.PathLike[str]) -> Predictor:
+        from gwr_predictor.predictors.blend import load_blend
+
+        return load_blend(name, path)
+
+    return make, load
+
+
+register("hold", _baseline("hold"), "hold last")
+register("const_velocity", _baseline("const_velocity"), "constant velocity")
+register("rls_ar", _baseline("rls_ar"), "RLS-AR")
+register("pgwr_flat", _flat, "P-GWR alone")
+register("hierarchy", _hierarchy, "GWR hierarchy", _load_hierarchy)
+for _name, _label in (("blend_hierarchy_rls", "blend hierarchy + RLS-AR"),
+                      ("blend_flat_rls", "blend P-GWR alone + RLS-AR")):
+    _make, _load = _blend(_name)
+    register(_name, _make, _label, _load)

@@ -1,0 +1,28 @@
+"""The one `Predictor` protocol every online predictor of the package follows.
+
+The hierarchy, the flat P-GWR, the baselines and the blends all take one sample per frame and
+return their predictions for the next `horizon` frames, so the evaluation loop, the closed loop
+with the simulated robot, the blend and the learner node can use any of them (the registry,
+`predictors/registry.py`, builds them by name).
+"""
+
+from __future__ import annotations
+
+from typing import Protocol, runtime_checkable
+
+import numpy as np
+
+
+@runtime_checkable
+class Predictor(Protocol):
+    """One frame in, predictions for the next frames out.
+
+    `step(x, learn)`: `x` the (joints,) sample of this frame, or None (or non-finite) for a missing
+    frame; `learn=False` predicts without changing the model. Returns (horizon, joints) predictions
+    for frames t+1..t+horizon (NaN rows where a step has none), or None before the first prediction.
+    `reset_sequence()`: the next sample starts a new sequence (no learning across the boundary).
+    """
+
+    def step(self, x: np.ndarray | None, learn: bool = True) -> np.ndarray | None: ...
+
+    def reset_sequence(self) -> None: ...
