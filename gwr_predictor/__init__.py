@@ -32,6 +32,8 @@ _EXPORTS = {
     "load_predictor": "predictors.registry",
     "compare_online": "evaluation.online",
     "skeleton_to_angles": "data.angles",
+    "extract_angles": "data.extraction",
+    "ParamSpec": "parameter_spec",
     "load_skeleton": "data.skeleton_files",
     "ARM_JOINTS": "robot.nao",
     "GwrPredictorError": "errors",

@@ -1,7 +1,7 @@
 """The live pipeline of scripts/run_pipeline.sh as a ROS 2 launch file, for full Jazzy installs.
 
     ros2 launch gwr_predictor pipeline.launch.py out:=/tmp/run1 [baseline:=false] [render:=true]
-        [scenario:=/path/to/scenario.yaml] [checkpoint:=model.npz] [params_dir:=/path/to/config]
+        [scenario:=/path/to/scenario.yaml] [checkpoint:=model.npz] [predictor:=NAME] [params_dir:=/path/to/config]
         [use_sim_time:=true]
 
 Same nodes, the same <node>.yaml files (from share/gwr_predictor/config unless params_dir is
@@ -29,6 +29,7 @@ BASELINE_REMAPS = [("arm_angles", "/arm_angles"), ("predictions", "/predictions"
 ARGUMENTS = {
     "out": ("results/launch_run", "run folder: bag/ (recording) and model.npz (learner) go here"),
     "params_dir": ("", "folder with <node>.yaml (empty: the installed share/gwr_predictor/config)"),
+    "predictor": ("", "the learner's model (gwr_hierarchy's `predictor`), after the params files; empty: theirs"),
     "checkpoint": ("", "start the learner from this model (copied to out/model.npz, which it then updates)"),
     "scenario": ("", "extra params file applied to every node after its own (e.g. config/scenario_*.yaml)"),
     "baseline": ("true", "also run the uncompensated robot in /uncompensated"),
@@ -66,7 +67,10 @@ def pipeline_nodes(context, *_args, **_kwargs) -> list:
         nodes += [node("nao_sim", namespace=BASELINE_NAMESPACE, remappings=BASELINE_REMAPS),
                   node("delay_compensator", namespace=BASELINE_NAMESPACE, remappings=BASELINE_REMAPS,
                        mode="none")]
-    nodes += [node("gwr_hierarchy", checkpoint=os.path.join(out, "model.npz")),
+    learner = {"checkpoint": os.path.join(out, "model.npz")}
+    if arg["predictor"]:
+        learner["predictor"] = arg["predictor"]
+    nodes += [node("gwr_hierarchy", **learner),
               node("angle_extractor"),
               node("skeleton_source", wait_for_subscribers=2)]
     return nodes

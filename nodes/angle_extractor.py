@@ -1,8 +1,8 @@
 """angle_extractor: skeletons (30 fps) -> median of 3 -> the 8 Nao arm angles (10 fps) as JointState.
 
 The paper's vision module: every 3 skeleton frames are smoothed into one by their median
-(`gwr_predictor.data.smoothing.MedianOf3`), then mapped to the Nao's arm joints
-(`gwr_predictor.data.angles.skeleton_to_angles`). The JointState is stamped with the smoothed frame's
+(`gwr_predictor.data.smoothing.MedianOf3`), then mapped to the Nao's arm joints and clipped
+(`gwr_predictor.data.extraction.frame_angles`). The JointState is stamped with the smoothed frame's
 stamp (its middle frame), so downstream timing refers to when the person was in that pose.
 
 Every accepted skeleton frame is also published as a MarkerArray on `skeleton_markers` (joints and
@@ -17,27 +17,30 @@ from __future__ import annotations
 import numpy as np
 
 from gwr_predictor.data import k4abt
-from gwr_predictor.data.angles import skeleton_to_angles
+from gwr_predictor.data.extraction import frame_angles
 from gwr_predictor.data.skeleton_files import MAX_PLAUSIBLE_METRES
 from gwr_predictor.data.smoothing import MedianOf3
+from gwr_predictor.parameter_spec import ParamSpec
 from gwr_predictor.pipeline import conventions
 from gwr_predictor.pipeline.conventions import SKELETON_JOINTS, LayoutError
+from gwr_predictor.pipeline.gates import SkeletonReorder
 from gwr_predictor.pipeline.markers import SKELETON_FRAME, skeleton_figure
-from gwr_predictor.robot.nao import ARM_JOINTS, clip_to_limits
+from gwr_predictor.robot.nao import ARM_JOINTS
 
 from . import messages, standard_messages
-from .node_base import Param, PipelineNode, run_node, stream_qos
+from .node_base import PipelineNode, run_node, stream_qos
 
 PARAMS = (
-    Param("max_gap_s", conventions.MAX_GAP_S,
-          "a stamp gap larger than this starts a new sequence (the smoothing group restarts)", 0.0, 3600.0),
-    Param("input_reliability", "reliable", "QoS of the skeleton subscription; best_effort also matches "
-          "trackers that publish best-effort", choices=("reliable", "best_effort")),
-    Param("input", "skeleton", "skeleton: the labelled array on 'skeleton'; k4abt_markers: an Azure Kinect / "
-          "Orbbec body-tracking MarkerArray on 'body_tracking_data' (nearest body)",
-          choices=("skeleton", "k4abt_markers")),
-    Param("markers", True, "also publish every accepted skeleton frame as a MarkerArray on 'skeleton_markers'"),
-    Param("markers_frame_id", SKELETON_FRAME, "frame_id of the skeleton markers (the skeleton camera convention)"),
+    ParamSpec("max_gap_s", conventions.MAX_GAP_S,
+              "a stamp gap larger than this starts a new sequence (the smoothing group restarts)", 0.0, 3600.0),
+    ParamSpec("input_reliability", "reliable", "QoS of the skeleton subscription; best_effort also matches "
+              "trackers that publish best-effort", choices=("reliable", "best_effort")),
+    ParamSpec("input", "skeleton", "skeleton: the labelled array on 'skeleton'; k4abt_markers: an Azure Kinect / "
+              "Orbbec body-tracking MarkerArray on 'body_tracking_data' (nearest body)",
+              choices=("skeleton", "k4abt_markers")),
+    ParamSpec("markers", True, "also publish every accepted skeleton frame as a MarkerArray on 'skeleton_markers'"),
+    ParamSpec("markers_frame_id", SKELETON_FRAME,
+              "frame_id of the skeleton markers (the skeleton camera convention)"),
 )
 
 
@@ -48,7 +51,7 @@ class AngleExtractorNode(PipelineNode):
         super().__init__(self.NODE_NAME, PARAMS)
         self.smoother = MedianOf3()
         self.last_stamp: float | None = None
-        self._order: dict[tuple[str, ...], tuple[np.ndarray, np.ndarray, int]] = {}
+        self.reorder = SkeletonReorder(self.counters)
         self.angles_pub = self.create_publisher(messages.JointState, conventions.TOPIC_ANGLES, stream_qos())
         self.markers_pub = (self.create_publisher(standard_messages.MarkerArray, conventions.TOPIC_SKELETON_MARKERS,
                                                   stream_qos()) if self.params["markers"] else None)
@@ -117,32 +120,13 @@ class AngleExtractorNode(PipelineNode):
             self.counters.reject("skeleton.out_of_range", f"coordinates beyond {MAX_PLAUSIBLE_METRES} m "
                                  "(millimetres instead of metres?)")
             return None
-        return stamp, self.reordered(names, positions)
-
-    def reordered(self, names: tuple[str, ...], positions: np.ndarray) -> np.ndarray:
-        """Positions in SKELETON_JOINTS order: unknown joints dropped, missing ones NaN (both counted)."""
-        if names == SKELETON_JOINTS:
-            return positions
-        if names not in self._order:
-            index = {n: i for i, n in enumerate(names)}
-            dst = np.array([k for k, n in enumerate(SKELETON_JOINTS) if n in index], dtype=int)
-            src = np.array([index[SKELETON_JOINTS[k]] for k in dst], dtype=int)
-            self._order[names] = (dst, src, len(set(names) - set(SKELETON_JOINTS)))
-        dst, src, unknown = self._order[names]
-        if unknown:
-            self.counters.count("skeleton.unknown_joints_ignored")
-        if dst.size < len(SKELETON_JOINTS):
-            self.counters.count("skeleton.missing_joints_filled_nan")
-        out = np.full((len(SKELETON_JOINTS), 3), np.nan)
-        out[dst] = positions[src]
-        return out
+        return stamp, self.reorder(names, positions)
 
     def publish_angles(self, stamp: float, positions: np.ndarray) -> None:
-        raw = skeleton_to_angles(positions, SKELETON_JOINTS, clip=False)
+        angles, raw = frame_angles(positions, SKELETON_JOINTS)
         if not np.all(np.isfinite(raw)):
             self.counters.reject("frame.missing_joints", "a smoothed frame lacks joints the arm angles need; dropped")
             return
-        angles = clip_to_limits(raw)
         if np.any(angles != raw):
             self.counters.count("angles.clipped_to_limits")
         self.angles_pub.publish(messages.joint_state(stamp, ARM_JOINTS, angles))

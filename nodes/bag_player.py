@@ -19,36 +19,33 @@ import time
 from pathlib import Path
 from typing import Any
 
-import numpy as np
 from rclpy.clock import Clock, ClockType
 from rclpy.duration import Duration
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
+from gwr_predictor.parameter_spec import ParamSpec
 from gwr_predictor.pipeline import bags
 
 from . import messages
-from .node_base import NodeFatalError, Param, ParameterError, PipelineNode, run_node, stream_qos
+from .node_base import NodeFatalError, ParameterError, PipelineNode, run_node, stream_qos
 
 PARAMS = (
-    Param("bag", "", "bag to replay: a rosbag2 directory (MCAP) or a bare .mcap file"),
-    Param("rate", 1.0, "replay speed factor (2.0 = twice as fast)", 0.01, 1000.0),
-    Param("topics", [], "topics to replay (names as recorded); empty: every topic with messages"),
-    Param("remap", [], "renames 'recorded:=published', e.g. '/skeleton:=/replayed/skeleton'"),
-    Param("start_delay_s", 0.0, "wait this long before the first message (s)", 0.0, 3600.0),
-    Param("wait_for_subscribers", 0, "before starting, wait until every topic has this many subscribers", 0, 1000),
-    Param("wait_timeout_s", 30.0, "give up waiting for subscribers after this long and play anyway (s)", 0.0, 3600.0),
-    Param("loop", False, "start again at the end of the bag"),
-    Param("restamp", False, "shift the stamps inside the messages to the replay time"),
-    Param("tick_s", 0.002, "scheduling period: messages go out at most this late (s)", 0.0005, 0.1),
-    Param("clock", False, "publish /clock with the recorded time (for nodes with use_sim_time:=true)"),
-    Param("clock_period_s", 0.005, "wall-clock period of /clock while playing (s); a node timer needs a "
-          "period above clock_period_s * rate to keep its rate", 0.001, 1.0),
+    ParamSpec("bag", "", "bag to replay: a rosbag2 directory (MCAP) or a bare .mcap file"),
+    ParamSpec("rate", 1.0, "replay speed factor (2.0 = twice as fast)", 0.01, 1000.0),
+    ParamSpec("topics", [], "topics to replay (names as recorded); empty: every topic with messages"),
+    ParamSpec("remap", [], "renames 'recorded:=published', e.g. '/skeleton:=/replayed/skeleton'"),
+    ParamSpec("start_delay_s", 0.0, "wait this long before the first message (s)", 0.0, 3600.0),
+    ParamSpec("wait_for_subscribers", 0, "before starting, wait until every topic has this many subscribers", 0, 1000),
+    ParamSpec("wait_timeout_s", 30.0, "give up waiting for subscribers after this long and play anyway (s)",
+              0.0, 3600.0),
+    ParamSpec("loop", False, "start again at the end of the bag"),
+    ParamSpec("restamp", False, "shift the stamps inside the messages to the replay time"),
+    ParamSpec("tick_s", 0.002, "scheduling period: messages go out at most this late (s)", 0.0005, 0.1),
+    ParamSpec("clock", False, "publish /clock with the recorded time (for nodes with use_sim_time:=true)"),
+    ParamSpec("clock_period_s", 0.005, "wall-clock period of /clock while playing (s); a node timer needs a "
+              "period above clock_period_s * rate to keep its rate", 0.001, 1.0),
 )
 
-_JOINT_STATE = "sensor_msgs/msg/JointState"
-_MULTIARRAY = "std_msgs/msg/Float64MultiArray"
-_DIAGNOSTICS = "diagnostic_msgs/msg/DiagnosticArray"
-_TIME = bags.TYPESTORE.types["builtin_interfaces/msg/Time"]
 _RELIABILITY = {"reliable": ReliabilityPolicy.RELIABLE, "best_effort": ReliabilityPolicy.BEST_EFFORT}
 _DURABILITY = {"volatile": DurabilityPolicy.VOLATILE, "transient_local": DurabilityPolicy.TRANSIENT_LOCAL}
 
@@ -60,38 +57,6 @@ def publisher_qos(offered: list[Any]) -> QoSProfile:
         return stream_qos()
     return QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=chosen.depth,
                       reliability=_RELIABILITY[chosen.reliability], durability=_DURABILITY[chosen.durability])
-
-
-def parse_remaps(entries: list[str]) -> dict[str, str]:
-    """['a:=b', ...] -> {'/a': '/b'}; ValueError naming a malformed entry."""
-    remaps = {}
-    for entry in entries:
-        src, sep, dst = entry.partition(":=")
-        if not sep or not src.strip() or not dst.strip():
-            raise ValueError(f"remap entry {entry!r} must look like 'from:=to'")
-        remaps["/" + src.strip().lstrip("/")] = "/" + dst.strip().lstrip("/")
-    return remaps
-
-
-def shift_stamp(raw: bytes, msgtype: str, offset_s: float) -> bytes:
-    """The CDR bytes of a message whose stamps are moved by `offset_s` (other types unchanged).
-
-    Re-encoded with rosbags (exact sizes, so that a recorder can store the result again), not with
-    rclpy's serializer, which may append padding that rosbags rejects.
-    """
-    if msgtype not in (_JOINT_STATE, _MULTIARRAY, _DIAGNOSTICS):
-        return raw
-    msg = bags.deserialize(raw, msgtype)
-    if msgtype == _MULTIARRAY:
-        if msg.layout.data_offset >= 1 and len(msg.data) >= 1:
-            data = np.array(msg.data, dtype=np.float64)
-            data[0] += offset_s
-            msg.data = data
-    else:
-        seconds = max(0.0, bags.stamp_seconds(msg.header.stamp) + offset_s)
-        sec = math.floor(seconds)
-        msg.header.stamp = _TIME(sec=sec, nanosec=min(999_999_999, round((seconds - sec) * 1e9)))
-    return bags.serialize(msg, msgtype)
 
 
 class BagPlayerNode(PipelineNode):
@@ -106,7 +71,7 @@ class BagPlayerNode(PipelineNode):
             raise ParameterError("parameters 'clock' and 'restamp' exclude each other: with clock:=true the nodes "
                                  "run on the recorded time, so the stamps must stay as recorded")
         try:
-            self.remaps = parse_remaps(p["remap"])
+            self.remaps = bags.parse_remaps(p["remap"])
         except ValueError as exc:
             raise ParameterError(f"parameter 'remap': {exc}") from None
         self.bag = Path(p["bag"])
@@ -196,7 +161,7 @@ class BagPlayerNode(PipelineNode):
     def publish(self, message: bags.BagMessage) -> None:
         raw: Any = message.raw
         if self.params["restamp"]:
-            raw = shift_stamp(raw, message.msgtype, self.restamp_offset)
+            raw = bags.shift_stamp(raw, message.msgtype, self.restamp_offset)
         self.publishers_[message.topic].publish(raw)
         self.counters.count(f"published.{message.topic}")
 

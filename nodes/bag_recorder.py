@@ -19,18 +19,19 @@ from pathlib import Path
 from rclpy.clock import Clock, ClockType
 from rclpy.qos import QoSProfile
 
+from gwr_predictor.parameter_spec import ParamSpec
 from gwr_predictor.pipeline import bags, conventions
 
 from . import messages, standard_messages
-from .node_base import NodeFatalError, Param, ParameterError, PipelineNode, run_node, stream_qos
+from .node_base import NodeFatalError, ParameterError, PipelineNode, run_node, stream_qos
 
 PARAMS = (
-    Param("path", "", "bag directory to create (must not exist); empty: recording_<date-time> in the working dir"),
-    Param("topics", list(conventions.TOPIC_TYPES),
+    ParamSpec("path", "", "bag directory to create (must not exist); empty: recording_<date-time> in the working dir"),
+    ParamSpec("topics", list(conventions.TOPIC_TYPES),
           "topics to record; relative names resolve in the node's namespace; the type comes from the last name "
           "segment (conventions.TOPIC_TYPES) or an explicit 'name@pkg/msg/Type'"),
-    Param("flush_period_s", 1.0, "put everything received on disk this often (s)", 0.05, 3600.0),
-    Param("queue_depth", conventions.QOS_DEPTH_RECORDER, "reliable keep-last depth per subscription", 1, 100000),
+    ParamSpec("flush_period_s", 1.0, "put everything received on disk this often (s)", 0.05, 3600.0),
+    ParamSpec("queue_depth", conventions.QOS_DEPTH_RECORDER, "reliable keep-last depth per subscription", 1, 100000),
 )
 
 

@@ -15,27 +15,28 @@ from __future__ import annotations
 
 import numpy as np
 
+from gwr_predictor.parameter_spec import ParamSpec
 from gwr_predictor.pipeline import conventions
 from gwr_predictor.pipeline.conventions import LayoutError
+from gwr_predictor.pipeline.gates import ArmAnglesGate
 from gwr_predictor.pipeline.trajectory import command_trajectory
 from gwr_predictor.robot import compensator
 from gwr_predictor.robot.nao import ARM_JOINTS
 
 from . import messages, standard_messages
-from .node_base import ArmAnglesGate, Param, PipelineNode, run_node, stream_qos
+from .node_base import PipelineNode, run_node, stream_qos
 
 PARAMS = (
-    Param("mode", "fixed", "none: forward observations; fixed: the prediction delay_s ahead; "
-          "variable: Eq. 11 against the robot's reported state", choices=compensator.MODES),
-    Param("delay_s", 0.6, "robot delay to compensate (s); sets the step in fixed mode", 0.0, 60.0),
-    Param("frame_period_s", 0.1, "spacing of the predicted frames (s)", 0.001, 10.0),
-    Param("stale_after_s", 0.5, "predictions older than this (now - their stamp) are not used", 0.0, 3600.0),
-    Param("robot_state_timeout_s", 0.5, "a robot state older than this is ignored (variable mode)", 0.0, 3600.0),
-    Param("output", "joint_state", "joint_state: JointState on joint_commands (nao_sim); joint_trajectory: "
-          "JointTrajectory on joint_trajectory_controller/joint_trajectory (ros2_control); both",
-          choices=("joint_state", "joint_trajectory", "both")),
-    Param("trajectory_time_s", 0.1, "joint_trajectory output: time_from_start of the commanded pose (s); "
-          "about one command period, so the controller moves smoothly from command to command", 0.001, 10.0),
+    compensator.PARAM_SPECS["mode"],
+    compensator.PARAM_SPECS["delay_s"],
+    ParamSpec("frame_period_s", 0.1, "spacing of the predicted frames (s)", 0.001, 10.0),
+    compensator.PARAM_SPECS["stale_after_s"],
+    ParamSpec("robot_state_timeout_s", 0.5, "a robot state older than this is ignored (variable mode)", 0.0, 3600.0),
+    ParamSpec("output", "joint_state", "joint_state: JointState on joint_commands (nao_sim); joint_trajectory: "
+              "JointTrajectory on joint_trajectory_controller/joint_trajectory (ros2_control); both",
+              choices=("joint_state", "joint_trajectory", "both")),
+    ParamSpec("trajectory_time_s", 0.1, "joint_trajectory output: time_from_start of the commanded pose (s); "
+              "about one command period, so the controller moves smoothly from command to command", 0.001, 10.0),
 )
 
 
@@ -74,7 +75,7 @@ class DelayCompensatorNode(PipelineNode):
 
     def on_observation(self, msg: messages.JointState) -> None:
         """Store the newest pose; command it directly in mode none or when no usable prediction exists."""
-        accepted = self.observations.accept(msg)
+        accepted = self.observations.accept(*messages.joint_state_fields(msg))
         if accepted is None:
             return
         self.obs_stamp, self.observation = accepted
@@ -110,13 +111,13 @@ class DelayCompensatorNode(PipelineNode):
         once per observation, so that the robot does not hold a pose that was only predicted."""
         if self.observation is None or self.fallback_sent_for == self.obs_stamp:
             return
-        if self.pred_stamp is not None and self.now_s() - self.pred_stamp <= self.params["stale_after_s"]:
+        if not self.compensator.stale(self.now_s(), self.pred_stamp):
             return
         self.fallback_sent_for = self.obs_stamp
         self.publish_command()
 
     def on_robot_state(self, msg: messages.JointState) -> None:
-        accepted = self.robot_states.accept(msg)
+        accepted = self.robot_states.accept(*messages.joint_state_fields(msg))
         if accepted is not None:
             self.robot_state, self.robot_state_time = accepted[1], self.now_s()
 
@@ -129,7 +130,8 @@ class DelayCompensatorNode(PipelineNode):
             self.counters.count("commands.skipped_no_observation")
             return
         now = self.now_s()
-        state = self.robot_state if now - self.robot_state_time <= self.params["robot_state_timeout_s"] else None
+        state = compensator.recent_state(self.robot_state, self.robot_state_time, now,
+                                         self.params["robot_state_timeout_s"])
         out = self.compensator.command(now, self.observation, self.predictions, self.pred_stamp, state)
         if out.fallback_reason is not None:
             self.counters.count(f"fallback.{out.fallback_reason}")

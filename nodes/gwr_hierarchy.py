@@ -17,16 +17,17 @@ A checkpoint of another kind than `predictor` stops the node (it is neither used
 
 from __future__ import annotations
 
-import os
 import time
 from pathlib import Path
 
 import numpy as np
 
-from gwr_predictor.learning.checkpoint import CheckpointError, KindMismatchError
+from gwr_predictor.learning.checkpoint import CheckpointError, KindMismatchError, set_aside
 from gwr_predictor.learning.hierarchy import Hierarchy
 from gwr_predictor.learning.params import HierarchyParams, hierarchy_parameter_specs
+from gwr_predictor.parameter_spec import ParamSpec
 from gwr_predictor.pipeline import conventions
+from gwr_predictor.pipeline.gates import ArmAnglesGate, missing_frames
 from gwr_predictor.pipeline.markers import ROBOT_FRAME, arm_figure
 from gwr_predictor.pipeline.trajectory import prediction_trajectory
 from gwr_predictor.predictors.blend import BlendedPredictor, gwr_member
@@ -35,9 +36,7 @@ from gwr_predictor.robot.nao import ARM_JOINTS
 
 from . import messages, standard_messages
 from .node_base import (
-    ArmAnglesGate,
     NodeFatalError,
-    Param,
     ParameterError,
     PipelineNode,
     run_node,
@@ -46,19 +45,19 @@ from .node_base import (
 )
 
 PARAMS = (
-    Param("predictor", "hierarchy", "model: 'hierarchy' (GWR1 -> GWR2 -> P-GWR, the paper) or an online "
+    ParamSpec("predictor", "hierarchy", "model: 'hierarchy' (GWR1 -> GWR2 -> P-GWR, the paper) or an online "
           "per-step inverse-MSE blend with RLS-AR ('blend_hierarchy_rls', 'blend_flat_rls'; beyond the paper)",
           choices=learner_names()),
-    Param("seed", 0, "seed of the networks' initial random neurons", 0, 2**31 - 1),
-    Param("learn", True, "learn from every frame (false: predict with the networks as they are)"),
-    Param("frame_period_s", 1.0 / conventions.ANGLE_FPS, "spacing of the angle frames (s)", 0.001, 10.0),
-    Param("max_gap_s", conventions.MAX_GAP_S, "a stamp gap larger than this ends the sequence", 0.0, 3600.0),
-    Param("checkpoint", "", "model file: loaded at start if it exists, saved periodically and at shutdown; "
+    ParamSpec("seed", 0, "seed of the networks' initial random neurons", 0, 2**31 - 1),
+    ParamSpec("learn", True, "learn from every frame (false: predict with the networks as they are)"),
+    ParamSpec("frame_period_s", 1.0 / conventions.ANGLE_FPS, "spacing of the angle frames (s)", 0.001, 10.0),
+    ParamSpec("max_gap_s", conventions.MAX_GAP_S, "a stamp gap larger than this ends the sequence", 0.0, 3600.0),
+    ParamSpec("checkpoint", "", "model file: loaded at start if it exists, saved periodically and at shutdown; "
           "empty: none"),
-    Param("checkpoint_interval_s", 60.0, "save the checkpoint this often (s); 0: only at shutdown", 0.0, 86400.0),
-    Param("standard_outputs", True, "also publish predicted_trajectory (JointTrajectory) and "
-          "predicted_arm_markers (MarkerArray) for viewers and controllers"),
-    Param("status_period_s", 1.0, "period of the learner status (neurons, errors) (s)", 0.05, 3600.0),
+    ParamSpec("checkpoint_interval_s", 60.0, "save the checkpoint this often (s); 0: only at shutdown", 0.0, 86400.0),
+    ParamSpec("standard_outputs", True, "also publish predicted_trajectory (JointTrajectory) and "
+              "predicted_arm_markers (MarkerArray) for viewers and controllers"),
+    ParamSpec("status_period_s", 1.0, "period of the learner status (neurons, errors) (s)", 0.05, 3600.0),
 )
 
 
@@ -115,9 +114,8 @@ class GwrHierarchyNode(PipelineNode):
                                  f"{self.params['predictor']!r} ({exc}); set 'predictor' to match it or use "
                                  "another checkpoint path") from None
         except CheckpointError as exc:
-            aside = path.with_name(f"{path.name}.corrupt-{time.strftime('%Y%m%d-%H%M%S')}")
             try:
-                os.replace(path, aside)
+                aside = set_aside(path)
             except OSError as move_exc:
                 raise NodeFatalError(f"unreadable checkpoint {path} ({exc}) could not be moved aside: {move_exc}; "
                                      "not starting, to avoid overwriting it") from None
@@ -137,7 +135,7 @@ class GwrHierarchyNode(PipelineNode):
     def on_angles(self, msg: messages.JointState) -> None:
         """One frame: bridge a short gap with missing samples or end the sequence, learn, predict, publish."""
         last = self.gate.last_stamp
-        accepted = self.gate.accept(msg)
+        accepted = self.gate.accept(*messages.joint_state_fields(msg))
         if accepted is None:
             return
         stamp, angles = accepted
@@ -165,12 +163,12 @@ class GwrHierarchyNode(PipelineNode):
 
     def handle_gap(self, dt: float) -> None:
         """Missing frames (dt of several periods) keep the learner's step count in time; a long gap resets."""
-        if dt > self.params["max_gap_s"]:
+        missing = missing_frames(dt, self.params["frame_period_s"], self.params["max_gap_s"])
+        if missing is None:
             self.model.reset_sequence()
             self.counters.count("sequences.reset_on_gap")
             return
-        missing = round(dt / self.params["frame_period_s"]) - 1
-        for _ in range(max(0, missing)):
+        for _ in range(missing):
             self.model.step(None)
         if missing > 0:
             self.counters.count("frames.missing", missing)

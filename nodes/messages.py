@@ -7,7 +7,6 @@ the layouts defined in `gwr_predictor.pipeline.conventions` are applied in exact
 from __future__ import annotations
 
 import importlib
-import math
 from collections.abc import Mapping, Sequence
 
 import numpy as np
@@ -24,19 +23,12 @@ from gwr_predictor.pipeline.conventions import ArrayDim, LayoutError, PackedArra
 
 
 def to_time(seconds: float) -> Time:
-    """Seconds (float) -> builtin_interfaces/Time; negative or non-finite stamps are a caller bug."""
-    if not math.isfinite(seconds) or seconds < 0.0:
-        raise ValueError(f"stamp must be finite and >= 0, got {seconds}")
-    sec = math.floor(seconds)
-    nanosec = round((seconds - sec) * 1e9)
-    if nanosec >= 1_000_000_000:
-        sec, nanosec = sec + 1, nanosec - 1_000_000_000
+    """Seconds (float) -> builtin_interfaces/Time (`conventions.split_stamp`)."""
+    sec, nanosec = conventions.split_stamp(seconds)
     return Time(sec=sec, nanosec=nanosec)
 
 
-def from_time(stamp: Time) -> float:
-    """builtin_interfaces/Time -> seconds (float)."""
-    return stamp.sec + stamp.nanosec * 1e-9
+from_time = conventions.stamp_seconds  # builtin_interfaces/Time -> seconds (float)
 
 
 def clock_msg(nanoseconds: int) -> Clock:
@@ -101,6 +93,11 @@ def joint_state(stamp: float, names: Sequence[str], positions: np.ndarray, frame
     return msg
 
 
+def joint_state_fields(msg: JointState) -> tuple[float, tuple[str, ...], np.ndarray]:
+    """JointState -> (stamp s, names, positions), unchecked (an input gate checks them)."""
+    return from_time(msg.header.stamp), tuple(msg.name), np.asarray(msg.position, dtype=np.float64)
+
+
 def read_joint_state(msg: JointState) -> tuple[float, tuple[str, ...], np.ndarray]:
     """JointState -> (stamp s, names, positions). Raises LayoutError if names and positions differ in length."""
     names = tuple(msg.name)
@@ -110,28 +107,13 @@ def read_joint_state(msg: JointState) -> tuple[float, tuple[str, ...], np.ndarra
     return from_time(msg.header.stamp), names, positions
 
 
-def select_joints(names: Sequence[str], positions: np.ndarray, wanted: Sequence[str]) -> np.ndarray:
-    """Positions of `wanted` in that order, from a message with `names` in any order.
-
-    Raises LayoutError naming the missing joints or a duplicated name; extra joints are ignored
-    (a full-body JointState carries more than the arms).
-    """
-    index: dict[str, int] = {}
-    for i, name in enumerate(names):
-        if name in index:
-            raise LayoutError(f"joint name {name!r} appears twice")
-        index[name] = i
-    missing = [n for n in wanted if n not in index]
-    if missing:
-        raise LayoutError(f"missing joints {missing}")
-    return np.asarray([positions[index[n]] for n in wanted], dtype=np.float64)
+select_joints = conventions.select_joints
 
 
 # --- diagnostics -------------------------------------------------------------------------------
 
 OK = DiagnosticStatus.OK
 WARN = DiagnosticStatus.WARN
-ERROR = DiagnosticStatus.ERROR
 
 
 def diagnostic_status(name: str, values: Mapping[str, object], message: str = "",

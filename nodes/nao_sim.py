@@ -14,30 +14,32 @@ nothing commands (they hold their start pose).
 
 from __future__ import annotations
 
-import math
 from pathlib import Path
 
+from gwr_predictor.parameter_spec import ParamSpec
 from gwr_predictor.pipeline import conventions
-from gwr_predictor.robot.delayed_arm import RobotError, SimulatedRobot
+from gwr_predictor.pipeline.gates import ArmAnglesGate
+from gwr_predictor.robot.delayed_arm import ROBOT_SPECS, RobotError, SimulatedRobot, sine_delay
 from gwr_predictor.robot.nao import ROBOT_ARM_JOINTS, robot_arm_positions
 from gwr_predictor.robot.urdf import default_urdf_path
 
 from . import messages, standard_messages
-from .node_base import ArmAnglesGate, NodeFatalError, Param, ParameterError, PipelineNode, run_node, stream_qos
+from .node_base import NodeFatalError, ParameterError, PipelineNode, run_node, stream_qos
 
 PARAMS = (
-    Param("backend", "pybullet", "robot model", choices=("pybullet", "kinematic")),
-    Param("gui", False, "open the PyBullet window (needs a display); default DIRECT, headless"),
-    Param("delay_s", 0.6, "transport + sensing delay of every command (s)", 0.0, 60.0),
-    Param("delay_amplitude_s", 0.0, "variable delay: delay_s + amplitude * sin(2 pi t / delay_period_s)", 0.0, 30.0),
-    Param("delay_period_s", 20.0, "period of the delay variation (s)", 0.1, 3600.0),
-    Param("latency_s", 0.035, "motor response latency (s); the real Nao: 30-40 ms", 0.0, 10.0),
-    Param("control_period_s", 0.01, "robot control period; physics steps at 240 Hz within it (s)", 0.001, 0.1),
-    Param("state_rate_hz", 50.0, "rate of joint_states", 1.0, 1000.0),
-    Param("render_dir", "", "write offscreen PNG pictures of the robot here (pybullet backend); empty: none"),
-    Param("render_period_s", 1.0, "one picture every this many seconds", 0.05, 3600.0),
-    Param("render_width", 320, "picture width (px)", 16, 4096),
-    Param("render_height", 240, "picture height (px)", 16, 4096),
+    ParamSpec("backend", "pybullet", "robot model", choices=("pybullet", "kinematic")),
+    ParamSpec("gui", False, "open the PyBullet window (needs a display); default DIRECT, headless"),
+    ROBOT_SPECS["delay_s"],
+    ParamSpec("delay_amplitude_s", 0.0, "variable delay: delay_s + amplitude * sin(2 pi t / delay_period_s)",
+              0.0, 30.0),
+    ParamSpec("delay_period_s", 20.0, "period of the delay variation (s)", 0.1, 3600.0),
+    ROBOT_SPECS["latency_s"],
+    ParamSpec("control_period_s", 0.01, "robot control period; physics steps at 240 Hz within it (s)", 0.001, 0.1),
+    ParamSpec("state_rate_hz", 50.0, "rate of joint_states", 1.0, 1000.0),
+    ParamSpec("render_dir", "", "write offscreen PNG pictures of the robot here (pybullet backend); empty: none"),
+    ParamSpec("render_period_s", 1.0, "one picture every this many seconds", 0.05, 3600.0),
+    ParamSpec("render_width", 320, "picture width (px)", 16, 4096),
+    ParamSpec("render_height", 240, "picture height (px)", 16, 4096),
 )
 
 
@@ -90,13 +92,12 @@ class NaoSimNode(PipelineNode):
             self.t0 = now - self.robot.t
         t = now - self.t0
         if p["delay_amplitude_s"] > 0.0:
-            self.robot.delay_s = max(0.0, p["delay_s"] + p["delay_amplitude_s"]
-                                     * math.sin(2.0 * math.pi * t / p["delay_period_s"]))
+            self.robot.delay_s = sine_delay(t, p["delay_s"], p["delay_amplitude_s"], p["delay_period_s"])
         if t > self.robot.t:
             self.robot.advance(t - self.robot.t)
 
     def on_command(self, msg: messages.JointState) -> None:
-        accepted = self.gate.accept(msg)
+        accepted = self.gate.accept(*messages.joint_state_fields(msg))
         if accepted is None:
             return
         self.advance()

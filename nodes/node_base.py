@@ -1,9 +1,8 @@
 """Plumbing every pipeline node shares, so that each node file only converts, calls and publishes.
 
-- `Param` + `declare_parameters`: parameters with descriptions and ranges; a bad value stops the
-  node with a `ParameterError` naming the parameter and what is allowed.
-- `RejectionCounter`: named counters; rejections are counted per reason and warned about at most
-  once per `throttle_s` per reason, so a flood of bad input cannot flood the log.
+- `declare_parameters`: `gwr_predictor.parameter_spec.ParamSpec`s as described ROS parameters; a bad
+  value stops the node with a `ParameterError` naming the parameter and what is allowed.
+- the counters and input gates are library code (`gwr_predictor.pipeline.gates`).
 - `PipelineNode`: a Node with the above plus a periodic DiagnosticArray on /diagnostics carrying
   every counter, a `done` future for nodes that finish on their own, and an `on_shutdown` hook.
   Every timer and stamp uses the node clock, so `use_sim_time:=true` with a /clock source (e.g.
@@ -15,15 +14,12 @@
 
 from __future__ import annotations
 
-import math
 import signal
 import socket
 import time
 from collections.abc import Iterable, Sequence
-from dataclasses import dataclass
 from typing import Any
 
-import numpy as np
 import rclpy
 from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.clock import Clock, ClockType
@@ -37,19 +33,15 @@ from rclpy.signals import SignalHandlerOptions
 from rclpy.task import Future
 
 from gwr_predictor.errors import GwrPredictorError
+from gwr_predictor.parameter_spec import ParameterError, ParamSpec
 from gwr_predictor.pipeline import conventions
-from gwr_predictor.pipeline.conventions import LayoutError
-from gwr_predictor.robot.nao import ARM_JOINTS, limits_array
+from gwr_predictor.pipeline.gates import RejectionCounter
 
 from . import messages
 
 EXIT_OK = 0
 EXIT_FATAL = 1
 EXIT_BAD_PARAMETER = 2
-
-
-class ParameterError(GwrPredictorError):
-    """A parameter value the node cannot run with; the message names the parameter and the allowed values."""
 
 
 class NodeFatalError(GwrPredictorError):
@@ -79,163 +71,46 @@ def status_qos() -> QoSProfile:
 # --- parameters ----------------------------------------------------------------------------------
 
 
-@dataclass(frozen=True)
-class Param:
-    """One node parameter: default (its type is the parameter's type), description, allowed values."""
-
-    name: str
-    default: Any
-    description: str
-    minimum: float | None = None
-    maximum: float | None = None
-    choices: tuple[str, ...] | None = None
-
-
-def param_kind(default: Any) -> str:
-    if isinstance(default, bool):
-        return "bool"
-    if isinstance(default, int):
-        return "integer"
-    if isinstance(default, float):
-        return "double"
-    if isinstance(default, str):
-        return "string"
-    if isinstance(default, (list, tuple)):
-        if all(isinstance(v, str) for v in default):
-            return "string list"
-        if all(isinstance(v, float) and not isinstance(v, bool) for v in default):
-            return "double list"
-    raise TypeError(f"unsupported parameter default {default!r}")
-
-
 _ARRAY_TYPES = {"string list": Parameter.Type.STRING_ARRAY, "double list": Parameter.Type.DOUBLE_ARRAY}
 
 
-def allowed(spec: Any) -> str:
-    """Human-readable allowed values of a spec, used in descriptions and error messages."""
-    choices = getattr(spec, "choices", None)
-    if choices:
-        return "one of " + ", ".join(repr(c) for c in choices)
-    lo, hi = spec.minimum, spec.maximum
-    if lo is not None and hi is not None:
-        return f"[{lo}, {hi}]"
-    if lo is not None:
-        return f">= {lo}"
-    if hi is not None:
-        return f"<= {hi}"
-    return "any " + param_kind(spec.default)
+def descriptor(spec: ParamSpec) -> ParameterDescriptor:
+    """The ROS descriptor of a spec: described, allowed values in `additional_constraints`, read-only
+    unless the spec is `live`.
 
-
-def _descriptor(spec: Any, kind: str) -> ParameterDescriptor:
-    """Read-only (values are read once, at start), described, allowed values in `additional_constraints`.
-
-    Ranges are checked by `check_value` rather than by the descriptor's integer/floating-point ranges so
-    that the error names the rejected value; doubles are dynamically typed so that `-p rate_hz:=30`
-    (an integer) is accepted and converted.
+    Ranges are checked by `ParamSpec.check` rather than by the descriptor's integer/floating-point
+    ranges so that the error names the rejected value; doubles are dynamically typed so that
+    `-p rate_hz:=30` (an integer) is accepted and converted.
     """
-    return ParameterDescriptor(description=spec.description, read_only=True, dynamic_typing=kind == "double",
-                               additional_constraints=f"allowed: {allowed(spec)}")
+    return ParameterDescriptor(description=spec.description, read_only=spec.read_only,
+                               dynamic_typing=spec.kind == "double",
+                               additional_constraints=f"allowed: {spec.allowed()}")
 
 
-def check_value(spec: Any, kind: str, value: Any) -> Any:
-    """The declared value converted to the spec's type, or ParameterError."""
-    name = spec.name
-    if kind == "double":
-        if isinstance(value, bool) or not isinstance(value, (int, float)):
-            raise ParameterError(f"parameter '{name}' must be a number in {allowed(spec)}, got {value!r}")
-        value = float(value)
-        if not math.isfinite(value):
-            raise ParameterError(f"parameter '{name}' must be finite, allowed {allowed(spec)}, got {value}")
-    if kind in ("double", "integer"):
-        if (spec.minimum is not None and value < spec.minimum) or (spec.maximum is not None and value > spec.maximum):
-            raise ParameterError(f"parameter '{name}' = {value} is outside the allowed range {allowed(spec)}")
-    choices = getattr(spec, "choices", None)
-    if choices and value not in choices:
-        raise ParameterError(f"parameter '{name}' = {value!r} is not allowed: must be {allowed(spec)}")
-    if kind in _ARRAY_TYPES:
-        value = list(value) if value is not None else list(spec.default)
-    return value
-
-
-def declare_parameters(node: Node, specs: Iterable[Any]) -> dict[str, Any]:
-    """Declare every spec (read-only, described) and return {name: validated value}.
-
-    Specs are `Param`s or any object with name/default/description/minimum/maximum
-    (e.g. `gwr_predictor.learning.params.ParamSpec`).
-    """
+def declare_parameters(node: Node, specs: Iterable[ParamSpec]) -> dict[str, Any]:
+    """Declare every spec and return {name: validated value}; a bad value raises ParameterError."""
     values: dict[str, Any] = {}
     for spec in specs:
-        kind = param_kind(spec.default)
-        desc = _descriptor(spec, kind)
+        kind = spec.kind
+        desc = descriptor(spec)
         default = spec.default
         if kind in _ARRAY_TYPES:  # an empty list has no type of its own
             default = list(spec.default) if spec.default else _ARRAY_TYPES[kind]
         try:
             value = node.declare_parameter(spec.name, default, desc).value
         except InvalidParameterTypeException as exc:
-            raise ParameterError(f"parameter '{spec.name}' must be of type {kind} ({allowed(spec)}): {exc}") from None
+            raise ParameterError(f"parameter '{spec.name}' must be of type {kind} ({spec.allowed()}): {exc}") from None
         except InvalidParameterValueException as exc:
-            raise ParameterError(f"parameter '{spec.name}' ({allowed(spec)}): {exc}") from None
-        values[spec.name] = check_value(spec, kind, value)
+            raise ParameterError(f"parameter '{spec.name}' ({spec.allowed()}): {exc}") from None
+        values[spec.name] = spec.check(value)
     return values
-
-
-# --- counters and throttled warnings ------------------------------------------------------------
-
-
-class RejectionCounter:
-    """Named event counters; `reject` also warns, at most once per `throttle_s` for each reason."""
-
-    def __init__(self, logger: Any, throttle_s: float = 5.0) -> None:
-        self._logger = logger
-        self._throttle_s = throttle_s
-        self._counts: dict[str, int] = {}
-        self._last_warned: dict[str, float] = {}
-        self._suppressed: dict[str, int] = {}
-
-    def count(self, key: str, n: int = 1) -> None:
-        self._counts[key] = self._counts.get(key, 0) + n
-
-    def reject(self, reason: str, detail: str = "") -> None:
-        """Count one rejected input under `rejected.<reason>` and warn (throttled per reason)."""
-        self.count("rejected." + reason)
-        self.warn_throttled("rejected." + reason, f"rejected input [{reason}]: {detail}")
-
-    def warn_throttled(self, key: str, message: str, level: str = "warning") -> None:
-        """Log `message` (at `level`: warning or info) unless `key` was logged less than `throttle_s` ago;
-        suppressed repeats are counted and reported with the next message."""
-        now = time.monotonic()
-        last = self._last_warned.get(key)
-        if last is not None and now - last < self._throttle_s:
-            self._suppressed[key] = self._suppressed.get(key, 0) + 1
-            return
-        suppressed = self._suppressed.pop(key, 0)
-        more = f" ({suppressed} more since the last warning)" if suppressed else ""
-        total = self._counts.get(key)
-        so_far = f"; {total} so far" if total else ""
-        text = f"{message}{more}{so_far}"
-        if level == "info":  # two call sites: rclpy fixes the severity per call site
-            self._logger.info(text)
-        else:
-            self._logger.warning(text)
-        self._last_warned[key] = now
-
-    def get(self, key: str) -> int:
-        return self._counts.get(key, 0)
-
-    @property
-    def rejected(self) -> int:
-        return sum(v for k, v in self._counts.items() if k.startswith("rejected."))
-
-    def snapshot(self) -> dict[str, int]:
-        return dict(sorted(self._counts.items()))
 
 
 # --- the base node -------------------------------------------------------------------------------
 
 COMMON_PARAMS = (
-    Param("diagnostics_period_s", 1.0, "period of the counters on /diagnostics (s)", 0.05, 60.0),
-    Param("warn_throttle_s", 5.0, "at most one warning per rejection reason per this many seconds", 0.0, 3600.0),
+    ParamSpec("diagnostics_period_s", 1.0, "period of the counters on /diagnostics (s)", 0.05, 60.0),
+    ParamSpec("warn_throttle_s", 5.0, "at most one warning per rejection reason per this many seconds", 0.0, 3600.0),
 )
 
 
@@ -287,7 +162,7 @@ class SimClockWatch:
 class PipelineNode(Node):
     """A Node with validated parameters, counters published on /diagnostics and a final hook."""
 
-    def __init__(self, name: str, specs: Sequence[Any], **kwargs: Any) -> None:
+    def __init__(self, name: str, specs: Sequence[ParamSpec], **kwargs: Any) -> None:
         super().__init__(name, **kwargs)
         self.params = declare_parameters(self, (*COMMON_PARAMS, *specs))
         self.counters = RejectionCounter(self.get_logger(), self.params["warn_throttle_s"])
@@ -392,55 +267,3 @@ def run_node(node_cls: type[PipelineNode], args: list[str] | None = None) -> int
             node.destroy_node()
         rclpy.try_shutdown()
     return code
-
-
-# --- input gates: the stated rules for bad input, shared by every node that reads arm angles -----
-
-
-class ArmAnglesGate:
-    """Checks one JointState input stream of the arm joints and returns (stamp, angles) or None.
-
-    Rules, each counted as `rejected.<input>.<reason>` (with a throttled warning):
-    - names and positions of different lengths, or a name twice: `layout`;
-    - any of `names` missing: `missing_joints` (extra joints are ignored; order does not matter);
-    - NaN or inf among the wanted positions: `non_finite`;
-    - a stamp of 0 or one not after the previous accepted stamp (repeat, jump back): `stamp`;
-    - angles beyond the joint limits by more than `limit_margin` rad: `out_of_limits`; closer
-      ones are clipped to the limits and counted as `<input>.clipped` (a repair, not a rejection).
-    """
-
-    def __init__(self, counters: RejectionCounter, input_name: str, names: tuple[str, ...] = ARM_JOINTS,
-                 limit_margin: float = 0.2, check_stamps: bool = True) -> None:
-        self._counters = counters
-        self._input = input_name
-        self._names = names
-        self._lo, self._hi = limits_array(names)
-        self._margin = limit_margin
-        self._check_stamps = check_stamps
-        self.last_stamp: float | None = None
-
-    def _reject(self, reason: str, detail: str) -> None:
-        self._counters.reject(f"{self._input}.{reason}", detail)
-
-    def accept(self, msg: Any) -> tuple[float, np.ndarray] | None:
-        try:
-            stamp, names, positions = messages.read_joint_state(msg)
-            angles = messages.select_joints(names, positions, self._names)
-        except LayoutError as exc:
-            self._reject("missing_joints" if "missing joints" in str(exc) else "layout", str(exc))
-            return None
-        if not np.all(np.isfinite(angles)):
-            self._reject("non_finite", f"non-finite angles {np.round(angles, 3).tolist()}")
-            return None
-        if self._check_stamps:
-            if stamp <= 0.0 or (self.last_stamp is not None and stamp <= self.last_stamp):
-                self._reject("stamp", f"stamp {stamp:.3f} not after the previous {self.last_stamp}")
-                return None
-        if np.any(angles < self._lo - self._margin) or np.any(angles > self._hi + self._margin):
-            self._reject("out_of_limits", f"angles beyond the joint limits by more than {self._margin} rad")
-            return None
-        clipped = np.clip(angles, self._lo, self._hi)
-        if np.any(clipped != angles):
-            self._counters.count(f"{self._input}.clipped")
-        self.last_stamp = stamp
-        return stamp, clipped

@@ -15,30 +15,32 @@ import numpy as np
 
 from gwr_predictor.data import demonstrator, faults
 from gwr_predictor.data.skeleton_files import SkeletonFileError, SkeletonSequence, load_skeleton
+from gwr_predictor.parameter_spec import ParamSpec
 from gwr_predictor.pipeline import conventions
 
 from . import messages
-from .node_base import NodeFatalError, Param, ParameterError, PipelineNode, run_node, stream_qos
+from .node_base import NodeFatalError, ParameterError, PipelineNode, run_node, stream_qos
 
 PARAMS = (
-    Param("source", "demonstrator", "where skeletons come from", choices=("demonstrator", "file", "none")),
-    Param("file", "", "skeleton file (.npz or .csv, see skeleton_io) for source 'file'"),
-    Param("patterns", [], "demonstrator patterns to perform (empty: all 10 of the paper)"),
-    Param("subjects", 3, "number of simulated people (s1-s3 are the paper-like profiles)", 1, 100),
-    Param("first_repetition", 1, "number of the first repetition performed (the pretraining uses 1..N)", 1, 10000),
-    Param("repetitions", 1, "repetitions per pattern and subject", 1, 10000),
-    Param("loop", False, "start again after the last sequence (otherwise the node exits)"),
-    Param("rate_hz", conventions.SKELETON_FPS, "demonstrator frame rate (a file plays at its own stamps)", 1.0, 1000.0),
-    Param("seed", 0, "demonstrator and fault-injection seed", 0, 2**31 - 1),
-    Param("pause_s", 1.0, "silence between sequences; must exceed max_gap_s of the downstream nodes", 0.0, 3600.0),
-    Param("start_delay_s", 0.0, "wait before the first frame (s)", 0.0, 3600.0),
-    Param("wait_for_subscribers", 0, "before the first frame, wait until /skeleton has this many subscribers",
+    ParamSpec("source", "demonstrator", "where skeletons come from", choices=("demonstrator", "file", "none")),
+    ParamSpec("file", "", "skeleton file (.npz or .csv, see skeleton_io) for source 'file'"),
+    ParamSpec("patterns", [], "demonstrator patterns to perform (empty: all 10 of the paper)"),
+    ParamSpec("subjects", 3, "number of simulated people (s1-s3 are the paper-like profiles)", 1, 100),
+    ParamSpec("first_repetition", 1, "number of the first repetition performed (the pretraining uses 1..N)", 1, 10000),
+    ParamSpec("repetitions", 1, "repetitions per pattern and subject", 1, 10000),
+    ParamSpec("loop", False, "start again after the last sequence (otherwise the node exits)"),
+    ParamSpec("rate_hz", conventions.SKELETON_FPS, "demonstrator frame rate (a file plays at its own stamps)",
+              1.0, 1000.0),
+    ParamSpec("seed", 0, "demonstrator and fault-injection seed", 0, 2**31 - 1),
+    ParamSpec("pause_s", 1.0, "silence between sequences; must exceed max_gap_s of the downstream nodes", 0.0, 3600.0),
+    ParamSpec("start_delay_s", 0.0, "wait before the first frame (s)", 0.0, 3600.0),
+    ParamSpec("wait_for_subscribers", 0, "before the first frame, wait until /skeleton has this many subscribers",
           0, 1000),
-    Param("drop_fraction", 0.0, "fault injection: share of frames lost in whole chunks", 0.0, 0.95),
-    Param("drop_chunk_s", 1.0, "fault injection: length of one lost chunk (s); the paper used 1 s", 0.01, 60.0),
-    Param("joint_dropout_rate", 0.0, "fault injection: probability per frame and joint of an untracked (NaN) joint",
+    ParamSpec("drop_fraction", 0.0, "fault injection: share of frames lost in whole chunks", 0.0, 0.95),
+    ParamSpec("drop_chunk_s", 1.0, "fault injection: length of one lost chunk (s); the paper used 1 s", 0.01, 60.0),
+    ParamSpec("joint_dropout_rate", 0.0, "fault injection: probability per frame and joint of an untracked (NaN) joint",
           0.0, 1.0),
-    Param("tick_s", 0.005, "scheduling period; frames go out at most this late (s)", 0.0005, 0.1),
+    ParamSpec("tick_s", 0.005, "scheduling period; frames go out at most this late (s)", 0.0005, 0.1),
 )
 
 

@@ -17,6 +17,7 @@ from std_msgs.msg import ColorRGBA, String
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 from visualization_msgs.msg import Marker, MarkerArray
 
+from gwr_predictor.pipeline import conventions
 from gwr_predictor.pipeline.markers import Figure
 from gwr_predictor.pipeline.trajectory import Trajectory
 
@@ -34,7 +35,8 @@ def to_duration(seconds: float) -> Duration:
 
 
 def from_duration(d: Duration) -> float:
-    return d.sec + d.nanosec * 1e-9
+    """builtin_interfaces/Duration -> seconds (the same fields as a Time)."""
+    return conventions.stamp_seconds(d)
 
 
 # --- markers -----------------------------------------------------------------------------------

@@ -29,13 +29,13 @@ max_lost=0
 extra=()
 while [ $# -gt 0 ]; do
     case "$1" in
-        --minutes) [[ "${2:-}" =~ ^[0-9]+$ ]] || gwr_die "--minutes must be a whole number"; seconds=$(($2 * 60)); shift 2 ;;
-        --seconds) [[ "${2:-}" =~ ^[0-9]+$ ]] || gwr_die "--seconds must be a whole number"; seconds="$2"; shift 2 ;;
-        --out) out="$2"; shift 2 ;;
-        --checkpoint) extra+=(--checkpoint "$2"); shift 2 ;;
-        --max-lost) [[ "${2:-}" =~ ^[0-9]+$ ]] || gwr_die "--max-lost must be a whole number"; max_lost="$2"; shift 2 ;;
+        --minutes) [[ "${2:-}" =~ ^[0-9]+$ ]] || gwr_die "--minutes needs a whole number, got '${2:-}'"; seconds=$(($2 * 60)); shift 2 ;;
+        --seconds) [[ "${2:-}" =~ ^[0-9]+$ ]] || gwr_die "--seconds needs a whole number, got '${2:-}'"; seconds="$2"; shift 2 ;;
+        --out) out="$(gwr_value "$@")"; shift 2 ;;
+        --checkpoint) extra+=(--checkpoint "$(gwr_value "$@")"); shift 2 ;;
+        --max-lost) [[ "${2:-}" =~ ^[0-9]+$ ]] || gwr_die "--max-lost needs a whole number, got '${2:-}'"; max_lost="$2"; shift 2 ;;
         --no-baseline) extra+=(--no-baseline); shift ;;
-        -h|--help) sed -n '2,18p' "$0"; exit 0 ;;
+        -h|--help) gwr_usage "$0"; exit 0 ;;
         *) gwr_die "unknown argument $1 (see --help)" ;;
     esac
 done

@@ -8,7 +8,7 @@
 #                               uncompensated one (namespace /uncompensated), everything recorded
 #   3. gwr-predictor report     prediction error at 600 ms, robot lags, neurons, counts, plot
 #
-# usage: scripts/demo.sh [--seconds N] [--out DIR] [--epochs N] [--scenario YAML | --predictor NAME] [--render]
+# usage: scripts/demo.sh [--seconds N] [--out DIR] [--epochs N] [--scenario YAML] [--predictor NAME] [--render]
 #   --predictor NAME   hierarchy (default, the paper), blend_hierarchy_rls or blend_flat_rls (beyond the paper)
 set -euo pipefail
 HERE="$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)"
@@ -25,27 +25,22 @@ scenario=""
 extra=()
 while [ $# -gt 0 ]; do
     case "$1" in
-        --seconds) seconds="$2"; shift 2 ;;
-        --out) out="$2"; shift 2 ;;
-        --epochs) epochs="$2"; shift 2 ;;
-        --scenario) scenario="$2"; shift 2 ;;
-        --predictor) predictor="$2"; shift 2 ;;
+        --seconds) seconds="$(gwr_value "$@")"; shift 2 ;;
+        --out) out="$(gwr_value "$@")"; shift 2 ;;
+        --epochs) epochs="$(gwr_value "$@")"; shift 2 ;;
+        --scenario) scenario="$(gwr_value "$@")"; shift 2 ;;
+        --predictor) predictor="$(gwr_value "$@")"; shift 2 ;;
         --render) extra+=(--render); shift ;;
-        -h|--help) sed -n '2,13p' "$0"; exit 0 ;;
+        -h|--help) gwr_usage "$0"; exit 0 ;;
         *) gwr_die "unknown argument $1 (see --help)" ;;
     esac
 done
 out="$(gwr_run_folder "$out" demo)"
 start=$SECONDS
-if [ -n "$predictor" ]; then
-    # The node and the pretraining must build the same kind of model: one scenario file says which.
-    [ -z "$scenario" ] || gwr_die "--predictor and --scenario cannot be combined (put 'predictor' in the scenario)"
-    scenario="$out/predictor.yaml"
-    printf '/**/gwr_hierarchy:\n  ros__parameters:\n    predictor: %s\n' "$predictor" > "$scenario"
-fi
 [ -z "$scenario" ] || extra+=(--scenario "$scenario")
 pretrain_args=(--params-file "$GWR_ROOT/config/gwr_hierarchy.yaml")
-[ -z "$predictor" ] || pretrain_args+=(--predictor "$predictor")
+# the node and the pretraining build the same kind of model
+[ -z "$predictor" ] || { pretrain_args+=(--predictor "$predictor"); extra+=(--predictor "$predictor"); }
 
 gwr_log "step 1/3: pretraining offline (${predictor:-hierarchy})"
 gwr-predictor pretrain --out "$out/pretrained.npz" "${pretrain_args[@]}" \

@@ -12,6 +12,19 @@ gwr_log() { echo "[gwr_predictor] $*" >&2; }
 
 gwr_die() { gwr_log "error: $*"; exit 1; }
 
+# gwr_usage SCRIPT: print the script's header comment (the lines after the shebang that start
+# with '#'), without the '# ', so that --help shows the usage text and never code.
+gwr_usage() {
+    sed -n '2,/^[^#]/{/^#/!q;s/^# \{0,1\}//;p}' "$1"
+}
+
+# gwr_value OPTION [VALUE]: VALUE, or a clear error when the option was given without one
+# (e.g. `--seconds` last on the line), instead of bash's "unbound variable".
+gwr_value() {
+    [ $# -ge 2 ] && [ -n "$2" ] && [[ "$2" != --* ]] || gwr_die "$1 needs a value (see --help)"
+    printf '%s' "$2"
+}
+
 # gwr_run_folder DIR KIND: the absolute path of the run folder DIR (empty: results/KIND_<time>), created.
 gwr_run_folder() {
     local dir="${1:-$GWR_ROOT/results/${2}_$(date +%Y%m%d_%H%M%S)}"

@@ -5,12 +5,13 @@
 # /uncompensated namespace fed by the same angles, and a bag_recorder started first.
 #
 # usage: scripts/run_pipeline.sh [--seconds N] [--out DIR] [--params-dir DIR] [--scenario YAML]
-#                                [--checkpoint FILE] [--no-baseline] [--render]
+#                                [--checkpoint FILE] [--predictor NAME] [--no-baseline] [--render]
 #   --seconds N        how long the source runs (default 60)
 #   --out DIR          run folder: bag/, model.npz, one log per node, ros_log/ (default results/run_<time>)
 #   --params-dir DIR   folder with <node>.yaml (default config/)
 #   --scenario YAML    extra params file applied to every node after its own (e.g. config/scenario_*.yaml)
 #   --checkpoint FILE  start the learner from this model (copied to DIR/model.npz, which it then updates)
+#   --predictor NAME   the learner's model (gwr_hierarchy's `predictor` parameter), after the params files
 #   --no-baseline      no uncompensated robot
 #   --render           the compensated robot writes PNG pictures to DIR/frames/
 set -euo pipefail
@@ -25,18 +26,20 @@ out=""
 params_dir="$GWR_ROOT/config"
 scenario=""
 checkpoint=""
+predictor=""
 baseline=1
 render=0
 while [ $# -gt 0 ]; do
     case "$1" in
-        --seconds) seconds="$2"; shift 2 ;;
-        --out) out="$2"; shift 2 ;;
-        --params-dir) params_dir="$2"; shift 2 ;;
-        --scenario) scenario="$2"; shift 2 ;;
-        --checkpoint) checkpoint="$2"; shift 2 ;;
+        --seconds) seconds="$(gwr_value "$@")"; shift 2 ;;
+        --out) out="$(gwr_value "$@")"; shift 2 ;;
+        --params-dir) params_dir="$(gwr_value "$@")"; shift 2 ;;
+        --scenario) scenario="$(gwr_value "$@")"; shift 2 ;;
+        --checkpoint) checkpoint="$(gwr_value "$@")"; shift 2 ;;
+        --predictor) predictor="$(gwr_value "$@")"; shift 2 ;;
         --no-baseline) baseline=0; shift ;;
         --render) render=1; shift ;;
-        -h|--help) sed -n '2,17p' "$0"; exit 0 ;;
+        -h|--help) gwr_usage "$0"; exit 0 ;;
         *) gwr_die "unknown argument $1 (see --help)" ;;
     esac
 done
@@ -75,7 +78,9 @@ if [ "$baseline" = 1 ]; then
     start_node nao_sim_uncompensated nao_sim "${ns[@]}"
     start_node delay_compensator_uncompensated delay_compensator "${ns[@]}" -p mode:=none
 fi
-start_node gwr_hierarchy gwr_hierarchy -p "checkpoint:=$out/model.npz"
+learner=(-p "checkpoint:=$out/model.npz")
+[ -z "$predictor" ] || learner+=(-p "predictor:=$predictor")
+start_node gwr_hierarchy gwr_hierarchy "${learner[@]}"
 start_node angle_extractor angle_extractor
 for n in nao_sim delay_compensator gwr_hierarchy angle_extractor; do gwr_wait_ready "$n" 60; done
 if [ "$baseline" = 1 ]; then

@@ -210,6 +210,24 @@ class Probe:
         self.spin_until(lambda: publisher.get_subscription_count() >= count, timeout,
                         f"{count} subscriber(s) on {publisher.topic_name}")
 
+    def wait_for_graph(self, links: dict[str, tuple[str, list[str]]], timeout: float = 30.0,
+                       settle_s: float = 1.0) -> None:
+        """Wait until, per topic, the named publisher node and every named subscriber node are in the graph.
+
+        A node's own "N subscribers" wait covers only its output topic; a pipeline test that must see
+        every message wants each hop discovered before the first message flows (under load, discovery
+        of a late hop takes seconds). `settle_s` gives the endpoints time to match after discovery."""
+        def missing() -> list[str]:
+            gaps = []
+            for topic, (publisher, subscribers) in links.items():
+                pubs = {i.node_name for i in self.node.get_publishers_info_by_topic(topic)}
+                subs = {i.node_name for i in self.node.get_subscriptions_info_by_topic(topic)}
+                gaps += [f"{topic} publisher {publisher}"] if publisher not in pubs else []
+                gaps += [f"{topic} subscriber {name}" for name in subscribers if name not in subs]
+            return gaps
+        self.spin_until(lambda: not missing(), timeout, lambda: "graph: " + ", ".join(missing()))
+        self.spin_for(settle_s)
+
     def close(self) -> None:
         self.executor.shutdown()
         self.node.destroy_node()

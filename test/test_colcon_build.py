@@ -40,6 +40,21 @@ def test_colcon_install_has_every_node_config_and_index_marker(installed):
     assert (share / "gwr_predictor" / "package.xml").is_file()
     assert (share / "gwr_predictor" / "launch" / "pipeline.launch.py").is_file()  # where ros2 launch looks
 
+    # the CLI from the install space: its subpackages (commands, learning, data...) are installed
+    site = next((installed / "gwr_predictor" / "lib").glob("python3*/site-packages"))
+    assert (site / "gwr_predictor" / "commands" / "pretrain.py").is_file()
+    env = {k: v for k, v in os.environ.items() if k != "_ROS_WHEELS_BOOTSTRAP_COMPLETE"}
+    env["PYTHONPATH"] = str(site)  # what sourcing install/setup.bash does for this package
+    cli = str(lib / "gwr-predictor")
+    result = subprocess.run([cli, "--help"], env=env, capture_output=True, text=True, timeout=60)
+    assert result.returncode == 0 and "pretrain" in result.stdout, result.stdout + result.stderr
+    model = installed.parent / "model.npz"
+    result = subprocess.run([cli, "pretrain", "-o", str(model), "--patterns", "wave_one", "--subjects", "1",
+                             "--repetitions", "1", "--epochs", "1", "--quiet"],
+                            env=env, capture_output=True, text=True, timeout=300)
+    assert result.returncode == 0, result.stdout[-2000:] + result.stderr[-2000:]
+    assert model.stat().st_size > 0
+
 
 @pytest.mark.ros
 @pytest.mark.slow

@@ -70,8 +70,10 @@ def launched_nodes(module, **arguments: str) -> list[dict]:
     return nodes
 
 
-def script_nodes(out: str, params_dir: str, baseline: bool, render: bool, scenario: str) -> list[dict]:
+def script_nodes(out: str, params_dir: str, baseline: bool, render: bool, scenario: str,
+                 predictor: str = "") -> list[dict]:
     """The nodes run_pipeline.sh starts (its start_node lines), with its arrays and if-blocks evaluated."""
+    variables = {"predictor": predictor}
     arrays: dict[str, list[str]] = {"frames": []}
     nodes = []
     active = [True]
@@ -96,6 +98,13 @@ def script_nodes(out: str, params_dir: str, baseline: bool, render: bool, scenar
         if assign:
             arrays[assign.group(1)] = shlex.split(assign.group(2).replace("$out", out))
             continue
+        append = re.match(r'\[ -z "\$(\w+)" \] \|\| (\w+)\+=\((.*)\)$', line)  # [ -z "$v" ] || arr+=(...)
+        if append:
+            if variables[append.group(1)]:
+                arrays[append.group(2)] += shlex.split(append.group(3).replace(f"${append.group(1)}",
+                                                                               variables[append.group(1)]))
+            continue
+        assert not re.search(r"\w\+?=\(", line), f"run_pipeline.sh line not understood by this parser: {line}"
         if not line.startswith("start_node ") or line.startswith("start_node()"):
             continue
         words = []
@@ -129,14 +138,16 @@ def same_graph(launched: list[dict], scripted: list[dict]) -> None:
             assert got[field] == expected[field], f"{expected['label']}: {field} {got[field]} != {expected[field]}"
 
 
-@pytest.mark.parametrize("baseline,render,scenario", [
-    (True, False, ""), (False, False, ""), (True, True, "config/scenario_variable_delay.yaml"),
+@pytest.mark.parametrize("baseline,render,scenario,predictor", [
+    (True, False, "", ""), (False, False, "", ""),
+    (True, True, "config/scenario_variable_delay.yaml", "blend_flat_rls"),
 ])
-def test_launch_file_starts_the_graph_of_run_pipeline(launch_module, tmp_path, baseline, render, scenario):
+def test_launch_file_starts_the_graph_of_run_pipeline(launch_module, tmp_path, baseline, render, scenario,
+                                                      predictor):
     out = str(tmp_path / "run")
     launched = launched_nodes(launch_module, out=out, baseline=str(baseline).lower(), render=str(render).lower(),
-                              scenario=scenario)
-    same_graph(launched, script_nodes(out, str(CONFIG), baseline, render, scenario))
+                              scenario=scenario, predictor=predictor)
+    same_graph(launched, script_nodes(out, str(CONFIG), baseline, render, scenario, predictor))
     assert {n["package"] for n in launched} == {"gwr_predictor"}
     assert not any(n["use_sim_time"] for n in launched)
 
@@ -166,3 +177,5 @@ def test_script_parser_sees_every_node_of_the_script():
     (uncompensated,) = [n for n in scripted if n["label"] == "delay_compensator_uncompensated"]
     assert uncompensated["namespace"] == "/uncompensated" and uncompensated["overrides"] == {"mode": "none"}
     assert ("arm_angles", "/arm_angles") in uncompensated["remaps"]
+    (learner,) = [n for n in script_nodes("/o", "/c", True, False, "", "rls_ar") if n["label"] == "gwr_hierarchy"]
+    assert learner["overrides"] == {"checkpoint": "/o/model.npz", "predictor": "rls_ar"}

@@ -188,12 +188,12 @@ class FakeLogger:
 
 
 def test_rejections_are_counted_per_reason_and_warned_at_most_once_per_period(monkeypatch):
-    from gwr_predictor.nodes import node_base
+    from gwr_predictor.pipeline import gates
 
     clock = [100.0]
-    monkeypatch.setattr(node_base.time, "monotonic", lambda: clock[0])
+    monkeypatch.setattr(gates.time, "monotonic", lambda: clock[0])
     log = FakeLogger()
-    counter = node_base.RejectionCounter(log, throttle_s=5.0)
+    counter = gates.RejectionCounter(log, throttle_s=5.0)
     for _ in range(4):
         counter.reject("skeleton.layout", "bad dims")
     counter.reject("skeleton.stamp", "went back")

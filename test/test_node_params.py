@@ -10,7 +10,7 @@ from ros_harness import ROOT
 
 from gwr_predictor.commands.pretrain import _flatten
 from gwr_predictor.learning.params import hierarchy_parameter_specs
-from gwr_predictor.nodes.node_base import COMMON_PARAMS, ParameterError, check_value, param_kind
+from gwr_predictor.nodes.node_base import COMMON_PARAMS, ParameterError
 
 NODES = ["skeleton_source", "angle_extractor", "gwr_hierarchy", "delay_compensator", "nao_sim", "bag_recorder",
          "bag_player"]
@@ -38,7 +38,7 @@ def test_config_yaml_names_only_declared_parameters_with_allowed_values(node):
     unknown = sorted(set(values) - set(specs))
     assert not unknown, f"config/{node}.yaml sets undeclared parameters {unknown} (ROS would ignore them)"
     for name, value in values.items():
-        check_value(specs[name], param_kind(specs[name].default), value)  # raises ParameterError if not allowed
+        specs[name].check(value)  # raises ParameterError if not allowed
 
 
 @pytest.mark.parametrize("path", sorted((ROOT / "config").glob("scenario_*.yaml")), ids=lambda p: p.name)
@@ -50,13 +50,13 @@ def test_scenario_yamls_name_only_declared_parameters(path):
         values = _flatten(section["ros__parameters"])
         assert set(values) <= set(specs), f"{path.name}: {node} has no parameters {sorted(set(values) - set(specs))}"
         for name, value in values.items():
-            check_value(specs[name], param_kind(specs[name].default), value)
+            specs[name].check(value)
 
 
 def test_out_of_range_value_is_refused_by_the_shared_check():
     spec = declared_specs("nao_sim")["delay_s"]
     with pytest.raises(ParameterError, match=r"'delay_s' = -1.0 is outside the allowed range \[0.0, 60.0\]"):
-        check_value(spec, "double", -1)
+        spec.check(-1)
 
 
 BAD_VALUES = [

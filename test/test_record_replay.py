@@ -9,9 +9,9 @@ import pytest
 from rclpy.serialization import deserialize_message
 
 from gwr_predictor.nodes import messages
-from gwr_predictor.nodes.bag_player import parse_remaps, shift_stamp
 from gwr_predictor.nodes.messages import JointState
 from gwr_predictor.pipeline import bags, conventions
+from gwr_predictor.pipeline.bags import parse_remaps, shift_stamp
 from gwr_predictor.robot.nao import ARM_JOINTS
 
 FAST = {"diagnostics_period_s": 0.5}
@@ -39,6 +39,8 @@ def test_replayed_angles_reproduce_the_recorded_predictions_exactly(ros, tmp_pat
             ros.start("angle_extractor", params=FAST)]
     for name in ("/gwr_hierarchy", "/angle_extractor"):
         ros.wait_for_node(diagnostics, name, timeout=60)
+    probe.wait_for_graph({"/arm_angles": ("angle_extractor", ["gwr_hierarchy", "bag_recorder"]),
+                          "/predictions": ("gwr_hierarchy", ["bag_recorder"])})
     source = ros.start("skeleton_source", params={**FAST, "patterns": ["raise_lateral_one", "wave_both"], "subjects": 1,
                                                   "repetitions": 1, "loop": False, "pause_s": 0.7,
                                                   "wait_for_subscribers": 2})  # extractor and recorder
@@ -58,6 +60,7 @@ def test_replayed_angles_reproduce_the_recorded_predictions_exactly(ros, tmp_pat
     # their 'ready' lines, not /diagnostics: a late final status of the live recorder could pass for one
     for proc in (replay_recorder, learner):
         ros.wait_for_log(proc, "]: ready", timeout=60)
+    probe.wait_for_graph({"/predictions": ("gwr_hierarchy", ["bag_recorder"])})
     code, output = ros.run("bag_player", timeout=60, params={
         **FAST, "bag": str(tmp_path / "live"), "topics": ["/arm_angles"], "rate": 4.0,
         "wait_for_subscribers": 1, "start_delay_s": 1.0})

@@ -9,10 +9,10 @@ from pathlib import Path
 import numpy as np
 
 from gwr_predictor.data.angle_files import save_angles_csv, write_angles_csv
-from gwr_predictor.data.angles import clip_fractions, skeleton_to_angles
+from gwr_predictor.data.angles import clip_fractions
+from gwr_predictor.data.extraction import extract_angles
 from gwr_predictor.data.skeleton_files import SkeletonFileError, load_skeleton
-from gwr_predictor.data.smoothing import median_of_3
-from gwr_predictor.robot.nao import ARM_JOINTS, clip_to_limits
+from gwr_predictor.robot.nao import ARM_JOINTS
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
@@ -31,9 +31,7 @@ def run(args: argparse.Namespace) -> int:
     except SkeletonFileError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
-    pos, t = (seq.positions, seq.timestamps) if args.no_smooth else median_of_3(seq.positions, seq.timestamps)
-    raw = skeleton_to_angles(pos, clip=False)
-    angles = clip_to_limits(raw)
+    t, angles, raw = extract_angles(seq.positions, seq.timestamps, seq.joint_names, smooth=not args.no_smooth)
     if args.output is not None:
         save_angles_csv(args.output, t, angles)
     elif args.plot is None:

@@ -65,11 +65,9 @@ def load_recording(path: Path) -> np.ndarray:
     except SkeletonFileError as exc:
         raise RecordingError(f"{path}: not an angle CSV ({angle_error}) nor a skeleton file ({exc})"
                              if angle_error else str(exc)) from exc
-    from gwr_predictor.data.angles import skeleton_to_angles
-    from gwr_predictor.data.smoothing import median_of_3
+    from gwr_predictor.data.extraction import extract_angles
 
-    positions, _ = median_of_3(seq.positions, seq.timestamps)
-    return skeleton_to_angles(positions, seq.joint_names)
+    return extract_angles(seq.positions, seq.timestamps, seq.joint_names).angles
 
 
 def run(args: argparse.Namespace) -> int:

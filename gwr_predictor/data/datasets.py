@@ -1,7 +1,7 @@
 """The demonstrator's data as the learner sees it: 10 fps Nao angle sequences, memoised.
 
-demonstrator (30 fps skeletons) -> median of 3 (10 fps) -> `skeleton_to_angles` (clipped to the Nao
-limits). Experiments ask for the same data many times, so results are cached per argument set;
+demonstrator (30 fps skeletons) -> `extraction.extract_angles` (median of 3, 10 fps, angles clipped to
+the Nao limits). Experiments ask for the same data many times, so results are cached per argument set;
 the cached arrays are read-only, so no caller can change what the next one gets.
 """
 
@@ -13,7 +13,6 @@ from functools import lru_cache
 
 import numpy as np
 
-from gwr_predictor.data.angles import skeleton_to_angles
 from gwr_predictor.data.demonstrator import (
     PATTERNS,
     DemonstratorError,
@@ -21,7 +20,7 @@ from gwr_predictor.data.demonstrator import (
     default_subjects,
     demonstrate_one,
 )
-from gwr_predictor.data.smoothing import median_of_3
+from gwr_predictor.data.extraction import extract_angles
 
 
 @dataclass(frozen=True)
@@ -71,6 +70,6 @@ def _cached(patterns: tuple[str, ...], subjects: tuple[SubjectProfile, ...], rep
         for s in subjects:
             for r in range(1, repetitions + 1):
                 seq = demonstrate_one(p, s, r, seed=seed)
-                pos, t = median_of_3(seq.positions, seq.timestamps)
-                out.append(AngleSequence(_readonly(t), _readonly(skeleton_to_angles(pos)), p, s.name, r))
+                ext = extract_angles(seq.positions, seq.timestamps)
+                out.append(AngleSequence(_readonly(ext.t), _readonly(ext.angles), p, s.name, r))
     return tuple(out)

@@ -125,3 +125,15 @@ def read_checkpoint(path: str | os.PathLike[str], kind: str,
     if missing:
         raise CheckpointError(f"{path}: missing arrays {missing}")
     return header, arrays
+
+
+def set_aside(path: str | Path, when: str | None = None) -> Path:
+    """The corrupt-checkpoint policy: an unreadable checkpoint is moved to `<name>.corrupt-<time>`
+    (never deleted, never overwritten) so a fresh model can start; returns where it went. OSError
+    if it cannot be moved: then the caller must not start, or it would overwrite the file."""
+    import time
+
+    path = Path(path)
+    aside = path.with_name(f"{path.name}.corrupt-{when or time.strftime('%Y%m%d-%H%M%S')}")
+    os.replace(path, aside)
+    return aside

@@ -10,10 +10,11 @@ Values follow Table I of the paper unless stated.
 from __future__ import annotations
 
 import dataclasses
-import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
-from typing import Any, NamedTuple
+from typing import Any
+
+from gwr_predictor.parameter_spec import ParameterError, ParamSpec
 
 #: Edge ages are stored as int16, so the age limit stays well inside its range.
 MAX_EDGE_AGE_LIMIT = 30000
@@ -27,69 +28,20 @@ LAYERS = ("gwr1", "gwr2", "pgwr")
 DEFAULT_INPUT_SCALE = 0.1
 
 
-class ParamSpec(NamedTuple):
-    """One flat parameter: what `declare_parameter` needs plus the allowed range."""
-
-    name: str
-    default: float | int | str | bool
-    description: str
-    minimum: float | None = None
-    maximum: float | None = None
-    choices: tuple[str, ...] | None = None
-
-
-class _Range(NamedTuple):
-    kind: type
-    low: float | None
-    high: float | None
-    low_open: bool = False
-    high_open: bool = False
-
-    def text(self) -> str:
-        lo = "-inf" if self.low is None else f"{self.low:g}"
-        hi = "inf" if self.high is None else f"{self.high:g}"
-        return f"{'(' if self.low_open else '['}{lo}, {hi}{')' if self.high_open else ']'}"
-
-    def contains(self, v: float) -> bool:
-        if self.low is not None and (v < self.low or (self.low_open and v == self.low)):
-            return False
-        return not (self.high is not None and (v > self.high or (self.high_open and v == self.high)))
-
-
-def _check(owner: str, name: str, value: Any, rng: _Range) -> None:
-    """Type and range check of one field; the error names the field and the allowed range."""
-    if isinstance(value, bool) or not isinstance(value, (int, float)):
-        raise ValueError(f"{owner}.{name} must be a number in {rng.text()}, got {value!r}")
-    if rng.kind is int and not isinstance(value, int):
-        raise ValueError(f"{owner}.{name} must be an integer in {rng.text()}, got {value!r}")
-    if not math.isfinite(value) or not rng.contains(value):
-        raise ValueError(f"{owner}.{name} must be in {rng.text()}, got {value!r}")
-
-
-_GWR_RANGES: dict[str, _Range] = {
-    "activation_threshold": _Range(float, 0.0, 1.0, True, True),
-    "firing_threshold": _Range(float, 0.0, 1.0, True, False),
-    "eps_b": _Range(float, 0.0, 1.0, True, False),
-    "eps_n": _Range(float, 0.0, 1.0),
-    "rho_b": _Range(float, 0.0, 1.0, True, False),
-    "rho_n": _Range(float, 0.0, 1.0),
-    "kappa": _Range(float, 1.0, 10.0),
-    "max_edge_age": _Range(int, 1, MAX_EDGE_AGE_LIMIT),
-    "max_neurons": _Range(int, 2, 10_000_000),
-}
-
-_GWR_DOC: dict[str, str] = {
-    "activation_threshold": "a_T: insert a neuron when exp(-||x - w_b||) falls below it (Eq. 2)",
-    "firing_threshold": "f_T: insert only when the BMU's firing counter is below it (enough training)",
-    "eps_b": "learning rate of the best-matching unit (Eq. 4)",
-    "eps_n": "learning rate of the BMU's topological neighbours (Eq. 4)",
-    "rho_b": "firing-counter decay of the BMU (Eq. 3)",
-    "rho_n": "firing-counter decay of the BMU's neighbours (Eq. 3)",
-    "kappa": "firing-counter curve constant (Eq. 3); the counter tends to 1 - 1/kappa",
-    "max_edge_age": "edges older than this are removed, then neurons left without edges",
-    "max_neurons": "no insertion beyond this many neurons (0 = unlimited)",
-}
-
+_GWR_SPECS: dict[str, ParamSpec] = {s.name: s for s in (
+    ParamSpec("activation_threshold", 0.98, "a_T: insert a neuron when exp(-||x - w_b||) falls below it (Eq. 2)",
+              0.0, 1.0, lo_open=True, hi_open=True),
+    ParamSpec("firing_threshold", 0.1,
+              "f_T: insert only when the BMU's firing counter is below it (enough training)", 0.0, 1.0, lo_open=True),
+    ParamSpec("eps_b", 0.1, "learning rate of the best-matching unit (Eq. 4)", 0.0, 1.0, lo_open=True),
+    ParamSpec("eps_n", 0.01, "learning rate of the BMU's topological neighbours (Eq. 4)", 0.0, 1.0),
+    ParamSpec("rho_b", 0.3, "firing-counter decay of the BMU (Eq. 3)", 0.0, 1.0, lo_open=True),
+    ParamSpec("rho_n", 0.1, "firing-counter decay of the BMU's neighbours (Eq. 3)", 0.0, 1.0),
+    ParamSpec("kappa", 1.05, "firing-counter curve constant (Eq. 3); the counter tends to 1 - 1/kappa", 1.0, 10.0),
+    ParamSpec("max_edge_age", 100, "edges older than this are removed, then neurons left without edges",
+              1, MAX_EDGE_AGE_LIMIT),
+    ParamSpec("max_neurons", 0, "no insertion beyond this many neurons (0 = unlimited)", 2, 10_000_000, none_value=0),
+)}
 
 @dataclass(frozen=True)
 class GWRParams:
@@ -107,15 +59,18 @@ class GWRParams:
 
     def __post_init__(self) -> None:
         owner = type(self).__name__
-        for name, rng in _GWR_RANGES.items():
+        for name, spec in _GWR_SPECS.items():
             value = getattr(self, name)
             if name == "max_neurons" and value is None:
                 continue
-            _check(owner, name, value, rng)
+            if name == "max_neurons" and value == spec.none_value:  # the flat form's 0 is None here
+                raise ParameterError(f"{owner}.max_neurons must be None (unlimited) or in [{spec.lo}, {spec.hi}], "
+                                     f"got {value!r}")
+            spec.check(value, owner)
         # The counter converges to 1 - 1/kappa; above f_T no neuron would ever be inserted.
         floor = 1.0 - 1.0 / self.kappa
         if floor >= self.firing_threshold:
-            raise ValueError(
+            raise ParameterError(
                 f"{owner}.kappa={self.kappa:g} makes the firing counter settle at {floor:.4f} >= "
                 f"firing_threshold={self.firing_threshold:g}: no neuron could ever be inserted; "
                 f"kappa must be < {1.0 / (1.0 - self.firing_threshold):.4f}")
@@ -125,29 +80,22 @@ class GWRParams:
         return dataclasses.replace(self, **changes)
 
 
-_HIER_RANGES: dict[str, _Range] = {
-    "n_joints": _Range(int, 1, 256),
-    "tau1": _Range(int, 1, 32),
-    "tau2": _Range(int, 1, 32),
-    "horizon": _Range(int, 1, 100),
-    "input_scale": _Range(float, 0.0, 1000.0, True, False),
-    "readout_k": _Range(int, 1, 16),
-}
-
-_HIER_DOC: dict[str, str] = {
-    "n_joints": "angles per frame (8 Nao arm joints)",
-    "tau1": "window of GWR1 BMUs concatenated into the GWR2 input (Eq. 5)",
-    "tau2": "window of GWR2 BMUs concatenated into the P-GWR regressor (Eq. 5)",
-    "horizon": "frames predicted ahead (6 at 10 fps = 600 ms)",
-    "mode": "multi-step prediction: 'recursive' (feed predictions back) or 'vector' (x_out spans t+1..t+h)",
-    "input_scale": "model units per radian; -ln(a_T)/input_scale is the insertion distance in radians",
-    "normalise_distance": "divide each layer's distance by sqrt(frames in its input) (RMS per frame)",
-    "readout_k": "P-GWR read-out: blend the outputs of the k nearest neurons by inverse distance (1 = the paper's BMU)",
-    "target": "P-GWR output: 'absolute' future frames (the paper) or 'delta', their offset from the newest frame",
-}
-
-
-_HIER_CHOICES: dict[str, tuple[str, ...]] = {"mode": MODES, "target": TARGETS}
+_HIER_SPECS: dict[str, ParamSpec] = {s.name: s for s in (
+    ParamSpec("n_joints", 8, "angles per frame (8 Nao arm joints)", 1, 256),
+    ParamSpec("tau1", 3, "window of GWR1 BMUs concatenated into the GWR2 input (Eq. 5)", 1, 32),
+    ParamSpec("tau2", 3, "window of GWR2 BMUs concatenated into the P-GWR regressor (Eq. 5)", 1, 32),
+    ParamSpec("horizon", 6, "frames predicted ahead (6 at 10 fps = 600 ms)", 1, 100),
+    ParamSpec("input_scale", DEFAULT_INPUT_SCALE,
+              "model units per radian; -ln(a_T)/input_scale is the insertion distance in radians",
+              0.0, 1000.0, lo_open=True),
+    ParamSpec("readout_k", 1, "P-GWR read-out: blend the outputs of the k nearest neurons by inverse distance "
+              "(1 = the paper's BMU)", 1, 16),
+    ParamSpec("mode", "recursive", "multi-step prediction: 'recursive' (feed predictions back) or 'vector' "
+              "(x_out spans t+1..t+h)", choices=MODES),
+    ParamSpec("target", "absolute", "P-GWR output: 'absolute' future frames (the paper) or 'delta', their offset "
+              "from the newest frame", choices=TARGETS),
+    ParamSpec("normalise_distance", True, "divide each layer's distance by sqrt(frames in its input) (RMS per frame)"),
+)}
 
 
 def _default_gwr(max_edge_age: int) -> GWRParams:
@@ -173,17 +121,11 @@ class HierarchyParams:
 
     def __post_init__(self) -> None:
         owner = type(self).__name__
-        for name, rng in _HIER_RANGES.items():
-            _check(owner, name, getattr(self, name), rng)
-        if self.mode not in MODES:
-            raise ValueError(f"{owner}.mode must be one of {MODES}, got {self.mode!r}")
-        if self.target not in TARGETS:
-            raise ValueError(f"{owner}.target must be one of {TARGETS}, got {self.target!r}")
-        if not isinstance(self.normalise_distance, bool):
-            raise ValueError(f"{owner}.normalise_distance must be true or false, got {self.normalise_distance!r}")
+        for name, spec in _HIER_SPECS.items():
+            spec.check(getattr(self, name), owner)
         for layer in LAYERS:
             if not isinstance(getattr(self, layer), GWRParams):
-                raise ValueError(f"{owner}.{layer} must be a GWRParams, got {type(getattr(self, layer)).__name__}")
+                raise ParameterError(f"{owner}.{layer} must be a GWRParams, got {type(getattr(self, layer)).__name__}")
 
     # --- derived sizes -----------------------------------------------------------------------
     @property
@@ -222,11 +164,11 @@ class HierarchyParams:
     def to_flat(self) -> dict[str, float | int | str | bool]:
         """Dotted flat dict; `max_neurons=None` is written as 0 (ROS parameters have no None)."""
         flat: dict[str, float | int | str | bool] = {}
-        for name in (*_HIER_RANGES, *_HIER_CHOICES, "normalise_distance"):
+        for name in _HIER_SPECS:
             flat[name] = getattr(self, name)
         for layer in LAYERS:
             gp = getattr(self, layer)
-            for name in _GWR_RANGES:
+            for name in _GWR_SPECS:
                 value = getattr(gp, name)
                 flat[f"{layer}.{name}"] = 0 if value is None else value
         return flat
@@ -240,62 +182,54 @@ class HierarchyParams:
         defaults = cls()
         for key, value in flat.items():
             if not isinstance(key, str):
-                raise ValueError(f"parameter names must be strings, got {key!r}")
+                raise ParameterError(f"parameter names must be strings, got {key!r}")
             layer, _, name = key.partition(".")
             if name:
-                if layer not in layers or name not in _GWR_RANGES:
-                    raise ValueError(f"unknown parameter {key!r}")
-                layers[layer][name] = _coerce(key, value, _GWR_RANGES[name].kind, name == "max_neurons")
-            elif key in _HIER_RANGES:
-                top[key] = _coerce(key, value, _HIER_RANGES[key].kind, False)
-            elif key in _HIER_CHOICES:
-                if not isinstance(value, str) or value not in _HIER_CHOICES[key]:
-                    raise ValueError(f"parameter {key!r} must be one of {_HIER_CHOICES[key]}, got {value!r}")
-                top[key] = value
-            elif key == "normalise_distance":
-                if not isinstance(value, bool):
-                    raise ValueError(f"parameter 'normalise_distance' must be true or false, got {value!r}")
-                top[key] = value
+                if layer not in layers or name not in _GWR_SPECS:
+                    raise ParameterError(f"unknown parameter {key!r}")
+                layers[layer][name] = _coerce(key, value, _GWR_SPECS[name])
+            elif key in _HIER_SPECS:
+                top[key] = _coerce(key, value, _HIER_SPECS[key])
             else:
-                raise ValueError(f"unknown parameter {key!r}")
+                raise ParameterError(f"unknown parameter {key!r}")
         for layer, changes in layers.items():
             if changes:
                 try:
                     top[layer] = getattr(defaults, layer).replace(**changes)
                 except ValueError as exc:
-                    raise ValueError(f"parameter {layer}.*: {exc}") from None
+                    raise ParameterError(f"parameter {layer}.*: {exc}") from None
         return cls(**top)
 
 
-def _coerce(key: str, value: object, kind: type, zero_is_none: bool) -> Any:
-    """ROS and YAML hand over ints for floats and floats for ints; accept the lossless cases."""
+def _coerce(key: str, value: object, spec: ParamSpec) -> Any:
+    """ROS and YAML hand over ints for floats and floats for ints; accept the lossless cases (the
+    dataclass then checks the range). Strings and bools are checked against the spec here."""
+    kind = spec.kind
+    if kind in ("string", "bool"):
+        return dataclasses.replace(spec, name=key).check(value)
     if isinstance(value, bool) or not isinstance(value, (int, float)):
-        if zero_is_none and value is None:
+        if spec.none_value is not None and value is None:
             return None
-        raise ValueError(f"parameter {key!r} must be a number, got {value!r}")
-    if kind is int:
+        raise ParameterError(f"parameter {key!r} must be a number, got {value!r}")
+    if kind == "integer":
         if isinstance(value, float):
             if not value.is_integer():
-                raise ValueError(f"parameter {key!r} must be an integer, got {value!r}")
+                raise ParameterError(f"parameter {key!r} must be an integer, got {value!r}")
             value = int(value)
-        if zero_is_none and value == 0:
+        if spec.none_value is not None and value == spec.none_value:
             return None
         return value
     return float(value)
 
 
 def hierarchy_parameter_specs() -> list[ParamSpec]:
-    """Every flat parameter of `HierarchyParams` with default, description and range."""
+    """Every flat parameter of `HierarchyParams` (dotted names for the layers) with default, range and
+    description: the specs the dataclasses validate with, with each layer's own defaults."""
     defaults = HierarchyParams().to_flat()
-    specs: list[ParamSpec] = []
-    for name, rng in _HIER_RANGES.items():
-        specs.append(ParamSpec(name, defaults[name], _HIER_DOC[name], rng.low, rng.high))
-    for name, choices in _HIER_CHOICES.items():
-        specs.append(ParamSpec(name, defaults[name], _HIER_DOC[name], choices=choices))
-    specs.append(ParamSpec("normalise_distance", defaults["normalise_distance"], _HIER_DOC["normalise_distance"]))
+    specs = [dataclasses.replace(spec, default=defaults[name]) for name, spec in _HIER_SPECS.items()]
     for layer in LAYERS:
-        for name, rng in _GWR_RANGES.items():
-            low = 0 if name == "max_neurons" else rng.low
-            specs.append(ParamSpec(f"{layer}.{name}", defaults[f"{layer}.{name}"], f"{layer}: {_GWR_DOC[name]}",
-                                   low, rng.high))
+        for name, spec in _GWR_SPECS.items():
+            key = f"{layer}.{name}"
+            specs.append(dataclasses.replace(spec, name=key, default=defaults[key],
+                                             description=f"{layer}: {spec.description}"))
     return specs

@@ -1,4 +1,4 @@
-"""What the ROS pipeline shares without ROS: message conventions, bags, run reports, latency, plots.
+"""What the ROS pipeline shares without ROS: message conventions, input gates, bags, run reports, latency, plots.
 """
 
 from gwr_predictor._exports import lazy_exports
@@ -9,6 +9,13 @@ _EXPORTS = {
     "pack_predictions": "conventions",
     "unpack_predictions": "conventions",
     "LayoutError": "conventions",
+    "split_stamp": "conventions",
+    "stamp_seconds": "conventions",
+    "select_joints": "conventions",
+    "ArmAnglesGate": "gates",
+    "RejectionCounter": "gates",
+    "SkeletonReorder": "gates",
+    "missing_frames": "gates",
     "BagWriter": "bags",
     "BagError": "bags",
     "BagMessage": "bags",

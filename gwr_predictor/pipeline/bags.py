@@ -36,10 +36,12 @@ from rosbags.rosbag2.metadata import parse_qos
 from rosbags.typesys import Stores, get_typestore
 
 from gwr_predictor.errors import GwrPredictorError
+from gwr_predictor.pipeline import conventions
 from gwr_predictor.pipeline.conventions import ArrayDim, PackedArray
 
 JOINT_STATE = "sensor_msgs/msg/JointState"
 FLOAT64_MULTIARRAY = "std_msgs/msg/Float64MultiArray"
+DIAGNOSTIC_ARRAY = "diagnostic_msgs/msg/DiagnosticArray"
 _MCAP_MAGIC = b"\x89MCAP0\r\n"
 
 #: The ROS 2 Jazzy message definitions (sensor_msgs, std_msgs, diagnostic_msgs, ...).
@@ -82,16 +84,12 @@ class BagInfo:
 
 
 def _stamp(seconds: float) -> Any:
-    sec = int(np.floor(seconds))
-    nanosec = round((seconds - sec) * 1e9)
-    if nanosec >= 1_000_000_000:
-        sec, nanosec = sec + 1, nanosec - 1_000_000_000
+    """Seconds -> a rosbags builtin_interfaces/Time (`conventions.split_stamp`)."""
+    sec, nanosec = conventions.split_stamp(seconds)
     return TYPESTORE.types["builtin_interfaces/msg/Time"](sec=sec, nanosec=nanosec)
 
 
-def stamp_seconds(stamp: Any) -> float:
-    """builtin_interfaces/Time -> float seconds."""
-    return stamp.sec + stamp.nanosec * 1e-9
+stamp_seconds = conventions.stamp_seconds
 
 
 def joint_state_msg(names: Iterable[str], positions: np.ndarray, stamp: float, *,
@@ -482,3 +480,37 @@ def recover_bag(path: str | os.PathLike[str]) -> BagInfo:
     finally:
         shutil.rmtree(staging_root, ignore_errors=True)
     return bag_info(path)
+
+
+# --- replay: what the bag player does to a recording, without ROS ---------------------------------
+
+
+def parse_remaps(entries: list[str]) -> dict[str, str]:
+    """['a:=b', ...] -> {'/a': '/b'}; ValueError naming a malformed entry."""
+    remaps = {}
+    for entry in entries:
+        src, sep, dst = entry.partition(":=")
+        if not sep or not src.strip() or not dst.strip():
+            raise ValueError(f"remap entry {entry!r} must look like 'from:=to'")
+        remaps["/" + src.strip().lstrip("/")] = "/" + dst.strip().lstrip("/")
+    return remaps
+
+
+def shift_stamp(raw: bytes, msgtype: str, offset_s: float) -> bytes:
+    """The CDR bytes of a message whose stamps are moved by `offset_s` (other types unchanged):
+    JointState and DiagnosticArray headers (clamped at 0), the stamp in data[0] of a labelled array.
+
+    Re-encoded with rosbags (exact sizes, so that a recorder can store the result again), not with
+    rclpy's serializer, which may append padding that rosbags rejects.
+    """
+    if msgtype not in (JOINT_STATE, FLOAT64_MULTIARRAY, DIAGNOSTIC_ARRAY):
+        return raw
+    msg = deserialize(raw, msgtype)
+    if msgtype == FLOAT64_MULTIARRAY:
+        if msg.layout.data_offset >= 1 and len(msg.data) >= 1:
+            data = np.array(msg.data, dtype=np.float64)
+            data[0] += offset_s
+            msg.data = data
+    else:
+        msg.header.stamp = _stamp(max(0.0, stamp_seconds(msg.header.stamp) + offset_s))
+    return serialize(msg, msgtype)

@@ -13,6 +13,8 @@ This module is pure Python/numpy; `gwr_predictor.nodes.messages` turns these int
 
 from __future__ import annotations
 
+import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -188,3 +190,43 @@ QOS_DEPTH_RECORDER = 500
 #: Key/value names in the learner status (DiagnosticArray on TOPIC_LEARNER_STATUS).
 LEARNER_STATUS_NAME = "learner"  # the status name is "<node>/learner"
 NEURON_KEYS = {"gwr1": "neurons.gwr1", "gwr2": "neurons.gwr2", "pgwr": "neurons.pgwr"}
+
+
+# --- stamps: the one conversion between float seconds and builtin_interfaces/Time fields ---------
+
+
+def split_stamp(seconds: float) -> tuple[int, int]:
+    """Seconds -> (sec, nanosec) of a builtin_interfaces/Time; negative or non-finite stamps are a
+    caller bug (ValueError)."""
+    if not math.isfinite(seconds) or seconds < 0.0:
+        raise ValueError(f"stamp must be finite and >= 0, got {seconds}")
+    sec = math.floor(seconds)
+    nanosec = round((seconds - sec) * 1e9)
+    if nanosec >= 1_000_000_000:
+        sec, nanosec = sec + 1, nanosec - 1_000_000_000
+    return sec, nanosec
+
+
+def stamp_seconds(stamp: object) -> float:
+    """A builtin_interfaces/Time (rclpy's or rosbags', anything with sec and nanosec) -> seconds."""
+    return stamp.sec + stamp.nanosec * 1e-9  # type: ignore[attr-defined]
+
+
+# --- joint selection ---------------------------------------------------------------------------
+
+
+def select_joints(names: Sequence[str], positions: np.ndarray, wanted: Sequence[str]) -> np.ndarray:
+    """Positions of `wanted` in that order, from a message with `names` in any order.
+
+    Raises LayoutError naming the missing joints or a duplicated name; extra joints are ignored
+    (a full-body JointState carries more than the arms).
+    """
+    index: dict[str, int] = {}
+    for i, name in enumerate(names):
+        if name in index:
+            raise LayoutError(f"joint name {name!r} appears twice")
+        index[name] = i
+    missing = [n for n in wanted if n not in index]
+    if missing:
+        raise LayoutError(f"missing joints {missing}")
+    return np.asarray([positions[index[n]] for n in wanted], dtype=np.float64)

@@ -36,8 +36,8 @@ from typing import Any
 
 import numpy as np
 
+from gwr_predictor.json_safe import to_jsonable
 from gwr_predictor.pipeline import bags, conventions
-from gwr_predictor.pipeline.run_report import finite_json
 
 #: Percentiles reported for every latency.
 PERCENTILES = (50, 90, 99)
@@ -136,7 +136,7 @@ class LatencyReport:
         }
 
     def to_json(self) -> str:
-        return json.dumps(finite_json(self.to_dict()), indent=2)
+        return json.dumps(to_jsonable(self.to_dict()), indent=2)
 
     def summary_lines(self) -> list[str]:
         lines = [f"bag {self.bag}: {self.duration_s:.1f} s",

@@ -26,6 +26,7 @@ from typing import Any
 import numpy as np
 
 from gwr_predictor.errors import GwrPredictorError
+from gwr_predictor.json_safe import to_jsonable
 from gwr_predictor.pipeline import bags, conventions
 from gwr_predictor.pipeline.conventions import LayoutError
 from gwr_predictor.robot.nao import ARM_JOINTS
@@ -79,7 +80,7 @@ class PipelineReport:
     rejected: dict[str, int] = field(default_factory=dict)
 
     def to_json(self) -> str:
-        return json.dumps(finite_json(asdict(self)), indent=2, sort_keys=False)
+        return json.dumps(to_jsonable(asdict(self)), indent=2, sort_keys=False)
 
     def summary_lines(self) -> list[str]:
         h_ms = round(self.horizon * self.frame_period_s * 1000)
@@ -100,17 +101,6 @@ class PipelineReport:
         if self.rejected:
             lines.append("rejected inputs: " + ", ".join(f"{k} {v}" for k, v in self.rejected.items()))
         return lines
-
-
-def finite_json(obj: Any) -> Any:
-    """NaN/inf -> None (recursively) so that the JSON files written are strict JSON."""
-    if isinstance(obj, float):
-        return obj if math.isfinite(obj) else None
-    if isinstance(obj, dict):
-        return {k: finite_json(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [finite_json(v) for v in obj]
-    return obj
 
 
 # --- reading -------------------------------------------------------------------------------------
@@ -247,7 +237,7 @@ def resample(series: Series, grid: np.ndarray, max_gap_s: float) -> np.ndarray:
     return out
 
 
-def robot_lag(run: RunData, ns: str, dt: float, max_lag_s: float, max_gap_s: float) -> dict[str, Any]:
+def robot_summary(run: RunData, ns: str, dt: float, max_lag_s: float, max_gap_s: float) -> dict[str, Any]:
     """Lag (s) and tracking MAE (rad) of one robot against the person, on a `dt` grid."""
     robot = run.robots[ns]
     result: dict[str, Any] = {"mode": run.modes.get(ns, "unknown"), "states": int(robot.t.size),
@@ -280,7 +270,7 @@ def compute_report(run: RunData, period: float = 1.0 / conventions.ANGLE_FPS, dt
         bag=str(run.bag), duration_s=run.duration_s, message_counts=run.counts, horizon=int(mae.size),
         frame_period_s=period, scored_predictions=scored, prediction_mae_rad=float(mae[-1]),
         prediction_mae_per_step_rad=[float(v) for v in mae], hold_mae_rad=hold,
-        robots={ns: robot_lag(run, ns, dt, max_lag_s, max_gap_s) for ns in run.robots},
+        robots={ns: robot_summary(run, ns, dt, max_lag_s, max_gap_s) for ns in run.robots},
         neurons=neurons, learner=run.learner, rejected=run.rejected)
 
 

@@ -34,6 +34,7 @@ from typing import Literal, NamedTuple
 import numpy as np
 
 from gwr_predictor.errors import GwrPredictorError
+from gwr_predictor.parameter_spec import ParameterError, ParamSpec
 from gwr_predictor.robot.nao import ARM_JOINTS, clip_to_limits
 
 MODES = ("none", "fixed", "variable")
@@ -49,15 +50,19 @@ class CompensatorError(GwrPredictorError, ValueError):
     """Invalid compensator parameters or input shapes; the message names the field and range."""
 
 
-_RANGES = {
-    "delay_s": (0.0, 60.0),
-    "frame_period": (1e-4, 10.0),
-    "stale_after_s": (0.0, 3600.0),
-    "tracking_gain": (0.0, 1.0),
-    "deadband": (0.0, 10.0),
-    "history_frames": (1, 10_000),
-    "min_motion": (0.0, 10.0),
-}
+#: The compensator's parameters, declared once: `CompensatorParams` validates with them and the
+#: delay_compensator node declares its ROS parameters from them.
+PARAM_SPECS: dict[str, ParamSpec] = {s.name: s for s in (
+    ParamSpec("mode", "fixed", "none: forward observations; fixed: the prediction delay_s ahead; "
+              "variable: Eq. 11 against the robot's reported state", choices=MODES),
+    ParamSpec("delay_s", 0.6, "robot delay to compensate (s); sets the step in fixed mode", 0.0, 60.0),
+    ParamSpec("frame_period", 0.1, "spacing of the predicted frames (s)", 1e-4, 10.0),
+    ParamSpec("stale_after_s", 0.5, "predictions older than this (now - their stamp) are not used", 0.0, 3600.0),
+    ParamSpec("tracking_gain", 0.15, "variable: share of the measured lag added to the delay estimate", 0.0, 1.0),
+    ParamSpec("deadband", 0.6, "variable: lags below this many frames leave the estimate alone", 0.0, 10.0),
+    ParamSpec("history_frames", 20, "variable: observations searched for the robot's pose", 1, 10_000),
+    ParamSpec("min_motion", 0.03, "variable: rad per frame below which the arm counts as still", 0.0, 10.0),
+)}
 
 
 @dataclass(frozen=True)
@@ -69,23 +74,21 @@ class CompensatorParams:
     estimate is left alone) matter to ``variable`` only.
     """
 
-    mode: Mode = "fixed"
-    delay_s: float = 0.6
-    frame_period: float = 0.1
-    stale_after_s: float = 0.5
-    tracking_gain: float = 0.15
-    deadband: float = 0.6
-    history_frames: int = 20
-    min_motion: float = 0.03
+    mode: Mode = PARAM_SPECS["mode"].default
+    delay_s: float = PARAM_SPECS["delay_s"].default
+    frame_period: float = PARAM_SPECS["frame_period"].default
+    stale_after_s: float = PARAM_SPECS["stale_after_s"].default
+    tracking_gain: float = PARAM_SPECS["tracking_gain"].default
+    deadband: float = PARAM_SPECS["deadband"].default
+    history_frames: int = PARAM_SPECS["history_frames"].default
+    min_motion: float = PARAM_SPECS["min_motion"].default
 
     def __post_init__(self) -> None:
-        if self.mode not in MODES:
-            raise CompensatorError(f"CompensatorParams.mode must be one of {MODES}, got {self.mode!r}")
-        for name, (low, high) in _RANGES.items():
-            value = getattr(self, name)
-            kind = int if name == "history_frames" else (int, float)
-            if isinstance(value, bool) or not isinstance(value, kind) or not (low <= value <= high):
-                raise CompensatorError(f"CompensatorParams.{name} must be in [{low:g}, {high:g}], got {value!r}")
+        for name, spec in PARAM_SPECS.items():
+            try:
+                spec.check(getattr(self, name), "CompensatorParams")
+            except ParameterError as exc:
+                raise CompensatorError(str(exc)) from None
 
 
 class CompensatorOutput(NamedTuple):
@@ -94,6 +97,12 @@ class CompensatorOutput(NamedTuple):
     angles: np.ndarray
     step_used: int
     fallback_reason: str | None
+
+
+def recent_state(state: np.ndarray | None, received_at: float, now: float, timeout_s: float) -> np.ndarray | None:
+    """The robot's reported state if it arrived at most `timeout_s` before `now`, else None: an old
+    state says nothing about the robot's current lag (``variable`` then keeps its delay estimate)."""
+    return state if state is not None and now - received_at <= timeout_s else None
 
 
 def fixed_step(lead_s: float, frame_period: float, horizon: int) -> int:
@@ -218,9 +227,14 @@ class DelayCompensator:
             raise CompensatorError(f"predictions must be (horizon >= 1, {len(self.joint_names)}), got {preds.shape}")
         if not np.all(np.isfinite(preds)):
             return NO_PREDICTIONS
-        if latest - pred_stamp > self.params.stale_after_s:
+        if self.stale(latest, pred_stamp):
             return STALE_PREDICTIONS
         return None
+
+    def stale(self, latest: float, pred_stamp: float | None) -> bool:
+        """True when there are no predictions or they are more than `stale_after_s` older than `latest`
+        (the newest observation's stamp, or the clock): then the observation is commanded instead."""
+        return pred_stamp is None or latest - pred_stamp > self.params.stale_after_s
 
     def _vector(self, values: np.ndarray, name: str) -> np.ndarray:
         arr = np.asarray(values, dtype=float)

@@ -19,6 +19,7 @@ from typing import Any, Literal
 import numpy as np
 
 from gwr_predictor.errors import GwrPredictorError
+from gwr_predictor.parameter_spec import ParameterError, ParamSpec
 from gwr_predictor.robot.nao import ARM_JOINTS, VELOCITY_LIMITS, clip_to_limits
 
 BACKENDS = ("kinematic", "pybullet")
@@ -28,12 +29,35 @@ class RobotError(GwrPredictorError, ValueError):
     """Invalid robot / delay parameters or inputs; the message names the field and its range."""
 
 
-def _check_range(owner: str, name: str, value: float, low: float, high: float = math.inf) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or math.isnan(value):
-        raise RobotError(f"{owner}.{name} must be a number in [{low:g}, {high:g}], got {value!r}")
-    if not (low <= value <= high):
-        raise RobotError(f"{owner}.{name} must be in [{low:g}, {high:g}], got {value!r}")
-    return float(value)
+def _check_range(owner: str, name: str, value: float, low: float, high: float) -> float:
+    """`value` as float if it is a number in [low, high], else RobotError naming `owner.name`."""
+    return _check(owner, ParamSpec(name, 0.0, "", low, high), value)
+
+
+def _check(owner: str, spec: ParamSpec, value: Any) -> Any:
+    try:
+        return spec.check(value, owner)
+    except ParameterError as exc:
+        raise RobotError(str(exc)) from None
+
+
+#: The delayed robot's parameters, declared once: `RobotParams` validates with them and the nao_sim
+#: node declares its ROS parameters from them.
+ROBOT_SPECS: dict[str, ParamSpec] = {s.name: s for s in (
+    ParamSpec("delay_s", 0.6, "transport + sensing delay of every command (s)", 0.0, 60.0),
+    ParamSpec("latency_s", 0.035, "motor response latency (s); the real Nao: 30-40 ms", 0.0, 10.0),
+    ParamSpec("dt", 0.01, "control period of the robot (s)", 1e-4, 1.0),
+    ParamSpec("time_constant_s", 0.0, "first-order motor approach (s); 0: a pure rate limiter", 0.0, 10.0),
+    ParamSpec("state_delay_s", 0.0, "how old the reported joint states are (s)", 0.0, 60.0),
+    ParamSpec("backend", "kinematic", "robot model", choices=BACKENDS),
+)}
+
+
+def sine_delay(t: float, delay_s: float, amplitude_s: float, period_s: float) -> float:
+    """The variable delay of Sec. VI-D: delay_s + amplitude_s * sin(2 pi t / period_s), never below 0."""
+    if amplitude_s <= 0.0:
+        return delay_s
+    return max(0.0, delay_s + amplitude_s * math.sin(2.0 * math.pi * t / period_s))
 
 
 class DelayLine:
@@ -168,21 +192,16 @@ class RobotParams:
     `state_delay_s` delays what the robot reports about itself (0: joint_states are fresh).
     """
 
-    delay_s: float = 0.6
-    latency_s: float = 0.035
-    dt: float = 0.01
-    time_constant_s: float = 0.0
-    state_delay_s: float = 0.0
-    backend: Literal["kinematic", "pybullet"] = "kinematic"
+    delay_s: float = ROBOT_SPECS["delay_s"].default
+    latency_s: float = ROBOT_SPECS["latency_s"].default
+    dt: float = ROBOT_SPECS["dt"].default
+    time_constant_s: float = ROBOT_SPECS["time_constant_s"].default
+    state_delay_s: float = ROBOT_SPECS["state_delay_s"].default
+    backend: Literal["kinematic", "pybullet"] = ROBOT_SPECS["backend"].default
 
     def __post_init__(self) -> None:
-        _check_range("RobotParams", "delay_s", self.delay_s, 0.0, 60.0)
-        _check_range("RobotParams", "latency_s", self.latency_s, 0.0, 10.0)
-        _check_range("RobotParams", "dt", self.dt, 1e-4, 1.0)
-        _check_range("RobotParams", "time_constant_s", self.time_constant_s, 0.0, 10.0)
-        _check_range("RobotParams", "state_delay_s", self.state_delay_s, 0.0, 60.0)
-        if self.backend not in BACKENDS:
-            raise RobotError(f"RobotParams.backend must be one of {BACKENDS}, got {self.backend!r}")
+        for name, spec in ROBOT_SPECS.items():
+            _check("RobotParams", spec, getattr(self, name))
 
 
 class SimulatedRobot:

@@ -8,7 +8,6 @@ they stay small (PNG, modest dpi) and matplotlib never keeps figures open.
 
 from __future__ import annotations
 
-import dataclasses
 import json
 import math
 import platform
@@ -20,6 +19,7 @@ from typing import Any
 
 import numpy as np
 
+from gwr_predictor import json_safe
 from gwr_predictor.errors import GwrPredictorError
 
 
@@ -41,27 +41,11 @@ class ExperimentOutput:
 
 
 def to_jsonable(obj: Any) -> Any:
-    """Plain JSON types from numpy arrays/scalars, dataclasses, tuples and paths; NaN/inf -> None."""
-    if dataclasses.is_dataclass(obj) and not isinstance(obj, type):
-        return to_jsonable(dataclasses.asdict(obj))
-    if isinstance(obj, dict):
-        return {str(k): to_jsonable(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [to_jsonable(v) for v in obj]
-    if isinstance(obj, np.ndarray):
-        return to_jsonable(obj.tolist())
-    if isinstance(obj, (np.bool_, bool)):
-        return bool(obj)
-    if isinstance(obj, (np.integer, int)):
-        return int(obj)
-    if isinstance(obj, (np.floating, float)):
-        v = float(obj)
-        return v if math.isfinite(v) else None
-    if isinstance(obj, Path):
-        return str(obj)
-    if obj is None or isinstance(obj, str):
-        return obj
-    raise ReportError(f"cannot write {type(obj).__name__} to JSON")
+    """`gwr_predictor.json_safe.to_jsonable`, with ReportError for an object that has no JSON form."""
+    try:
+        return json_safe.to_jsonable(obj)
+    except json_safe.NotJsonError as exc:
+        raise ReportError(str(exc)) from None
 
 
 def write_json(path: Path, obj: Any) -> Path:

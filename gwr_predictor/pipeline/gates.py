@@ -1,0 +1,165 @@
+"""The stated rules for bad input, shared by every node that reads arm angles; no ROS here.
+
+- `RejectionCounter`: named counters; rejections are counted per reason and warned about at most
+  once per `throttle_s` per reason, so a flood of bad input cannot flood the log.
+- `missing_frames`: the gap rule, how many frames a stamp gap stands for (or a new sequence);
+- `SkeletonReorder`: skeleton joints in any order -> `SKELETON_JOINTS` order;
+- `ArmAnglesGate`: checks one stream of arm joint angles (layout, missing joints, non-finite values,
+  stamps, joint limits) and counts every rejection under its reason.
+Nodes convert the message (`gwr_predictor.nodes.messages.joint_state_fields`) and pass the fields.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+
+from gwr_predictor.pipeline.conventions import SKELETON_JOINTS, LayoutError, select_joints
+from gwr_predictor.robot.nao import ARM_JOINTS, limits_array
+
+# --- counters and throttled warnings ---------------------------------------------------------------
+
+
+class RejectionCounter:
+    """Named event counters; `reject` also warns, at most once per `throttle_s` for each reason."""
+
+    def __init__(self, logger: Any, throttle_s: float = 5.0) -> None:
+        self._logger = logger
+        self._throttle_s = throttle_s
+        self._counts: dict[str, int] = {}
+        self._last_warned: dict[str, float] = {}
+        self._suppressed: dict[str, int] = {}
+
+    def count(self, key: str, n: int = 1) -> None:
+        self._counts[key] = self._counts.get(key, 0) + n
+
+    def reject(self, reason: str, detail: str = "") -> None:
+        """Count one rejected input under `rejected.<reason>` and warn (throttled per reason)."""
+        self.count("rejected." + reason)
+        self.warn_throttled("rejected." + reason, f"rejected input [{reason}]: {detail}")
+
+    def warn_throttled(self, key: str, message: str, level: str = "warning") -> None:
+        """Log `message` (at `level`: warning or info) unless `key` was logged less than `throttle_s` ago;
+        suppressed repeats are counted and reported with the next message."""
+        now = time.monotonic()
+        last = self._last_warned.get(key)
+        if last is not None and now - last < self._throttle_s:
+            self._suppressed[key] = self._suppressed.get(key, 0) + 1
+            return
+        suppressed = self._suppressed.pop(key, 0)
+        more = f" ({suppressed} more since the last warning)" if suppressed else ""
+        total = self._counts.get(key)
+        so_far = f"; {total} so far" if total else ""
+        text = f"{message}{more}{so_far}"
+        if level == "info":  # two call sites: rclpy fixes the severity per call site
+            self._logger.info(text)
+        else:
+            self._logger.warning(text)
+        self._last_warned[key] = now
+
+    def get(self, key: str) -> int:
+        return self._counts.get(key, 0)
+
+    @property
+    def rejected(self) -> int:
+        return sum(v for k, v in self._counts.items() if k.startswith("rejected."))
+
+    def snapshot(self) -> dict[str, int]:
+        return dict(sorted(self._counts.items()))
+
+
+# --- input gates ---------------------------------------------------------------------------------
+
+
+class ArmAnglesGate:
+    """Checks one JointState input stream of the arm joints and returns (stamp, angles) or None.
+
+    Rules, each counted as `rejected.<input>.<reason>` (with a throttled warning):
+    - names and positions of different lengths, or a name twice: `layout`;
+    - any of `names` missing: `missing_joints` (extra joints are ignored; order does not matter);
+    - NaN or inf among the wanted positions: `non_finite`;
+    - a stamp of 0 or one not after the previous accepted stamp (repeat, jump back): `stamp`;
+    - angles beyond the joint limits by more than `limit_margin` rad: `out_of_limits`; closer
+      ones are clipped to the limits and counted as `<input>.clipped` (a repair, not a rejection).
+    """
+
+    def __init__(self, counters: RejectionCounter, input_name: str, names: tuple[str, ...] = ARM_JOINTS,
+                 limit_margin: float = 0.2, check_stamps: bool = True) -> None:
+        self._counters = counters
+        self._input = input_name
+        self._names = names
+        self._lo, self._hi = limits_array(names)
+        self._margin = limit_margin
+        self._check_stamps = check_stamps
+        self.last_stamp: float | None = None
+
+    def _reject(self, reason: str, detail: str) -> None:
+        self._counters.reject(f"{self._input}.{reason}", detail)
+
+    def accept(self, stamp: float, names: Sequence[str], positions: np.ndarray) -> tuple[float, np.ndarray] | None:
+        """One JointState's stamp (s), names and positions -> (stamp, angles in `names` order) or None."""
+        try:
+            positions = np.asarray(positions, dtype=np.float64)
+            if positions.size != len(names):
+                raise LayoutError(f"{len(names)} joint names but {positions.size} positions")
+            angles = select_joints(names, positions, self._names)
+        except LayoutError as exc:
+            self._reject("missing_joints" if "missing joints" in str(exc) else "layout", str(exc))
+            return None
+        if not np.all(np.isfinite(angles)):
+            self._reject("non_finite", f"non-finite angles {np.round(angles, 3).tolist()}")
+            return None
+        if self._check_stamps:
+            if stamp <= 0.0 or (self.last_stamp is not None and stamp <= self.last_stamp):
+                self._reject("stamp", f"stamp {stamp:.3f} not after the previous {self.last_stamp}")
+                return None
+        if np.any(angles < self._lo - self._margin) or np.any(angles > self._hi + self._margin):
+            self._reject("out_of_limits", f"angles beyond the joint limits by more than {self._margin} rad")
+            return None
+        clipped = np.clip(angles, self._lo, self._hi)
+        if np.any(clipped != angles):
+            self._counters.count(f"{self._input}.clipped")
+        self.last_stamp = stamp
+        return stamp, clipped
+
+
+# --- gaps and order -------------------------------------------------------------------------------
+
+
+def missing_frames(dt: float, frame_period_s: float, max_gap_s: float) -> int | None:
+    """Frames lost between two accepted frames `dt` s apart: 0 for the regular spacing, n for a gap of
+    n + 1 periods (the learner steps over them so its windows stay in time), None when the gap is
+    longer than `max_gap_s` (the sequence ended: start a new one)."""
+    if dt > max_gap_s:
+        return None
+    return max(0, round(dt / frame_period_s) - 1)
+
+
+class SkeletonReorder:
+    """Positions of a skeleton message with joints in any order -> `SKELETON_JOINTS` order: unknown
+    joints dropped, missing ones NaN (an untracked joint), each counted; index maps cached per layout."""
+
+    def __init__(self, counters: RejectionCounter, wanted: tuple[str, ...] = SKELETON_JOINTS) -> None:
+        self._counters = counters
+        self._wanted = wanted
+        self._order: dict[tuple[str, ...], tuple[np.ndarray, np.ndarray, int]] = {}
+
+    def __call__(self, names: tuple[str, ...], positions: np.ndarray) -> np.ndarray:
+        if names == self._wanted:
+            return positions
+        if names not in self._order:
+            index = {n: i for i, n in enumerate(names)}
+            dst = np.array([k for k, n in enumerate(self._wanted) if n in index], dtype=int)
+            src = np.array([index[self._wanted[k]] for k in dst], dtype=int)
+            self._order[names] = (dst, src, len(set(names) - set(self._wanted)))
+        dst, src, unknown = self._order[names]
+        if unknown:
+            self._counters.count("skeleton.unknown_joints_ignored")
+        if dst.size < len(self._wanted):
+            self._counters.count("skeleton.missing_joints_filled_nan")
+        out = np.full((len(self._wanted), 3), np.nan)
+        out[dst] = positions[src]
+        return out
