@@ -9,9 +9,15 @@ JointState on `joint_commands`. Mode "none" forwards each observation (the uncom
 `joint_trajectory` (a one-point `trajectory_msgs/JointTrajectory` on
 `joint_trajectory_controller/joint_trajectory`, what ros2_control's joint_trajectory_controller
 executes on a real robot: reach the pose `trajectory_time_s` after arrival) or `both`.
+
+`mode` and `delay_s` can change while it runs (`ros2 param set /delay_compensator delay_s 0.4`):
+the new compensator starts from the next command (the variable mode's history starts over).
 """
 
 from __future__ import annotations
+
+from dataclasses import replace
+from typing import Any
 
 import numpy as np
 
@@ -24,11 +30,11 @@ from gwr_predictor.robot import compensator
 from gwr_predictor.robot.nao import ARM_JOINTS
 
 from . import messages, standard_messages
-from .node_base import PipelineNode, run_node, stream_qos
+from .node_base import ParameterError, PipelineNode, run_node, stream_qos
 
 PARAMS = (
-    compensator.PARAM_SPECS["mode"],
-    compensator.PARAM_SPECS["delay_s"],
+    replace(compensator.PARAM_SPECS["mode"], live=True),
+    replace(compensator.PARAM_SPECS["delay_s"], live=True),
     ParamSpec("frame_period_s", 0.1, "spacing of the predicted frames (s)", 0.001, 10.0),
     compensator.PARAM_SPECS["stale_after_s"],
     ParamSpec("robot_state_timeout_s", 0.5, "a robot state older than this is ignored (variable mode)", 0.0, 3600.0),
@@ -46,8 +52,7 @@ class DelayCompensatorNode(PipelineNode):
     def __init__(self) -> None:
         super().__init__(self.NODE_NAME, PARAMS)
         p = self.params
-        self.compensator = compensator.DelayCompensator(p["mode"], p["delay_s"], p["frame_period_s"],
-                                                        p["stale_after_s"])
+        self.compensator = self.make_compensator(p["mode"], p["delay_s"])
         self.observations = ArmAnglesGate(self.counters, "arm_angles")
         self.robot_states = ArmAnglesGate(self.counters, "joint_states", check_stamps=False)
         self.observation: np.ndarray | None = None
@@ -69,9 +74,26 @@ class DelayCompensatorNode(PipelineNode):
                                  stream_qos())
         self.create_subscription(messages.JointState, conventions.TOPIC_ROBOT_STATE, self.on_robot_state,
                                  stream_qos())
-        if p["mode"] != "none":
-            self.create_timer(p["frame_period_s"], self.fallback_if_stale)
+        self.create_timer(p["frame_period_s"], self.fallback_if_stale)  # idle in mode none
         self.get_logger().info(f"mode {p['mode']}, compensating {p['delay_s']} s")
+
+    def make_compensator(self, mode: str, delay_s: float) -> compensator.DelayCompensator:
+        """The library compensator for `mode` and `delay_s` (CompensatorError if they do not fit)."""
+        p = self.params
+        return compensator.DelayCompensator(mode, delay_s, p["frame_period_s"], p["stale_after_s"])
+
+    def check_live(self, name: str, value: Any) -> None:
+        if name in ("mode", "delay_s"):
+            mode, delay = (value, self.params["delay_s"]) if name == "mode" else (self.params["mode"], value)
+            try:
+                self.make_compensator(mode, delay)
+            except compensator.CompensatorError as exc:
+                raise ParameterError(f"parameter '{name}': {exc}") from None
+
+    def on_live_parameter(self, name: str, value: Any) -> None:
+        if name in ("mode", "delay_s"):
+            self.compensator = self.make_compensator(self.params["mode"], self.params["delay_s"])
+            self.fallback_sent_for = None
 
     def on_observation(self, msg: messages.JointState) -> None:
         """Store the newest pose; command it directly in mode none or when no usable prediction exists."""
@@ -109,7 +131,7 @@ class DelayCompensatorNode(PipelineNode):
     def fallback_if_stale(self) -> None:
         """Without a usable prediction (none yet, or the sequence ended), command the newest observation,
         once per observation, so that the robot does not hold a pose that was only predicted."""
-        if self.observation is None or self.fallback_sent_for == self.obs_stamp:
+        if self.params["mode"] == "none" or self.observation is None or self.fallback_sent_for == self.obs_stamp:
             return
         if not self.compensator.stale(self.now_s(), self.pred_stamp):
             return

@@ -49,12 +49,13 @@ PARAMS = (
           "per-step inverse-MSE blend with RLS-AR ('blend_hierarchy_rls', 'blend_flat_rls'; beyond the paper)",
           choices=learner_names()),
     ParamSpec("seed", 0, "seed of the networks' initial random neurons", 0, 2**31 - 1),
-    ParamSpec("learn", True, "learn from every frame (false: predict with the networks as they are)"),
+    ParamSpec("learn", True, "learn from every frame (false: predict with the networks as they are)", live=True),
     ParamSpec("frame_period_s", 1.0 / conventions.ANGLE_FPS, "spacing of the angle frames (s)", 0.001, 10.0),
     ParamSpec("max_gap_s", conventions.MAX_GAP_S, "a stamp gap larger than this ends the sequence", 0.0, 3600.0),
     ParamSpec("checkpoint", "", "model file: loaded at start if it exists, saved periodically and at shutdown; "
           "empty: none"),
-    ParamSpec("checkpoint_interval_s", 60.0, "save the checkpoint this often (s); 0: only at shutdown", 0.0, 86400.0),
+    ParamSpec("checkpoint_interval_s", 60.0, "save the checkpoint this often (s); 0: only at shutdown", 0.0, 86400.0,
+              live=True),
     ParamSpec("standard_outputs", True, "also publish predicted_trajectory (JointTrajectory) and "
               "predicted_arm_markers (MarkerArray) for viewers and controllers"),
     ParamSpec("status_period_s", 1.0, "period of the learner status (neurons, errors) (s)", 0.05, 3600.0),
@@ -96,8 +97,21 @@ class GwrHierarchyNode(PipelineNode):
                                                 status_qos())
         self.create_subscription(messages.JointState, conventions.TOPIC_ANGLES, self.on_angles, stream_qos())
         self.create_timer(p["status_period_s"], self.publish_status)
-        if self.checkpoint is not None and p["checkpoint_interval_s"] > 0:
-            self.create_timer(p["checkpoint_interval_s"], self.save_checkpoint)
+        self.checkpoint_timer = None
+        self.schedule_checkpoints(p["checkpoint_interval_s"])
+
+    def schedule_checkpoints(self, interval_s: float) -> None:
+        """(Re)start the periodic save; 0 (or no checkpoint path): only at shutdown."""
+        if self.checkpoint_timer is not None:
+            self.destroy_timer(self.checkpoint_timer)
+            self.checkpoint_timer = None
+        if self.checkpoint is not None and interval_s > 0:
+            self.checkpoint_timer = self.create_timer(interval_s, self.save_checkpoint)
+
+    def on_live_parameter(self, name: str, value: object) -> None:
+        """`learn` is read at every frame; a new checkpoint interval restarts the save timer."""
+        if name == "checkpoint_interval_s":
+            self.schedule_checkpoints(float(value))
 
     def create(self, params: HierarchyParams) -> Hierarchy | BlendedPredictor:
         return make_predictor(self.params["predictor"], params, seed=self.params["seed"])

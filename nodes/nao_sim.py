@@ -14,7 +14,9 @@ nothing commands (they hold their start pose).
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
+from typing import Any
 
 from gwr_predictor.parameter_spec import ParamSpec
 from gwr_predictor.pipeline import conventions
@@ -29,7 +31,7 @@ from .node_base import NodeFatalError, ParameterError, PipelineNode, run_node, s
 PARAMS = (
     ParamSpec("backend", "pybullet", "robot model", choices=("pybullet", "kinematic")),
     ParamSpec("gui", False, "open the PyBullet window (needs a display); default DIRECT, headless"),
-    ROBOT_SPECS["delay_s"],
+    replace(ROBOT_SPECS["delay_s"], live=True),
     ParamSpec("delay_amplitude_s", 0.0, "variable delay: delay_s + amplitude * sin(2 pi t / delay_period_s)",
               0.0, 30.0),
     ParamSpec("delay_period_s", 20.0, "period of the delay variation (s)", 0.1, 3600.0),
@@ -95,6 +97,11 @@ class NaoSimNode(PipelineNode):
             self.robot.delay_s = sine_delay(t, p["delay_s"], p["delay_amplitude_s"], p["delay_period_s"])
         if t > self.robot.t:
             self.robot.advance(t - self.robot.t)
+
+    def on_live_parameter(self, name: str, value: Any) -> None:
+        """A new delay applies to commands sent from now on (with a sine, `advance` uses it next step)."""
+        if name == "delay_s" and self.params["delay_amplitude_s"] == 0.0:
+            self.robot.delay_s = float(value)
 
     def on_command(self, msg: messages.JointState) -> None:
         accepted = self.gate.accept(*messages.joint_state_fields(msg))

@@ -14,6 +14,7 @@
 
 from __future__ import annotations
 
+import math
 import signal
 import socket
 import time
@@ -21,7 +22,7 @@ from collections.abc import Iterable, Sequence
 from typing import Any
 
 import rclpy
-from rcl_interfaces.msg import ParameterDescriptor
+from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor, SetParametersResult
 from rclpy.clock import Clock, ClockType
 from rclpy.duration import Duration
 from rclpy.exceptions import InvalidParameterTypeException, InvalidParameterValueException
@@ -74,35 +75,66 @@ def status_qos() -> QoSProfile:
 _ARRAY_TYPES = {"string list": Parameter.Type.STRING_ARRAY, "double list": Parameter.Type.DOUBLE_ARRAY}
 
 
-def descriptor(spec: ParamSpec) -> ParameterDescriptor:
-    """The ROS descriptor of a spec: described, allowed values in `additional_constraints`, read-only
-    unless the spec is `live`.
+#: Why a parameter is read-only, shown by `ros2 param describe` next to its allowed values.
+READ_ONLY_REASON = "read-only: read once at start (it shapes the node's model, topics or timers); restart to change"
+LIVE_NOTE = "can be changed while the node runs (set_parameters), with the same check"
+_INT64_MAX = 2**63 - 1
 
-    Ranges are checked by `ParamSpec.check` rather than by the descriptor's integer/floating-point
-    ranges so that the error names the rejected value; doubles are dynamically typed so that
-    `-p rate_hz:=30` (an integer) is accepted and converted.
+
+def value_range(spec: ParamSpec) -> dict[str, list]:
+    """The spec's bounds as a descriptor's FloatingPointRange / IntegerRange, so that `ros2 param
+    describe` and rqt show them. ROS ranges are closed and two-sided: a missing bound becomes
+    +-inf (doubles) or the int64 limit, an open end is shown closed (the spec's check still refuses
+    it), and a `none_value` outside the bounds (e.g. 0 = unlimited) widens the range to include it."""
+    if spec.kind not in ("double", "integer") or (spec.lo is None and spec.hi is None):
+        return {}
+    if spec.kind == "double":
+        lo = -math.inf if spec.lo is None else float(spec.lo)
+        hi = math.inf if spec.hi is None else float(spec.hi)
+        return {"floating_point_range": [FloatingPointRange(from_value=lo, to_value=hi, step=0.0)]}
+    lo = -_INT64_MAX - 1 if spec.lo is None else math.ceil(spec.lo)
+    hi = _INT64_MAX if spec.hi is None else math.floor(spec.hi)
+    if spec.none_value is not None:
+        lo, hi = min(lo, spec.none_value), max(hi, spec.none_value)
+    return {"integer_range": [IntegerRange(from_value=int(lo), to_value=int(hi), step=1)]}
+
+
+def descriptor(spec: ParamSpec, value_type: int = 0) -> ParameterDescriptor:
+    """The ROS descriptor of a spec: described, the allowed values in `additional_constraints` (with
+    why it is read-only, or that it can change live) and as a range, read-only unless `live`.
+
+    Doubles are dynamically typed so that `-p rate_hz:=30` (an integer) is accepted and converted;
+    the range then applies to doubles, and `ParamSpec.check` checks every value either way.
     """
-    return ParameterDescriptor(description=spec.description, read_only=spec.read_only,
+    note = LIVE_NOTE if spec.live else READ_ONLY_REASON
+    return ParameterDescriptor(description=spec.description, read_only=spec.read_only, type=value_type,
                                dynamic_typing=spec.kind == "double",
-                               additional_constraints=f"allowed: {spec.allowed()}")
+                               additional_constraints=f"allowed: {spec.allowed()}; {note}", **value_range(spec))
 
 
 def declare_parameters(node: Node, specs: Iterable[ParamSpec]) -> dict[str, Any]:
-    """Declare every spec and return {name: validated value}; a bad value raises ParameterError."""
+    """Declare every spec and return {name: validated value}; a bad value raises ParameterError.
+
+    Numbers are declared first without range or read-only flag, so that a bad start value gets the
+    spec's own message (naming the value and the allowed range), then given their full descriptor."""
     values: dict[str, Any] = {}
     for spec in specs:
         kind = spec.kind
-        desc = descriptor(spec)
         default = spec.default
         if kind in _ARRAY_TYPES:  # an empty list has no type of its own
             default = list(spec.default) if spec.default else _ARRAY_TYPES[kind]
+        ranged = bool(value_range(spec))
+        first = (ParameterDescriptor(description=spec.description, dynamic_typing=kind == "double") if ranged
+                 else descriptor(spec))
         try:
-            value = node.declare_parameter(spec.name, default, desc).value
+            value = node.declare_parameter(spec.name, default, first).value
         except InvalidParameterTypeException as exc:
             raise ParameterError(f"parameter '{spec.name}' must be of type {kind} ({spec.allowed()}): {exc}") from None
         except InvalidParameterValueException as exc:
             raise ParameterError(f"parameter '{spec.name}' ({spec.allowed()}): {exc}") from None
         values[spec.name] = spec.check(value)
+        if ranged:
+            node.set_descriptor(spec.name, descriptor(spec, node.describe_parameter(spec.name).type))
     return values
 
 
@@ -164,7 +196,11 @@ class PipelineNode(Node):
 
     def __init__(self, name: str, specs: Sequence[ParamSpec], **kwargs: Any) -> None:
         super().__init__(name, **kwargs)
-        self.params = declare_parameters(self, (*COMMON_PARAMS, *specs))
+        all_specs = (*COMMON_PARAMS, *specs)
+        self.params = declare_parameters(self, all_specs)
+        self._specs = {spec.name: spec for spec in all_specs}
+        self.add_on_set_parameters_callback(self._check_live_parameters)
+        self.add_post_set_parameters_callback(self._apply_live_parameters)
         self.counters = RejectionCounter(self.get_logger(), self.params["warn_throttle_s"])
         self.done = Future()
         # absolute: diagnostic_aggregator listens on /diagnostics whatever the node's namespace
@@ -173,6 +209,38 @@ class PipelineNode(Node):
                                              clock=Clock(clock_type=ClockType.STEADY_TIME))
         self.uses_sim_time = bool(self.get_parameter("use_sim_time").value)
         self._sim_clock_watch = SimClockWatch(self, self.counters) if self.uses_sim_time else None
+
+    # --- live parameters: checked like at start, then applied by the node -------------------------
+
+    def _check_live_parameters(self, parameters: list[Parameter]) -> SetParametersResult:
+        """set_parameters on a `live` spec: the spec's check, then the node's own (`check_live`).
+        Read-only ones never get here (rclpy refuses them; their descriptor says why)."""
+        for parameter in parameters:
+            spec = self._specs.get(parameter.name)
+            if spec is None:  # not ours (e.g. use_sim_time): rclpy's business
+                continue
+            try:
+                self.check_live(parameter.name, spec.check(parameter.value))
+            except ParameterError as exc:
+                return SetParametersResult(successful=False, reason=str(exc))
+        return SetParametersResult(successful=True)
+
+    def _apply_live_parameters(self, parameters: list[Parameter]) -> None:
+        for parameter in parameters:
+            spec = self._specs.get(parameter.name)
+            if spec is None:
+                continue
+            value = spec.check(parameter.value)
+            old, self.params[parameter.name] = self.params[parameter.name], value
+            self.counters.count("parameters.changed")
+            self.get_logger().info(f"parameter '{parameter.name}' changed: {old!r} -> {value!r}")
+            self.on_live_parameter(parameter.name, value)
+
+    def check_live(self, name: str, value: Any) -> None:
+        """Raise ParameterError if a live change to `name` cannot be applied (cross-parameter rules)."""
+
+    def on_live_parameter(self, name: str, value: Any) -> None:
+        """Apply a live change (self.params already holds the new value); nodes with live specs override."""
 
     def now_s(self) -> float:
         """The node clock in seconds (the stamp source of every message the pipeline creates)."""
