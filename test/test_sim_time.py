@@ -103,6 +103,9 @@ def test_replay_on_simulated_time_twice_as_fast_as_real_time(ros, tmp_path):
              ros.start("nao_sim", params={**SIM, "backend": "kinematic"})]
     for name in ("/bag_recorder", "/gwr_hierarchy", "/delay_compensator", "/nao_sim"):
         ros.wait_for_node(diagnostics, name, timeout=60)  # diagnostics run on the wall clock, /clock or not
+    probe.wait_for_graph({"/predictions": ("gwr_hierarchy", ["delay_compensator"]),  # every hop, so nothing is lost
+                          "/joint_commands": ("delay_compensator", ["nao_sim", "bag_recorder"]),
+                          "/diagnostics": ("nao_sim", ["bag_recorder"])})
     player = ros.start("bag_player", params={
         **FAST, "bag": str(tmp_path / "angles"), "clock": True, "rate": 2.0, "wait_for_subscribers": 2})
     probe.spin_until(lambda: not player.running(), 60, "the end of the replay", [player])  # arrivals timed live
