@@ -31,7 +31,7 @@ from gwr_predictor.pipeline.gates import ArmAnglesGate, missing_frames
 from gwr_predictor.pipeline.markers import ROBOT_FRAME, arm_figure
 from gwr_predictor.pipeline.trajectory import prediction_trajectory
 from gwr_predictor.predictors.blend import BlendedPredictor, gwr_member
-from gwr_predictor.predictors.registry import learner_names, load_predictor, make_predictor
+from gwr_predictor.predictors.registry import DEFAULT_PREDICTOR, learner_names, load_predictor, make_predictor
 from gwr_predictor.robot.nao import ARM_JOINTS
 
 from . import messages, standard_messages
@@ -45,7 +45,7 @@ from .node_base import (
 )
 
 PARAMS = (
-    ParamSpec("predictor", "hierarchy", "model: 'hierarchy' (GWR1 -> GWR2 -> P-GWR, the paper) or an online "
+    ParamSpec("predictor", DEFAULT_PREDICTOR, "model: 'hierarchy' (GWR1 -> GWR2 -> P-GWR, the paper) or an online "
           "per-step inverse-MSE blend with RLS-AR ('blend_hierarchy_rls', 'blend_flat_rls'; beyond the paper)",
           choices=learner_names()),
     ParamSpec("seed", 0, "seed of the networks' initial random neurons", 0, 2**31 - 1),

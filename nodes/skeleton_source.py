@@ -14,7 +14,8 @@ from collections.abc import Iterator
 import numpy as np
 
 from gwr_predictor.data import demonstrator, faults
-from gwr_predictor.data.skeleton_files import SkeletonFileError, SkeletonSequence, load_skeleton
+from gwr_predictor.data.mocap import ImportOptions, load_any_skeleton
+from gwr_predictor.data.skeleton_files import SkeletonFileError, SkeletonSequence
 from gwr_predictor.parameter_spec import ParamSpec
 from gwr_predictor.pipeline import conventions
 
@@ -23,7 +24,12 @@ from .node_base import NodeFatalError, ParameterError, PipelineNode, run_node, s
 
 PARAMS = (
     ParamSpec("source", "demonstrator", "where skeletons come from", choices=("demonstrator", "file", "none")),
-    ParamSpec("file", "", "skeleton file (.npz or .csv, see skeleton_io) for source 'file'"),
+    ParamSpec("file", "", "skeleton file (.npz or .csv, see skeleton_io) or mocap file (.bvh, .amc, .npy/.npz "
+                          "positions, .pt; mapped and resampled to 30 fps) for source 'file'"),
+    ParamSpec("joint_map", "", "mocap file: JSON/YAML joint map (empty: a preset detected from the joint names)"),
+    ParamSpec("mocap_units", "auto", "mocap file: length unit (auto, m, cm, mm, inch or metres per unit)"),
+    ParamSpec("mocap_fps", 0.0, "mocap file: its frame rate when the file does not say it (0: from the file)",
+              0.0, 10000.0),
     ParamSpec("patterns", [], "demonstrator patterns to perform (empty: all 10 of the paper)"),
     ParamSpec("subjects", 3, "number of simulated people (s1-s3 are the paper-like profiles)", 1, 100),
     ParamSpec("first_repetition", 1, "number of the first repetition performed (the pretraining uses 1..N)", 1, 10000),
@@ -69,7 +75,8 @@ class SkeletonSourceNode(PipelineNode):
             if not p["file"]:
                 raise ParameterError("parameter 'file' is empty but source is 'file'")
             try:
-                seqs: list[SkeletonSequence] | None = [load_skeleton(p["file"])]
+                options = ImportOptions(units=p["mocap_units"], fps=p["mocap_fps"], joint_map=p["joint_map"] or None)
+                seqs: list[SkeletonSequence] | None = [load_any_skeleton(p["file"], options)]
             except SkeletonFileError as exc:
                 raise NodeFatalError(str(exc)) from None
         else:

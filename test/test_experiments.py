@@ -146,6 +146,30 @@ def test_experiment_scale(tmp_path):
     assert fine > coarse  # a larger scale makes the same a_T insert at a smaller distance
 
 
+def test_experiment_real(tmp_path, monkeypatch):
+    """On a written recording cache: every clip one pass from scratch, the climbing takes left out in
+    turn, with the k-NN reference; nothing is downloaded."""
+    from mocap_files import fake_recording_cache
+
+    from gwr_predictor.data import real_motion
+
+    monkeypatch.setenv("GWR_REAL_DATA", str(fake_recording_cache(tmp_path / "cache")))
+    monkeypatch.setattr(real_motion.subprocess, "run", lambda *a, **k: pytest.fail("pip must not run"))
+    r, cfg = _run("real", tmp_path)
+    assert [c["name"] for c in r["clips"]] == list(cfg["clips"])
+    assert r["default_method"] in r["one_pass"]["pooled"]
+    for per in r["one_pass"]["per_clip"].values():
+        assert len({v["scored_frames"] for v in per.values()}) == 1  # every method on the same frames
+    loo = r["leave_one_take_out"]
+    assert sorted(loo["per_take"]) == ["climb_0", "climb_1", "climb_4"]
+    assert set(loo["pooled"]) == {*cfg["methods"], "knn"}
+    # the takes are the same motion: the other takes hold this one's future (2 of the 5 neighbours are
+    # exact copies), so k-NN beats holding by far
+    assert loo["pooled"]["knn"]["mae"][-1] < 0.5 * loo["pooled"]["hold"]["mae"][-1]
+    hold = loo["pooled"]["hold"]["mae"]
+    assert hold[-1] > hold[0]
+
+
 def test_evaluate_prints_a_json_last_line(tmp_path, capsys):
     from gwr_predictor.data.angle_files import save_angles_csv
     from gwr_predictor.data.datasets import demo_angle_sequences

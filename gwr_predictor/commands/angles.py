@@ -8,26 +8,30 @@ from pathlib import Path
 
 import numpy as np
 
+from gwr_predictor.commands.import_options import add_import_options, import_options
 from gwr_predictor.data.angle_files import save_angles_csv, write_angles_csv
 from gwr_predictor.data.angles import clip_fractions
 from gwr_predictor.data.extraction import extract_angles
-from gwr_predictor.data.skeleton_files import SkeletonFileError, load_skeleton
+from gwr_predictor.data.mocap import load_any_skeleton
+from gwr_predictor.data.skeleton_files import SkeletonFileError
 from gwr_predictor.robot.nao import ARM_JOINTS
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("skeleton", type=Path, help="skeleton file (.npz or .csv, see docs/data.md)")
+    parser.add_argument("skeleton", type=Path, help="skeleton file (.npz or .csv, see docs/data.md) or mocap file "
+                                                      "(.bvh, .amc, .npy/.npz positions, .pt)")
     parser.add_argument("-o", "--output", type=Path, default=None,
                         help="angle CSV to write (default: print the CSV to stdout unless --plot is given)")
     parser.add_argument("--plot", type=Path, default=None, help="also draw the angles over time as this PNG")
     parser.add_argument("--no-smooth", action="store_true",
                         help="keep every frame instead of the median of every 3 (30 -> 10 fps)")
     parser.add_argument("--quiet", action="store_true", help="no summary on stderr")
+    add_import_options(parser)
 
 
 def run(args: argparse.Namespace) -> int:
     try:
-        seq = load_skeleton(args.skeleton)
+        seq = load_any_skeleton(args.skeleton, import_options(args))
     except SkeletonFileError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2

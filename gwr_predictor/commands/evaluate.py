@@ -1,9 +1,11 @@
 """`gwr-predictor evaluate FILE...`: online evaluation of recordings, hierarchy against baselines.
 
-Files are skeleton recordings (NPZ/CSV, 30 fps: median of 3 -> 10 fps -> angles) or angle CSVs
-(10 fps). All methods learn online on the recordings in the given order (optionally several
-passes) and are scored on the same frames; the table goes to stdout and its numbers again as one
-JSON object on the last line (keys horizon, mae_rad, frames, neurons, ...), for scripts.
+Files are skeleton recordings (NPZ/CSV, 30 fps: median of 3 -> 10 fps -> angles), mocap
+recordings (.bvh, .amc, .npy/.npz joint positions, .pt: mapped and resampled to the same 30 fps
+stream, see `data.mocap`) or angle CSVs (10 fps). All methods learn online on the recordings in
+the given order (optionally several passes) and are scored on the same frames; the table goes to
+stdout and its numbers again as one JSON object on the last line (keys horizon, mae_rad, frames,
+neurons, default_method: the key of the learner node's default predictor, always evaluated).
 """
 
 from __future__ import annotations
@@ -16,6 +18,8 @@ from pathlib import Path
 import numpy as np
 
 from gwr_predictor.commands.experiment import parse_overrides
+from gwr_predictor.commands.import_options import add_import_options, import_options
+from gwr_predictor.data.mocap import ImportOptions, load_any_skeleton
 from gwr_predictor.errors import GwrPredictorError
 from gwr_predictor.evaluation.experiments import common
 from gwr_predictor.evaluation.experiments.output import markdown_table, to_jsonable
@@ -31,7 +35,9 @@ class RecordingError(GwrPredictorError, ValueError):
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("files", nargs="+", type=Path, help="skeleton (.npz/.csv) or angle (.csv) recordings")
+    parser.add_argument("files", nargs="+", type=Path,
+                        help="recordings: skeleton (.npz/.csv), angle (.csv) or mocap (.bvh, .amc, .npy/.npz "
+                             "joint positions, .pt) files")
     parser.add_argument("--passes", type=int, default=1, help="times the recordings are presented (default 1)")
     parser.add_argument("--horizon", type=int, default=None, help="frames ahead (default: the model's, 6)")
     parser.add_argument("--methods", default=",".join(DEFAULT_METHODS),
@@ -42,12 +48,18 @@ def configure(parser: argparse.ArgumentParser) -> None:
                         help="hierarchy parameter override in flat form (repeatable)")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--no-progress", action="store_true")
+    add_import_options(parser)
 
 
-def load_recording(path: Path) -> np.ndarray:
-    """Angles (T, 8) at 10 fps in ARM_JOINTS order from an angle CSV or a skeleton file."""
+def default_method() -> str:
+    """The predictor the gwr_hierarchy node runs by default (its key in evaluate's `mae_rad`)."""
+    return registry.default_name()
+
+
+def load_recording(path: Path, options: ImportOptions | None = None) -> np.ndarray:
+    """Angles (T, 8) at 10 fps in ARM_JOINTS order from an angle CSV, a skeleton or a mocap file."""
     from gwr_predictor.data.angle_files import AngleFileError, load_angles_csv
-    from gwr_predictor.data.skeleton_files import SkeletonFileError, load_skeleton
+    from gwr_predictor.data.skeleton_files import SkeletonFileError
 
     angle_error = None
     if path.suffix.lower() == ".csv":
@@ -61,7 +73,7 @@ def load_recording(path: Path) -> np.ndarray:
                 raise RecordingError(f"{path}: angle file lacks the arm joints {missing}")
             return angles[:, [names.index(n) for n in ARM_JOINTS]]
     try:
-        seq = load_skeleton(path)
+        seq = load_any_skeleton(path, options)
     except SkeletonFileError as exc:
         raise RecordingError(f"{path}: not an angle CSV ({angle_error}) nor a skeleton file ({exc})"
                              if angle_error else str(exc)) from exc
@@ -77,7 +89,10 @@ def run(args: argparse.Namespace) -> int:
             raise ValueError(f"unknown methods {unknown}; choose from {', '.join(common.all_methods())}")
         if args.passes < 1:
             raise ValueError(f"--passes must be >= 1, got {args.passes}")
-        recordings = [load_recording(p) for p in args.files]
+        if default_method() not in methods:
+            methods = (*methods, default_method())
+        options = import_options(args)
+        recordings = [load_recording(p, options) for p in args.files]
         params = common.make_params(tuple(parse_overrides(args.param).items()))
         models = {}
         for m in methods:
@@ -106,6 +121,7 @@ def run(args: argparse.Namespace) -> int:
     print(markdown_table(["method", *[f"h={k}" for k in steps], "coverage"], rows))
     summary = {"horizon": horizon, "mae_rad": {m: r.stats.mae for m, r in results.items()},
                "mse_rad2": {m: r.stats.mse for m, r in results.items()},
+               "default_method": default_method(),
                "frames": first.frames, "scored_frames": first.scored_frames, "passes": args.passes,
                "neurons": {m: common.neuron_counts(models[m]) for m in methods if common.neuron_counts(models[m])}}
     print(json.dumps(to_jsonable(summary)))

@@ -1,7 +1,8 @@
 """Where the learner's frames come from: demonstrator -> skeleton files -> median of 3 -> Nao angles.
 
-Also the angle CSV files, the memoised demonstrator data set, simulated sensor faults and the
-bench's synthetic arm demonstrations.
+Also mocap recordings (BVH, ASF/AMC, joint positions, .pt) onto the same skeleton stream, the
+angle CSV files, the memoised demonstrator data set, simulated sensor faults and the bench's
+synthetic arm demonstrations.
 """
 
 from gwr_predictor._exports import lazy_exports
@@ -32,6 +33,14 @@ _EXPORTS = {
     "drop_chunks": "faults",
     "joint_dropouts": "faults",
     "FaultParameterError": "faults",
+    "load_any_skeleton": "mocap",
+    "load_clip": "mocap",
+    "clip_to_skeleton": "mocap",
+    "ImportOptions": "mocap",
+    "MocapClip": "mocap",
+    "MocapError": "mocap",
+    "fetch_clips": "real_motion",
+    "RealDataError": "real_motion",
     "synthetic_demonstrations": "synthetic",
     "synthetic_arm_stream": "synthetic",
 }

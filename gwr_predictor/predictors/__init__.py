@@ -1,4 +1,5 @@
-"""Online predictors beside the paper's hierarchy: the baselines it must beat and the blend.
+"""Online predictors beside the paper's hierarchy: the baselines it must beat and the blend; the
+offline k-NN reference of `experiment real`.
 """
 
 from gwr_predictor._exports import lazy_exports
@@ -18,6 +19,8 @@ _EXPORTS = {
     "register": "registry",
     "learner_names": "registry",
     "UnknownPredictorError": "registry",
+    "KnnPredictor": "knn",
+    "KnnError": "knn",
 }
 __all__ = sorted(_EXPORTS)
 __getattr__, __dir__ = lazy_exports(__name__, _EXPORTS)

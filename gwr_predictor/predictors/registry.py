@@ -68,6 +68,16 @@ def names() -> tuple[str, ...]:
 predictor_names = names  # the name exported at the package's top level
 
 
+#: What the gwr_hierarchy node runs unless told otherwise (`-p predictor:=...`); `evaluate` and
+#: `experiment real` always score it and name it (`default_method`).
+DEFAULT_PREDICTOR = "hierarchy"
+
+
+def default_name() -> str:
+    """The learner node's default predictor (one of `learner_names()`)."""
+    return DEFAULT_PREDICTOR
+
+
 def learner_names() -> tuple[str, ...]:
     """The names that can be saved and loaded: what the learner node and `pretrain` accept."""
     return tuple(n for n, e in _REGISTRY.items() if e.loader is not None)

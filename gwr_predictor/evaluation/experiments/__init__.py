@@ -21,6 +21,7 @@ EXPERIMENTS: dict[str, str] = {
     "delay": "Closed loop offline: lag of the robot behind the person, without and with compensation",
     "compare": "Hierarchy vs P-GWR alone vs hold / constant velocity / RLS-AR on train and held-out data",
     "scale": "Input-scale sweep: neurons per layer and 600 ms error on train and held-out data",
+    "real": "Real people: mocap recordings, one pass from scratch and leave-one-take-out, vs every baseline",
 }
 
 

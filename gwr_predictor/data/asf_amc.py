@@ -1,0 +1,272 @@
+"""Acclaim ASF skeleton + AMC motion (the CMU mocap database format) -> joint positions.
+
+An `.amc` is read with the `.asf` of the same name beside it, or the one given. Forward kinematics
+(Acclaim convention): a bone's `axis ax ay az ORDER` gives C, its dof values in the listed order
+give M, both as fixed-axis rotations applied in the listed order (matrix R_last ... R_first); the
+bone's global rotation is G = G_parent C M C^-1 and its end is its start plus G (direction *
+length), `direction` being a unit vector in the global frame at rest. The root: `position` +
+the TX TY TZ of each frame, orientation from its RX RY RZ. Lengths are in the ASF's units:
+`:units length L` means a file unit is 1/L inches (the CMU files use 0.45), converted to metres
+here. Positions are named after the bone that *starts* there (`lhumerus` = the shoulder, its end
+`lhumerus_end` = the elbow = `lradius`), so the naming matches BVH. CMU: Y up.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from gwr_predictor.data.mocap import MocapClip, MocapError
+
+INCH_M = 0.0254
+_DOF_AXIS = {"rx": "x", "ry": "y", "rz": "z"}
+CMU_FPS = 120.0
+
+
+@dataclass
+class AsfBone:
+    name: str
+    direction: np.ndarray
+    length: float
+    axis: np.ndarray  # degrees
+    axis_order: str  # e.g. "xyz"
+    dof: tuple[str, ...] = ()
+    parent: str = "root"
+    children: list[str] = field(default_factory=list)
+
+
+@dataclass
+class AsfSkeleton:
+    bones: dict[str, AsfBone]
+    order: list[str]  # parents before children
+    root_order: tuple[str, ...]  # e.g. ("tx", "ty", "tz", "rx", "ry", "rz")
+    root_axis: str
+    root_position: np.ndarray
+    root_orientation: np.ndarray
+    length_scale: float  # metres per file unit
+    degrees: bool
+
+
+def _fixed_axis(angles_deg: np.ndarray, order: str, degrees: bool = True) -> np.ndarray:
+    """(T, k) angles applied about fixed axes in `order` -> (T, 3, 3) R_order[-1] ... R_order[0]."""
+    from gwr_predictor.data.bvh import rotation_matrices
+
+    a = np.asarray(angles_deg, dtype=np.float64)
+    if not degrees:
+        a = np.rad2deg(a)
+    return rotation_matrices(a[:, ::-1], order[::-1])
+
+
+def parse_asf(path: Path) -> AsfSkeleton:
+    """The skeleton of an ASF file; errors name the file, the bone and the field."""
+    sections: dict[str, list[list[str]]] = {}
+    units: dict[str, str] = {}
+    current = None
+    for raw in path.read_text(errors="replace").splitlines():
+        line = raw.split("#", 1)[0].strip()
+        if not line:
+            continue
+        if line.startswith(":"):
+            key, *rest = line[1:].split()
+            current = key.lower()
+            sections.setdefault(current, [])
+            if rest:
+                sections[current].append(rest)
+            continue
+        if current is None:
+            raise MocapError(f"{path}: text before the first ':section' (not an ASF file?)")
+        sections[current].append(line.split())
+    for row in sections.get("units", []):
+        if len(row) >= 2:
+            units[row[0].lower()] = row[1]
+    if "bonedata" not in sections or "hierarchy" not in sections:
+        raise MocapError(f"{path}: needs :bonedata and :hierarchy sections (not an ASF file?)")
+    try:
+        length_unit = float(units.get("length", "1"))
+    except ValueError:
+        raise MocapError(f"{path}: ':units length' must be a number, got {units['length']!r}") from None
+    if not length_unit > 0:
+        raise MocapError(f"{path}: ':units length' must be positive, got {length_unit}")
+    degrees = units.get("angle", "deg").lower().startswith("deg")
+    root = {r[0].lower(): r[1:] for r in sections.get("root", []) if r}
+    bones = _parse_bones(path, sections["bonedata"])
+    order = _parse_hierarchy(path, sections["hierarchy"], bones)
+    try:
+        root_pos = np.array([float(v) for v in root.get("position", ["0", "0", "0"])])
+        root_ori = np.array([float(v) for v in root.get("orientation", ["0", "0", "0"])])
+    except ValueError:
+        raise MocapError(f"{path}: :root position/orientation must be numbers") from None
+    return AsfSkeleton(bones, order, tuple(v.lower() for v in root.get("order", ["TX", "TY", "TZ", "RX", "RY",
+                                                                                   "RZ"])),
+                       root.get("axis", ["XYZ"])[0].lower(), root_pos, root_ori, INCH_M / length_unit, degrees)
+
+
+def _parse_bones(path: Path, rows: list[list[str]]) -> dict[str, AsfBone]:
+    bones: dict[str, AsfBone] = {}
+    cur: dict[str, list[str]] | None = None
+    for row in rows:
+        key = row[0].lower()
+        if key == "begin":
+            cur = {}
+        elif key == "end":
+            if cur is None:
+                raise MocapError(f"{path}: :bonedata 'end' without 'begin'")
+            name = (cur.get("name") or ["?"])[0]
+            try:
+                axis = cur["axis"]
+                bone = AsfBone(name, np.array([float(v) for v in cur["direction"]]), float(cur["length"][0]),
+                               np.array([float(v) for v in axis[:3]]), axis[3].lower() if len(axis) > 3 else "xyz",
+                               tuple(d.lower() for d in cur.get("dof", [])))
+            except (KeyError, ValueError, IndexError) as exc:
+                raise MocapError(f"{path}: bone {name!r}: missing or bad field ({exc}); needs direction, "
+                                 "length and axis") from None
+            if bone.direction.shape != (3,) or bone.axis.shape != (3,):
+                raise MocapError(f"{path}: bone {name!r}: direction and axis need 3 numbers")
+            norm = np.linalg.norm(bone.direction)
+            bone.direction = bone.direction / norm if norm > 0 else bone.direction
+            bad = [d for d in bone.dof if d not in _DOF_AXIS and d not in ("tx", "ty", "tz", "l")]
+            if bad:
+                raise MocapError(f"{path}: bone {name!r}: unknown dof {bad}")
+            bones[name] = bone
+            cur = None
+        elif cur is not None:
+            if key == "limits" or (row[0].startswith("(") and "limits" in cur):
+                cur.setdefault("limits", []).extend(row)
+            else:
+                cur[key] = row[1:]
+    return bones
+
+
+def _parse_hierarchy(path: Path, rows: list[list[str]], bones: dict[str, AsfBone]) -> list[str]:
+    for row in rows:
+        if row[0].lower() in ("begin", "end"):
+            continue
+        parent, children = row[0], row[1:]
+        if parent != "root" and parent not in bones:
+            raise MocapError(f"{path}: :hierarchy names bone {parent!r}, which :bonedata lacks")
+        for c in children:
+            if c not in bones:
+                raise MocapError(f"{path}: :hierarchy names bone {c!r}, which :bonedata lacks")
+            bones[c].parent = parent
+            if parent != "root":
+                bones[parent].children.append(c)
+    order: list[str] = []
+    frontier = [n for n, b in bones.items() if b.parent == "root"]
+    while frontier:
+        name = frontier.pop(0)
+        order.append(name)
+        frontier.extend(bones[name].children)
+    missing = [n for n in bones if n not in order]
+    if missing:
+        raise MocapError(f"{path}: bones {missing} are not connected to the root in :hierarchy")
+    return order
+
+
+def parse_amc(path: Path, skeleton: AsfSkeleton) -> dict[str, np.ndarray]:
+    """Per bone (and 'root') the (frames, dof) values of an AMC file."""
+    frames: list[dict[str, list[float]]] = []
+    for n, raw in enumerate(path.read_text(errors="replace").splitlines(), 1):
+        line = raw.strip()
+        if not line or line.startswith("#") or line.startswith(":"):
+            continue
+        parts = line.split()
+        if len(parts) == 1 and parts[0].isdigit():
+            frames.append({})
+            continue
+        if not frames:
+            raise MocapError(f"{path}: line {n}: bone values before the first frame number")
+        try:
+            frames[-1][parts[0]] = [float(v) for v in parts[1:]]
+        except ValueError:
+            raise MocapError(f"{path}: line {n}: bone {parts[0]!r} has a value that is not a number") from None
+    if not frames:
+        raise MocapError(f"{path}: no frames (not an AMC file?)")
+    out: dict[str, np.ndarray] = {}
+    expected = {"root": len(skeleton.root_order), **{n: len(b.dof) for n, b in skeleton.bones.items()}}
+    for name, width in expected.items():
+        if width == 0:
+            continue
+        table = np.zeros((len(frames), width))
+        for f, values in enumerate(frames):
+            if name not in values:
+                if name == "root":
+                    raise MocapError(f"{path}: frame {f + 1} lacks the root")
+                continue  # an absent bone keeps its rest pose
+            if len(values[name]) != width:
+                raise MocapError(f"{path}: frame {f + 1}, bone {name!r}: {len(values[name])} values, the ASF "
+                                 f"gives it {width} dof")
+            table[f] = values[name]
+        out[name] = table
+    unknown = sorted({b for fr in frames for b in fr if b not in expected})
+    if unknown:
+        raise MocapError(f"{path}: bones {unknown[:5]} are not in the ASF skeleton")
+    return out
+
+
+def forward_kinematics(skeleton: AsfSkeleton, motion: dict[str, np.ndarray]) -> tuple[np.ndarray, list[str]]:
+    """Positions (frames, joints, 3) in metres: the root, then each bone's start, then its end."""
+    root = motion["root"]
+    t = root.shape[0]
+    col = {k: i for i, k in enumerate(skeleton.root_order)}
+    trans = np.stack([root[:, col[a]] if a in col else np.zeros(t) for a in ("tx", "ty", "tz")], axis=1)
+    rot_cols = [a for a in skeleton.root_order if a in _DOF_AXIS]
+    c_root = _fixed_axis(skeleton.root_orientation[None], skeleton.root_axis, skeleton.degrees)[0]
+    m_root = _fixed_axis(root[:, [col[a] for a in rot_cols]], "".join(_DOF_AXIS[a] for a in rot_cols),
+                         skeleton.degrees)
+    glob = {"root": c_root @ m_root @ c_root.T}
+    start = {"root": (skeleton.root_position + trans) * skeleton.length_scale}
+    names, positions = ["root"], [start["root"]]
+    end: dict[str, np.ndarray] = {}
+    for name in skeleton.order:
+        b = skeleton.bones[name]
+        c = _fixed_axis(b.axis[None], b.axis_order, skeleton.degrees)[0]
+        rot_dof = [d for d in b.dof if d in _DOF_AXIS]
+        if rot_dof:
+            vals = motion[name][:, [b.dof.index(d) for d in rot_dof]]
+            m = _fixed_axis(vals, "".join(_DOF_AXIS[d] for d in rot_dof), skeleton.degrees)
+        else:
+            m = np.broadcast_to(np.eye(3), (t, 3, 3))
+        parent = b.parent
+        glob[name] = glob[parent] @ (c @ m @ c.T)
+        s = start["root"] if parent == "root" else end[parent]
+        start[name] = s
+        end[name] = s + np.einsum("tij,j->ti", glob[name], b.direction * b.length * skeleton.length_scale)
+        names.append(name)
+        positions.append(s)
+    for name in skeleton.order:
+        names.append(f"{name}_end")
+        positions.append(end[name])
+    return np.stack(positions, axis=1), names
+
+
+def find_asf(amc: Path, asf: str | Path | None) -> Path:
+    """The ASF for `amc`: the one given, else `<stem>.asf` beside it, else the only .asf there."""
+    if asf:
+        p = Path(asf)
+        if not p.is_file():
+            raise MocapError(f"{p}: no such ASF file (given for {amc})")
+        return p
+    same = amc.with_suffix(".asf")
+    if same.is_file():
+        return same
+    subject = amc.parent / f"{amc.stem.split('_')[0]}.asf"  # CMU: 02_01.amc goes with 02.asf
+    if subject.is_file():
+        return subject
+    others = sorted(amc.parent.glob("*.asf"))
+    if len(others) == 1:
+        return others[0]
+    raise MocapError(f"{amc}: no skeleton {same.name} beside it ({len(others)} other .asf there); give --asf FILE")
+
+
+def load_amc(path: str | Path, asf: str | Path | None = None) -> MocapClip:
+    """An AMC motion with its ASF skeleton as a `MocapClip` in metres, 120 fps (CMU), Y up."""
+    path = Path(path)
+    if path.suffix.lower() == ".asf":
+        raise MocapError(f"{path}: an .asf holds only the skeleton; give the .amc motion file (with --asf)")
+    asf_path = find_asf(path, asf)
+    skeleton = parse_asf(asf_path)
+    positions, names = forward_kinematics(skeleton, parse_amc(path, skeleton))
+    return MocapClip(positions, tuple(names), CMU_FPS, str(path), up="y", scale_known=True,
+                     metadata={"format": "asf/amc", "asf": str(asf_path)})
