@@ -50,7 +50,7 @@ class AngleExtractorNode(PipelineNode):
     def __init__(self) -> None:
         super().__init__(self.NODE_NAME, PARAMS)
         self.smoother = MedianOf3()
-        self.last_stamp: float | None = None
+        self.stamps = self.stamp_check()
         self.reorder = SkeletonReorder(self.counters)
         self.angles_pub = self.create_publisher(messages.JointState, conventions.TOPIC_ANGLES, stream_qos())
         self.markers_pub = (self.create_publisher(standard_messages.MarkerArray, conventions.TOPIC_SKELETON_MARKERS,
@@ -90,10 +90,12 @@ class AngleExtractorNode(PipelineNode):
         if frame is None:
             return
         stamp, positions = frame
-        if self.last_stamp is not None and stamp - self.last_stamp > self.params["max_gap_s"]:
-            self.smoother.reset()
+        previous = self.last_stamp
+        if not self.check_stamp(self.stamps, "skeleton", stamp):
+            return
+        if previous is not None and not 0.0 < stamp - previous <= self.params["max_gap_s"]:
+            self.smoother.reset()  # a gap, or a new sequence after stamps went back
             self.counters.count("sequence_gaps")
-        self.last_stamp = stamp
         self.counters.count("skeleton.accepted")
         if self.markers_pub is not None:
             figure = skeleton_figure(positions)
@@ -110,9 +112,6 @@ class AngleExtractorNode(PipelineNode):
         except LayoutError as exc:
             self.counters.reject("skeleton.layout", str(exc))
             return None
-        if not np.isfinite(stamp) or stamp <= 0.0 or (self.last_stamp is not None and stamp <= self.last_stamp):
-            self.counters.reject("skeleton.stamp", f"stamp {stamp} not after the previous {self.last_stamp}")
-            return None
         if np.any(np.isinf(positions)):
             self.counters.reject("skeleton.non_finite", "infinite coordinates (NaN marks an untracked joint)")
             return None
@@ -121,6 +120,11 @@ class AngleExtractorNode(PipelineNode):
                                  "(millimetres instead of metres?)")
             return None
         return stamp, self.reorder(names, positions)
+
+    @property
+    def last_stamp(self) -> float | None:
+        """The stamp of the last accepted skeleton (the stamp rule's memory)."""
+        return self.stamps.last
 
     def publish_angles(self, stamp: float, positions: np.ndarray) -> None:
         angles, raw = frame_angles(positions, SKELETON_JOINTS)

@@ -109,10 +109,14 @@ class BagPlayerNode(PipelineNode):
 
     def load(self) -> None:
         """Read the selected messages (raw) into memory: pipeline bags are a few MB."""
+        undecodable: dict[str, int] = {}
         try:
-            self.messages = list(bags.read_bag(self.bag, self.topics, decode=False))
+            self.messages = list(bags.read_bag(self.bag, self.topics, decode=False, undecodable=undecodable))
         except bags.BagError as exc:
             raise NodeFatalError(str(exc)) from None
+        for topic, n in undecodable.items():  # replaying them would hand the subscribers the same bytes
+            self.counters.count(f"skipped.undecodable.{topic}", n)
+            self.get_logger().warning(f"{self.bag}: {n} messages on {topic} do not decode: skipped")
         if not self.messages:
             raise NodeFatalError(f"{self.bag}: no messages on {self.topics}")
         self.first_ns = self.messages[0].timestamp_ns

@@ -24,7 +24,6 @@ import numpy as np
 from gwr_predictor.parameter_spec import ParamSpec
 from gwr_predictor.pipeline import conventions
 from gwr_predictor.pipeline.conventions import LayoutError
-from gwr_predictor.pipeline.gates import ArmAnglesGate
 from gwr_predictor.pipeline.trajectory import command_trajectory
 from gwr_predictor.robot import compensator
 from gwr_predictor.robot.nao import ARM_JOINTS
@@ -53,11 +52,12 @@ class DelayCompensatorNode(PipelineNode):
         super().__init__(self.NODE_NAME, PARAMS)
         p = self.params
         self.compensator = self.make_compensator(p["mode"], p["delay_s"])
-        self.observations = ArmAnglesGate(self.counters, "arm_angles")
-        self.robot_states = ArmAnglesGate(self.counters, "joint_states", check_stamps=False)
+        self.observations = self.arm_gate("arm_angles")
+        self.robot_states = self.arm_gate("joint_states", check_stamps=False)
         self.observation: np.ndarray | None = None
         self.predictions: np.ndarray | None = None
         self.pred_stamp: float | None = None
+        self.pred_stamps = self.stamp_check()
         self.robot_state: np.ndarray | None = None
         self.robot_state_time = -np.inf
         self.obs_stamp: float | None = None
@@ -119,8 +119,7 @@ class DelayCompensatorNode(PipelineNode):
         if not np.all(np.isfinite(preds)):
             self.counters.reject("predictions.non_finite", "NaN or inf in the predictions")
             return
-        if self.pred_stamp is not None and stamp <= self.pred_stamp:
-            self.counters.reject("predictions.stamp", f"stamp {stamp:.3f} not after {self.pred_stamp:.3f}")
+        if not self.check_stamp(self.pred_stamps, "predictions", stamp):
             return
         self.predictions, self.pred_stamp = preds, stamp
         self.counters.count("predictions.received")

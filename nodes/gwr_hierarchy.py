@@ -22,12 +22,12 @@ from pathlib import Path
 
 import numpy as np
 
-from gwr_predictor.learning.checkpoint import CheckpointError, KindMismatchError, set_aside
+from gwr_predictor.learning.checkpoint import CheckpointError, KindMismatchError, prepare_checkpoint_place, set_aside
 from gwr_predictor.learning.hierarchy import Hierarchy
 from gwr_predictor.learning.params import HierarchyParams, hierarchy_parameter_specs
 from gwr_predictor.parameter_spec import ParamSpec
 from gwr_predictor.pipeline import conventions
-from gwr_predictor.pipeline.gates import ArmAnglesGate, missing_frames
+from gwr_predictor.pipeline.gates import missing_frames
 from gwr_predictor.pipeline.markers import ROBOT_FRAME, arm_figure
 from gwr_predictor.pipeline.trajectory import prediction_trajectory
 from gwr_predictor.predictors.blend import BlendedPredictor, gwr_member
@@ -73,16 +73,23 @@ class GwrHierarchyNode(PipelineNode):
             params = HierarchyParams.from_flat(flat)
         except ValueError as exc:
             raise ParameterError(str(exc)) from None
+        if params.n_joints != len(ARM_JOINTS):  # the node's input and output are the Nao's arm joints
+            raise ParameterError(f"parameter 'n_joints' = {params.n_joints}: this node learns the "
+                                 f"{len(ARM_JOINTS)} arm joints {', '.join(ARM_JOINTS)}; it must be {len(ARM_JOINTS)}")
         self.checkpoint = Path(p["checkpoint"]) if p["checkpoint"] else None
         if self.checkpoint is not None:
             try:
-                self.checkpoint.parent.mkdir(parents=True, exist_ok=True)
-            except OSError as exc:
-                raise NodeFatalError(f"parameter 'checkpoint': cannot create {self.checkpoint.parent}: {exc}") from None
+                removed = prepare_checkpoint_place(self.checkpoint)
+            except CheckpointError as exc:
+                raise NodeFatalError(f"parameter 'checkpoint': {exc}") from None
+            if removed:
+                self.counters.count("checkpoint.stale_temp_removed", len(removed))
+                self.get_logger().info(f"removed {len(removed)} temporary files of interrupted saves: "
+                                       + ", ".join(str(f) for f in removed))
         self.model = self.load_or_create(params)
         self.gwr = gwr_member(self.model)  # the GWR learner (the model itself, or the blend's GWR member)
         self.horizon = self.model.params.horizon
-        self.gate = ArmAnglesGate(self.counters, "arm_angles")
+        self.gate = self.arm_gate("arm_angles")
         self.step_times: list[float] = []
         self.step_max = 0.0
         self.pred_pub = self.create_publisher(messages.Float64MultiArray, conventions.TOPIC_PREDICTIONS, stream_qos())
@@ -213,8 +220,10 @@ class GwrHierarchyNode(PipelineNode):
         except (CheckpointError, OSError) as exc:
             self.counters.count("checkpoint.save_failed")
             self.counters.warn_throttled("checkpoint", f"could not save the checkpoint: {exc}")
+            self.error = f"checkpoint save failed: {exc}"
             return False
         self.counters.count("checkpoint.saved")
+        self.error = None
         return True
 
     def on_shutdown(self) -> None:

@@ -114,6 +114,7 @@ select_joints = conventions.select_joints
 
 OK = DiagnosticStatus.OK
 WARN = DiagnosticStatus.WARN
+ERROR = DiagnosticStatus.ERROR
 
 
 def diagnostic_status(name: str, values: Mapping[str, object], message: str = "",

@@ -20,7 +20,6 @@ from typing import Any
 
 from gwr_predictor.parameter_spec import ParamSpec
 from gwr_predictor.pipeline import conventions
-from gwr_predictor.pipeline.gates import ArmAnglesGate
 from gwr_predictor.robot.delayed_arm import ROBOT_SPECS, RobotError, SimulatedRobot, sine_delay
 from gwr_predictor.robot.nao import ROBOT_ARM_JOINTS, robot_arm_positions
 from gwr_predictor.robot.urdf import default_urdf_path
@@ -67,7 +66,7 @@ class NaoSimNode(PipelineNode):
         except RobotError as exc:
             raise ParameterError(str(exc)) from None
         self.t0: float | None = None  # node-clock time of robot time 0: the first tick (under sim time, /clock)
-        self.gate = ArmAnglesGate(self.counters, "joint_commands")
+        self.gate = self.arm_gate("joint_commands")
         self.state_pub = self.create_publisher(messages.JointState, conventions.TOPIC_ROBOT_STATE, stream_qos())
         self.publish_robot_description()
         self.create_subscription(messages.JointState, conventions.TOPIC_COMMAND, self.on_command, stream_qos())

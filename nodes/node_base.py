@@ -9,14 +9,18 @@
   `bag_player clock:=true rate:=2.0`) runs the node on simulated time, faster than real time too;
   without /clock that clock stands at 0 and nothing timed happens, so the node warns
   (`SimClockWatch`). Diagnostics run on the wall clock: a node reports even while its clock stands.
-- `run_node`: init, build, spin, quiet exit on Ctrl-C / SIGTERM, final hook, destroy, shutdown.
+- `run_node`: init, build, spin, quiet exit on Ctrl-C / SIGTERM, final hook, destroy, shutdown;
+  params files and ROS arguments are checked first (exit 2 with a message), unknown parameter names
+  warned about (`gwr_predictor.pipeline.params_file`).
 """
 
 from __future__ import annotations
 
 import math
+import os
 import signal
 import socket
+import sys
 import time
 from collections.abc import Iterable, Sequence
 from typing import Any
@@ -25,7 +29,13 @@ import rclpy
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor, SetParametersResult
 from rclpy.clock import Clock, ClockType
 from rclpy.duration import Duration
-from rclpy.exceptions import InvalidParameterTypeException, InvalidParameterValueException
+from rclpy.exceptions import (
+    InvalidNamespaceException,
+    InvalidNodeNameException,
+    InvalidParameterTypeException,
+    InvalidParameterValueException,
+    InvalidTopicNameException,
+)
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
@@ -35,14 +45,16 @@ from rclpy.task import Future
 
 from gwr_predictor.errors import GwrPredictorError
 from gwr_predictor.parameter_spec import ParameterError, ParamSpec
-from gwr_predictor.pipeline import conventions
-from gwr_predictor.pipeline.gates import RejectionCounter
+from gwr_predictor.pipeline import conventions, params_file, stamps
+from gwr_predictor.pipeline.gates import ArmAnglesGate, RejectionCounter, check_stamp
 
 from . import messages
 
 EXIT_OK = 0
 EXIT_FATAL = 1
 EXIT_BAD_PARAMETER = 2
+#: /diagnostics value naming the node process (host:pid:start ns): restarts and duplicates show.
+INSTANCE_KEY = conventions.INSTANCE_KEY
 
 
 class NodeFatalError(GwrPredictorError):
@@ -143,6 +155,10 @@ def declare_parameters(node: Node, specs: Iterable[ParamSpec]) -> dict[str, Any]
 COMMON_PARAMS = (
     ParamSpec("diagnostics_period_s", 1.0, "period of the counters on /diagnostics (s)", 0.05, 60.0),
     ParamSpec("warn_throttle_s", 5.0, "at most one warning per rejection reason per this many seconds", 0.0, 3600.0),
+    ParamSpec("stop_if_duplicate", True, "stop (exit 1) if another live node of this name and namespace runs on "
+              "this ROS_DOMAIN_ID and started earlier: two pipelines on one domain mix their streams"),
+    ParamSpec("max_stamp_ahead_s", stamps.MAX_STAMP_AHEAD_S, "input stamps further ahead of the node clock (wall "
+              "or sim) are rejected, so that one future stamp cannot block the stamps after it", 0.0, 1e9),
 )
 
 
@@ -198,17 +214,63 @@ class PipelineNode(Node):
         super().__init__(name, **kwargs)
         all_specs = (*COMMON_PARAMS, *specs)
         self.params = declare_parameters(self, all_specs)
+        for warning in params_file.unknown_parameters(self._parameter_overrides, self._parameters):
+            self.get_logger().warning(warning)  # -p and --params-file keys alike (misspelt, another node's)
         self._specs = {spec.name: spec for spec in all_specs}
         self.add_on_set_parameters_callback(self._check_live_parameters)
         self.add_post_set_parameters_callback(self._apply_live_parameters)
         self.counters = RejectionCounter(self.get_logger(), self.params["warn_throttle_s"])
         self.done = Future()
+        #: A condition that makes the node's /diagnostics level ERROR (e.g. a failed checkpoint save).
+        self.error: str | None = None
+        #: Tells this process's statuses from those of a restarted or second instance (value `instance`).
+        self.started_ns = time.time_ns()
+        self.instance_id = f"{socket.gethostname()}:{os.getpid()}:{self.started_ns}"
         # absolute: diagnostic_aggregator listens on /diagnostics whatever the node's namespace
         self._diag_pub = self.create_publisher(messages.DiagnosticArray, conventions.DIAGNOSTICS_TOPIC, status_qos())
         self._diag_timer = self.create_timer(self.params["diagnostics_period_s"], self.publish_diagnostics,
                                              clock=Clock(clock_type=ClockType.STEADY_TIME))
         self.uses_sim_time = bool(self.get_parameter("use_sim_time").value)
         self._sim_clock_watch = SimClockWatch(self, self.counters) if self.uses_sim_time else None
+        if self.params["stop_if_duplicate"]:
+            self.create_subscription(messages.DiagnosticArray, conventions.DIAGNOSTICS_TOPIC,
+                                     self._check_duplicate, status_qos())
+
+    def arm_gate(self, input_name: str, check_stamps: bool = True) -> ArmAnglesGate:
+        """The gate of one JointState input, its stamps checked against this node's clock."""
+        return ArmAnglesGate(self.counters, input_name, check_stamps=check_stamps, clock=self.now_s,
+                             max_ahead_s=self.params["max_stamp_ahead_s"])
+
+    def stamp_check(self) -> stamps.StampCheck:
+        """The stamp rule (gwr_predictor.pipeline.stamps) of one more input stream of this node."""
+        return stamps.StampCheck(self.params["max_stamp_ahead_s"])
+
+    def check_stamp(self, check: stamps.StampCheck, input_name: str, stamp: float) -> bool:
+        """`gates.check_stamp` against the node clock."""
+        return check_stamp(self.counters, check, input_name, stamp, self.now_s())
+
+    def _check_duplicate(self, msg: messages.DiagnosticArray) -> None:
+        """Another process with this node's name publishes counters: if it is also in the ROS graph
+        (a bag replaying old /diagnostics is not) and started first, this one stops."""
+        me = self.get_fully_qualified_name()
+        for status in msg.status:
+            if status.name != me:
+                continue
+            instance = next((kv.value for kv in status.values if kv.key == INSTANCE_KEY), "")
+            if not instance or instance == self.instance_id:
+                continue
+            other = started_ns(instance)
+            if other is None or (other, instance) > (self.started_ns, self.instance_id):
+                continue  # the other one is the newcomer: it stops
+            same = [n for n, ns in self.get_node_names_and_namespaces() if (ns.rstrip("/") + "/" + n) == me]
+            if len(same) < 2:
+                continue
+            self.error = (f"another {me} (instance {instance}) runs on ROS_DOMAIN_ID="
+                          f"{os.environ.get('ROS_DOMAIN_ID', '0')}: two pipelines on one domain mix their "
+                          "streams; stopping this one (set ROS_DOMAIN_ID to a free domain)")
+            self.get_logger().error(self.error)
+            self.finish(EXIT_FATAL)
+            return
 
     # --- live parameters: checked like at start, then applied by the node -------------------------
 
@@ -258,9 +320,11 @@ class PipelineNode(Node):
     def publish_diagnostics(self) -> None:
         rejected = self.counters.rejected
         level = messages.WARN if rejected else messages.OK
-        status = messages.diagnostic_status(self.get_fully_qualified_name(), self.diagnostic_values(),
-                                            f"{rejected} inputs rejected" if rejected else "ok", level,
-                                            self.hardware_id())
+        text = f"{rejected} inputs rejected" if rejected else "ok"
+        if self.error is not None:
+            level, text = messages.ERROR, self.error
+        values = {**self.diagnostic_values(), INSTANCE_KEY: self.instance_id}
+        status = messages.diagnostic_status(self.get_fully_qualified_name(), values, text, level, self.hardware_id())
         self._diag_pub.publish(messages.diagnostic_array(self.now_s(), [status]))
 
     def publish_final_diagnostics(self, timeout_s: float = 1.0) -> None:
@@ -279,6 +343,14 @@ class PipelineNode(Node):
         """Final hook, run once after spinning stops for any reason (the context may be shut down)."""
 
 
+def started_ns(instance_id: str) -> int | None:
+    """The start time (ns) in an instance id `host:pid:start_ns`, None if it has another form."""
+    try:
+        return int(instance_id.rsplit(":", 1)[1])
+    except (IndexError, ValueError):
+        return None
+
+
 class _StopSignals:
     """SIGINT and SIGTERM request a clean stop: spinning ends, the final hook runs while the context
     is still valid (it may log and publish), then the node is destroyed and rclpy shut down."""
@@ -294,9 +366,17 @@ class _StopSignals:
 
 def run_node(node_cls: type[PipelineNode], args: list[str] | None = None) -> int:
     """init, build, spin until done / Ctrl-C / SIGTERM, final hook, destroy, shutdown; returns the exit code."""
-    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
-    stop = _StopSignals()
     logger = rclpy.logging.get_logger(getattr(node_cls, "NODE_NAME", node_cls.__name__))
+    try:
+        params_file.check_params_files(sys.argv if args is None else args)
+        rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
+    except params_file.ParamsFileError as exc:
+        logger.error(f"bad parameter: {exc}")
+        return EXIT_BAD_PARAMETER
+    except RuntimeError as exc:  # rcl's RCLError: a remap rule or argument it cannot parse
+        logger.error(f"bad ROS arguments: {str(exc).split(', at ')[0]}")
+        return EXIT_BAD_PARAMETER
+    stop = _StopSignals()
     node: PipelineNode | None = None
     code = EXIT_OK
     try:
@@ -314,6 +394,9 @@ def run_node(node_cls: type[PipelineNode], args: list[str] | None = None) -> int
             code = int(node.done.result())
     except ParameterError as exc:
         logger.error(f"bad parameter: {exc}")
+        code = EXIT_BAD_PARAMETER
+    except (InvalidTopicNameException, InvalidNamespaceException, InvalidNodeNameException) as exc:
+        logger.error(f"bad name: {exc}")
         code = EXIT_BAD_PARAMETER
     except NodeFatalError as exc:
         logger.error(f"stopping: {exc}")

@@ -65,6 +65,11 @@ def allocate_domain_id() -> int:
     raise RuntimeError(f"no free ROS domain id in {lo}..{hi}")  # unreachable: the set was cleared
 
 
+def release_domain_id(domain: int) -> None:
+    """Give an id back early (a session or an in-process fixture that is done with it)."""
+    _used_domains.discard(domain)
+
+
 def ros_env(domain_id: int, log_dir: Path, extra: dict[str, str] | None = None) -> dict[str, str]:
     """Environment of a node process: isolated domain, local discovery, logs in the test folder."""
     env = dict(os.environ)
@@ -314,6 +319,7 @@ class RosSession:
         finally:
             if self._probe is not None:
                 self._probe.close()
+            release_domain_id(self.domain_id)
 
 
 @pytest.fixture

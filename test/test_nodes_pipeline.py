@@ -13,6 +13,7 @@ from gwr_predictor.data import faults
 from gwr_predictor.data.demonstrator import default_subjects, demonstrate_one
 from gwr_predictor.data.skeleton_files import save_skeleton
 from gwr_predictor.learning.hierarchy import Hierarchy
+from gwr_predictor.learning.params import HierarchyParams
 from gwr_predictor.nodes import messages
 from gwr_predictor.nodes.messages import DiagnosticArray, Float64MultiArray, JointState
 from gwr_predictor.pipeline import bags
@@ -128,12 +129,14 @@ def test_pipeline_flows_learns_moves_the_robot_and_records(ros, tmp_path):
 @pytest.mark.ros
 def test_corrupt_checkpoint_is_moved_aside_not_overwritten(ros, tmp_path):
     checkpoint = tmp_path / "model.npz"
-    checkpoint.write_bytes(b"not a checkpoint at all")
+    Hierarchy(HierarchyParams.paper()).save(checkpoint)
+    truncated = checkpoint.read_bytes()[:200]  # a checkpoint cut short (a crash of another writer)
+    checkpoint.write_bytes(truncated)
     diagnostics = ros.probe.subscribe_diagnostics()
     learner = ros.start("gwr_hierarchy", params={**FAST, "checkpoint": str(checkpoint)})
     ros.wait_for_node(diagnostics, "/gwr_hierarchy", timeout=60)
     aside = list(tmp_path.glob("model.npz.corrupt-*"))
-    assert len(aside) == 1 and aside[0].read_bytes() == b"not a checkpoint at all"
+    assert len(aside) == 1 and aside[0].read_bytes() == truncated
     assert "unreadable checkpoint moved to" in learner.output()
     assert diagnostics["/gwr_hierarchy"]["checkpoint.corrupt_moved_aside"] == "1"
     code, _ = learner.stop(signal.SIGINT)

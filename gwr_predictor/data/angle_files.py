@@ -15,6 +15,7 @@ from typing import TextIO
 
 import numpy as np
 
+from gwr_predictor.data.file_limits import MAX_CSV_BYTES, check_file_size
 from gwr_predictor.data.skeleton_files import parse_float_table
 from gwr_predictor.errors import GwrPredictorError
 from gwr_predictor.robot.nao import ARM_JOINTS, JOINT_LIMITS
@@ -48,6 +49,8 @@ def write_angles_csv(fh: TextIO, t: np.ndarray, angles: np.ndarray, names: Seque
 def load_angles_csv(path: str | Path) -> tuple[np.ndarray, np.ndarray, tuple[str, ...]]:
     """Read (t (T,), angles (T, J), joint names) from an angle CSV, validated."""
     path = Path(path)
+    if path.is_file():
+        check_file_size(path, MAX_CSV_BYTES, "angle CSV", AngleFileError)
     try:
         with path.open(newline="") as fh:
             rows = list(csv.reader(fh))

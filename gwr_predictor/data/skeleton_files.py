@@ -29,6 +29,7 @@ from pathlib import Path
 
 import numpy as np
 
+from gwr_predictor.data.file_limits import MAX_CSV_BYTES, MAX_RECORDING_BYTES, check_file_size, check_npz_members
 from gwr_predictor.errors import GwrPredictorError
 from gwr_predictor.pipeline.conventions import SKELETON_JOINTS
 
@@ -145,6 +146,8 @@ def load_skeleton(path: str | Path) -> SkeletonSequence:
 
 
 def _read_npz(path: Path) -> dict:
+    check_file_size(path, MAX_RECORDING_BYTES, "skeleton recording", SkeletonFileError)
+    check_npz_members(path, MAX_RECORDING_BYTES, "skeleton recording", SkeletonFileError)
     try:
         with np.load(path, allow_pickle=False) as npz:
             data = {k: npz[k] for k in npz.files}
@@ -186,6 +189,7 @@ def _scalar(path: Path, data: dict, key: str, kind: type):
 
 
 def _read_csv(path: Path) -> dict:
+    check_file_size(path, MAX_CSV_BYTES, "skeleton CSV", SkeletonFileError)
     try:
         text = path.read_text()
     except UnicodeDecodeError as exc:

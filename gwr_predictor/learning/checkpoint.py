@@ -21,6 +21,7 @@ from typing import Any
 
 import numpy as np
 
+from gwr_predictor.data.file_limits import MAX_CHECKPOINT_BYTES, check_file_size, check_npz_members
 from gwr_predictor.errors import GwrPredictorError
 
 MAGIC = "gwr_predictor.checkpoint"
@@ -91,12 +92,75 @@ def _fsync_dir(folder: Path) -> None:
         os.close(fd)
 
 
+_ZIP_LOCAL = b"PK\x03\x04"
+_FIRST_MEMBER = (HEADER_KEY + ".npy").encode()
+
+
+def looks_like_checkpoint(path: str | os.PathLike[str]) -> bool:
+    """True if `path` is a file that begins like a checkpoint (a zip whose first member is the header).
+
+    Truncated or corrupt checkpoints still begin this way; anything else (a folder, a user's
+    file) is not ours, so it is neither moved aside nor overwritten.
+    """
+    path = Path(path)
+    if not path.is_file():
+        return False
+    try:
+        with open(path, "rb") as f:
+            head = f.read(30 + len(_FIRST_MEMBER))
+    except OSError:
+        return False
+    return head[:4] == _ZIP_LOCAL and head[30:] == _FIRST_MEMBER
+
+
+def stale_temp_files(path: str | os.PathLike[str]) -> list[Path]:
+    """Temporary files of interrupted saves of `path` (`.<name>.*.tmp` next to it)."""
+    path = Path(path)
+    folder = path.parent if str(path.parent) else Path(".")
+    return sorted(folder.glob(f".{glob_escape(path.name)}.*.tmp"))
+
+
+def glob_escape(name: str) -> str:
+    return "".join(f"[{c}]" if c in "*?[" else c for c in name)
+
+
+def prepare_checkpoint_place(path: str | os.PathLike[str]) -> list[Path]:
+    """Check, before anything is learned, that a checkpoint can be kept at `path`; returns the stale
+    temporary files of interrupted saves that it removed.
+
+    Raises CheckpointError naming the path when it is a folder or a file that is not a checkpoint
+    (never moved or overwritten), or when its folder cannot be created or written to.
+    """
+    path = Path(path)
+    if path.is_dir():
+        raise CheckpointError(f"{path} is an existing folder, not a checkpoint file: give a file path "
+                              "such as <folder>/model.npz")
+    if path.exists() and not looks_like_checkpoint(path):
+        raise CheckpointError(f"{path} exists and is not a gwr_predictor checkpoint: refusing to move or overwrite it")
+    folder = path.parent if str(path.parent) else Path(".")
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+        fd, probe = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=folder)
+        os.close(fd)
+        os.unlink(probe)
+    except OSError as exc:
+        raise CheckpointError(f"{path}: the checkpoint cannot be written in {folder}: {exc}") from exc
+    removed = []
+    for stale in stale_temp_files(path):
+        with contextlib.suppress(OSError):
+            stale.unlink()
+            removed.append(stale)
+    return removed
+
+
 def read_checkpoint(path: str | os.PathLike[str], kind: str,
                     required: Iterable[str] = ()) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
     """(header, arrays) of a checkpoint of `kind`; every name in `required` must be present."""
     path = Path(path)
     if not path.is_file():
         raise CheckpointError(f"{path}: no such checkpoint file")
+    check_file_size(path, MAX_CHECKPOINT_BYTES, "checkpoint", CheckpointError)
+    check_npz_members(path, MAX_CHECKPOINT_BYTES, "checkpoint", CheckpointError)
     try:
         with np.load(path, allow_pickle=False) as npz:
             arrays = {name: npz[name] for name in npz.files}

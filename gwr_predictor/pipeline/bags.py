@@ -344,8 +344,14 @@ def _open_reader(path: Path) -> Reader:
 
 
 def read_bag(path: str | os.PathLike[str], topics: Iterable[str] | None = None, *,
-             decode: bool = True) -> Iterator[BagMessage]:
-    """Messages of a bag in time order; `topics` restricts, `decode` adds the message objects."""
+             decode: bool = True, undecodable: dict[str, int] | None = None) -> Iterator[BagMessage]:
+    """Messages of a bag in time order; `topics` restricts, `decode` adds the message objects.
+
+    A message that does not decode raises BagError naming it, unless a dict `undecodable` is
+    given: then such messages (a hostile publisher recorded raw, a few corrupt bytes) are skipped
+    and counted there per topic, and the rest of the bag is read (`decode=False` decodes them
+    only for this check).
+    """
     path = Path(path)
     wanted = None if topics is None else set(topics)
     reader = _open_reader(path)
@@ -353,17 +359,33 @@ def read_bag(path: str | os.PathLike[str], topics: Iterable[str] | None = None, 
         conns = [c for c in reader.connections if wanted is None or c.topic in wanted]
         for conn, timestamp, raw in reader.messages(connections=conns):
             msg = None
-            if decode and conn.msgtype in TYPESTORE.types:
+            if (decode or undecodable is not None) and conn.msgtype in TYPESTORE.types:
                 try:
                     msg = TYPESTORE.deserialize_cdr(raw, conn.msgtype)
                 except Exception as err:  # rosbags raises plain exceptions on malformed CDR
-                    raise BagError(f"{path}: cannot decode a {conn.msgtype} on {conn.topic} at {timestamp} ns: "
-                                   f"{err}") from err
-            yield BagMessage(conn.topic, conn.msgtype, int(timestamp), bytes(raw), msg)
+                    if undecodable is None:
+                        raise BagError(f"{path}: cannot decode a {conn.msgtype} on {conn.topic} at {timestamp} "
+                                       f"ns: {err}") from err
+                    undecodable[conn.topic] = undecodable.get(conn.topic, 0) + 1
+                    continue
+            yield BagMessage(conn.topic, conn.msgtype, int(timestamp), bytes(raw), msg if decode else None)
     except ReaderError as err:
         raise BagError(f"{path}: {err}") from err
     finally:
         reader.close()
+
+
+def check_counts(info: BagInfo, read: Mapping[str, int]) -> None:
+    """BagError if the messages read per topic (decoded or not) differ from what metadata.yaml
+    claims: a metadata.yaml that lies (edited, or copied from another bag) would make every count
+    derived from it wrong."""
+    claimed = {t: n for t, (_, n) in info.topics.items() if n or read.get(t)}
+    actual = {t: n for t, n in read.items() if n}
+    if claimed != actual:
+        diff = ", ".join(f"{t}: metadata {claimed.get(t, 0)}, file {actual.get(t, 0)}"
+                         for t in sorted(set(claimed) | set(actual)) if claimed.get(t, 0) != actual.get(t, 0))
+        raise BagError(f"{info.path}: metadata.yaml does not match the messages in the file ({diff}); "
+                       "move metadata.yaml away and run recover_bag to rebuild it")
 
 
 def bag_info(path: str | os.PathLike[str]) -> BagInfo:
@@ -434,19 +456,35 @@ def _salvage_mcap(mcap_path: Path) -> _Salvage:
     return _Salvage(channels, messages, complete, qos)
 
 
+def _mcap_complete(mcap_path: Path) -> bool:
+    """The file ends with the MCAP magic (its writer closed it), without reading it."""
+    try:
+        with mcap_path.open("rb") as f:
+            f.seek(0, os.SEEK_END)
+            if f.tell() < 2 * len(_MCAP_MAGIC):
+                return False
+            f.seek(-len(_MCAP_MAGIC), os.SEEK_END)
+            return f.read() == _MCAP_MAGIC
+    except OSError:
+        return False
+
+
 def recover_bag(path: str | os.PathLike[str]) -> BagInfo:
     """Make a bag whose writer never closed readable again, in place; returns its info.
 
     Reads the MCAP file sequentially, keeps the messages of every complete chunk, and rewrites a
     complete MCAP file plus metadata.yaml. The damaged file is kept as `<name>.mcap.damaged`.
-    A bag that already has metadata.yaml is left untouched.
+    A bag with metadata.yaml and a complete MCAP file (it ends with the MCAP magic) is left
+    untouched; with a truncated MCAP file its metadata.yaml is kept as `metadata.yaml.damaged` and
+    rewritten from what was recovered.
     """
     path = Path(path)
     if not path.is_dir():
         raise BagError(f"{path}: not a bag directory")
-    if (path / "metadata.yaml").is_file():
-        return bag_info(path)
     files = sorted(path.glob("*.mcap"))
+    metadata = path / "metadata.yaml"
+    if metadata.is_file() and (len(files) != 1 or _mcap_complete(files[0])):
+        return bag_info(path)
     if len(files) != 1:
         raise BagError(f"{path}: expected one .mcap file to recover, found {len(files)}")
     damaged = files[0]
@@ -475,6 +513,8 @@ def recover_bag(path: str | os.PathLike[str]) -> BagInfo:
             for cid, log_time, data in sorted(salvage.messages, key=lambda m: m[1]):
                 writer.write_raw(cid_topic[cid], log_time, data)
         damaged.rename(damaged.with_name(damaged.name + ".damaged"))
+        if metadata.is_file():  # it describes the file before the damage: keep it for inspection
+            metadata.rename(path / "metadata.yaml.damaged")
         for item in staging.iterdir():
             item.rename(path / item.name)
     finally:

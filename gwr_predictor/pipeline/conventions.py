@@ -34,6 +34,9 @@ TOPIC_DIAGNOSTICS = "diagnostics"  # diagnostic_msgs/DiagnosticArray: rejection 
 #: Diagnostics go to the absolute /diagnostics whatever a node's namespace (diagnostic_aggregator listens
 #: there); the status name (the node's fully qualified name) tells the namespaces apart.
 DIAGNOSTICS_TOPIC = "/" + TOPIC_DIAGNOSTICS
+#: /diagnostics key whose value names the node process (host:pid:start ns), so that readers of a
+#: recording tell a restarted node, or a second pipeline's node of the same name, from the first.
+INSTANCE_KEY = "instance"
 # --- standard views and interfaces (RViz, Foxglove, ros2_control, body trackers) ----------------
 TOPIC_SKELETON_MARKERS = "skeleton_markers"  # visualization_msgs/MarkerArray: joints + bones, capture stamp
 TOPIC_PREDICTED_TRAJECTORY = "predicted_trajectory"  # trajectory_msgs/JointTrajectory: t+1..t+h

@@ -12,11 +12,13 @@ Nodes convert the message (`gwr_predictor.nodes.messages.joint_state_fields`) an
 from __future__ import annotations
 
 import time
-from collections.abc import Sequence
+from collections import OrderedDict
+from collections.abc import Callable, Sequence
 from typing import Any
 
 import numpy as np
 
+from gwr_predictor.pipeline import stamps
 from gwr_predictor.pipeline.conventions import SKELETON_JOINTS, LayoutError, select_joints
 from gwr_predictor.robot.nao import ARM_JOINTS, limits_array
 
@@ -74,6 +76,25 @@ class RejectionCounter:
 # --- input gates ---------------------------------------------------------------------------------
 
 
+def check_stamp(counters: RejectionCounter, check: stamps.StampCheck, input_name: str, stamp: float,
+                now: float | None) -> bool:
+    """Apply the stamp rule (`gwr_predictor.pipeline.stamps`) to one input's stamp against the node
+    clock `now`: a rejection is counted as `rejected.<input>.stamp` or `.stamp_ahead` (and warned),
+    a new sequence after a run of back-jumps as `<input>.stamp_restarts`; True if accepted."""
+    verdict = check.check(stamp, now)
+    if verdict == stamps.ACCEPTED:
+        return True
+    if verdict == stamps.RESTARTED:
+        counters.count(f"{input_name}.stamp_restarts")
+        counters.warn_throttled(f"{input_name}.stamp_restarts", f"{input_name}: stamps went back "
+                                f"{check.restart_after} times in a row; new sequence from {stamp:.3f}")
+        return True
+    reason = "stamp_ahead" if verdict == stamps.AHEAD else "stamp"
+    counters.reject(f"{input_name}.{reason}", check.describe(verdict, stamp, now))
+    return False
+
+
+
 class ArmAnglesGate:
     """Checks one JointState input stream of the arm joints and returns (stamp, angles) or None.
 
@@ -81,20 +102,24 @@ class ArmAnglesGate:
     - names and positions of different lengths, or a name twice: `layout`;
     - any of `names` missing: `missing_joints` (extra joints are ignored; order does not matter);
     - NaN or inf among the wanted positions: `non_finite`;
-    - a stamp of 0 or one not after the previous accepted stamp (repeat, jump back): `stamp`;
+    - a stamp of 0 or one not after the previous accepted stamp (repeat, jump back): `stamp`; one
+      more than `max_ahead_s` ahead of `clock()` (the node clock): `stamp_ahead`; a run of
+      back-jumps starts a new sequence (`<input>.stamp_restarts`), see `check_stamp`;
     - angles beyond the joint limits by more than `limit_margin` rad: `out_of_limits`; closer
       ones are clipped to the limits and counted as `<input>.clipped` (a repair, not a rejection).
     """
 
     def __init__(self, counters: RejectionCounter, input_name: str, names: tuple[str, ...] = ARM_JOINTS,
-                 limit_margin: float = 0.2, check_stamps: bool = True) -> None:
+                 limit_margin: float = 0.2, check_stamps: bool = True, clock: Callable[[], float] | None = None,
+                 max_ahead_s: float = stamps.MAX_STAMP_AHEAD_S) -> None:
         self._counters = counters
+        self._clock = clock
+        self._stamps = stamps.StampCheck(max_ahead_s)
         self._input = input_name
         self._names = names
         self._lo, self._hi = limits_array(names)
         self._margin = limit_margin
         self._check_stamps = check_stamps
-        self.last_stamp: float | None = None
 
     def _reject(self, reason: str, detail: str) -> None:
         self._counters.reject(f"{self._input}.{reason}", detail)
@@ -112,18 +137,22 @@ class ArmAnglesGate:
         if not np.all(np.isfinite(angles)):
             self._reject("non_finite", f"non-finite angles {np.round(angles, 3).tolist()}")
             return None
-        if self._check_stamps:
-            if stamp <= 0.0 or (self.last_stamp is not None and stamp <= self.last_stamp):
-                self._reject("stamp", f"stamp {stamp:.3f} not after the previous {self.last_stamp}")
-                return None
         if np.any(angles < self._lo - self._margin) or np.any(angles > self._hi + self._margin):
             self._reject("out_of_limits", f"angles beyond the joint limits by more than {self._margin} rad")
             return None
+        if self._check_stamps:  # last: the rule remembers the stamps it accepts
+            now = self._clock() if self._clock is not None else None
+            if not check_stamp(self._counters, self._stamps, self._input, stamp, now):
+                return None
         clipped = np.clip(angles, self._lo, self._hi)
         if np.any(clipped != angles):
             self._counters.count(f"{self._input}.clipped")
-        self.last_stamp = stamp
         return stamp, clipped
+
+    @property
+    def last_stamp(self) -> float | None:
+        """The stamp of the last accepted message (None before any, or for unchecked streams)."""
+        return self._stamps.last
 
 
 # --- gaps and order -------------------------------------------------------------------------------
@@ -132,25 +161,33 @@ class ArmAnglesGate:
 def missing_frames(dt: float, frame_period_s: float, max_gap_s: float) -> int | None:
     """Frames lost between two accepted frames `dt` s apart: 0 for the regular spacing, n for a gap of
     n + 1 periods (the learner steps over them so its windows stay in time), None when the gap is
-    longer than `max_gap_s` (the sequence ended: start a new one)."""
-    if dt > max_gap_s:
+    longer than `max_gap_s` or not positive (the sequence ended, or stamps went back: start a new one)."""
+    if dt > max_gap_s or dt <= 0.0:
         return None
     return max(0, round(dt / frame_period_s) - 1)
 
 
 class SkeletonReorder:
     """Positions of a skeleton message with joints in any order -> `SKELETON_JOINTS` order: unknown
-    joints dropped, missing ones NaN (an untracked joint), each counted; index maps cached per layout."""
+    joints dropped, missing ones NaN (an untracked joint), each counted; index maps cached per layout,
+    the `cache_size` most recently used only (a stream of ever new name lists must not grow memory)."""
 
-    def __init__(self, counters: RejectionCounter, wanted: tuple[str, ...] = SKELETON_JOINTS) -> None:
+    def __init__(self, counters: RejectionCounter, wanted: tuple[str, ...] = SKELETON_JOINTS,
+                 cache_size: int = 16) -> None:
         self._counters = counters
         self._wanted = wanted
-        self._order: dict[tuple[str, ...], tuple[np.ndarray, np.ndarray, int]] = {}
+        self.cache_size = cache_size
+        self._order: OrderedDict[tuple[str, ...], tuple[np.ndarray, np.ndarray, int]] = OrderedDict()
 
     def __call__(self, names: tuple[str, ...], positions: np.ndarray) -> np.ndarray:
         if names == self._wanted:
             return positions
-        if names not in self._order:
+        if names in self._order:
+            self._order.move_to_end(names)
+        else:
+            if len(self._order) >= self.cache_size:
+                self._order.popitem(last=False)
+                self._counters.count("skeleton.name_cache_evictions")
             index = {n: i for i, n in enumerate(names)}
             dst = np.array([k for k, n in enumerate(self._wanted) if n in index], dtype=int)
             src = np.array([index[self._wanted[k]] for k in dst], dtype=int)

@@ -92,6 +92,9 @@ class HopCount:
     #: and volatile QoS resends nothing to a late joiner)
     published_early: int = 0
     recorded_after: int | None = None
+    instances: int = 1  # processes of the publisher seen in the bag (restarts, other pipelines)
+    consumer_instances: int = 1
+    concurrent: bool = False  # two publishers or consumers of this hop ran at once: see hop_counts
 
     @property
     def lost_recorder(self) -> int | None:
@@ -113,6 +116,7 @@ class LatencyReport:
     duration_s: float
     latencies: dict[str, LatencyStats] = field(default_factory=dict)
     counts: list[HopCount] = field(default_factory=list)
+    undecodable: dict[str, int] = field(default_factory=dict)  # {topic: messages skipped}
 
     @property
     def total_lost(self) -> int:
@@ -133,6 +137,7 @@ class LatencyReport:
                         "lost_recorder": c.lost_recorder, "consumer": c.consumer,
                         "consumed": c.consumed, "lost_consumer": c.lost_consumer} for c in self.counts],
             "total_lost": self.total_lost,
+            "undecodable_skipped": dict(self.undecodable),
         }
 
     def to_json(self) -> str:
@@ -154,6 +159,15 @@ class LatencyReport:
                          f"{lost:>6}{con:>10}  {c.consumer or '-'}")
         lines.append(f"messages lost: {self.total_lost} (early: published before the publisher's first "
                      "/diagnostics, not counted for the recorder)")
+        restarted = sorted({c.publisher for c in self.counts if c.instances > 1 and not c.concurrent})
+        if restarted:
+            lines.append("restarted during the run (every instance counted): " + ", ".join(restarted))
+        mixed = sorted({c.topic for c in self.counts if c.concurrent})
+        if mixed:
+            lines.append("two instances of a node ran at once (two pipelines on one ROS_DOMAIN_ID?): consumer loss "
+                         "not computed on " + ", ".join(mixed))
+        if self.undecodable:
+            lines.append("undecodable messages skipped: " + ", ".join(f"{t} {n}" for t, n in self.undecodable.items()))
         return lines
 
 
@@ -169,30 +183,40 @@ def _source_stamp(msg: Any, msgtype: str) -> float:
     return bags.stamp_seconds(header.stamp) if header is not None else float("nan")
 
 
-#: {node name: [(receive s, {key: value}), ...]} of the /diagnostics statuses in a bag, in receive order.
-DiagnosticsHistory = dict[str, list[tuple[float, dict[str, str]]]]
+#: {node name: [(receive s, {key: value}, instance id), ...]} of the /diagnostics statuses in a bag,
+#: in receive order (the instance id is the status's `instance` value: one per node process).
+DiagnosticsHistory = dict[str, list[tuple[float, dict[str, str], str]]]
+#: A restarted instance's last messages may reach the recorder this long after its last counters.
+RESTART_GRACE_S = 0.5
 
 
-def read_series(bag: str | os.PathLike[str]) -> tuple[dict[str, TopicSeries], DiagnosticsHistory, float]:
-    """({topic: TopicSeries}, every /diagnostics status per node, duration s) of a pipeline bag."""
+def read_series(bag: str | os.PathLike[str]
+                ) -> tuple[dict[str, TopicSeries], DiagnosticsHistory, float, dict[str, int]]:
+    """({topic: TopicSeries}, every /diagnostics status per node, duration s, {topic: undecodable
+    messages skipped}) of a pipeline bag; BagError if metadata.yaml disagrees with the file."""
     bag = Path(bag)
     info = bags.bag_info(bag)
     rows: dict[str, tuple[list[float], list[float]]] = {}
     diagnostics: DiagnosticsHistory = {}
-    for m in bags.read_bag(bag):
+    undecodable: dict[str, int] = {}
+    read: dict[str, int] = {}
+    for m in bags.read_bag(bag, undecodable=undecodable):
+        read[m.topic] = read.get(m.topic, 0) + 1
         if m.msg is None:
             continue
         if m.msgtype == "diagnostic_msgs/msg/DiagnosticArray":
             if m.topic.endswith("/" + conventions.TOPIC_DIAGNOSTICS):
                 for status in m.msg.status:
                     diagnostics.setdefault(status.name, []).append(
-                        (m.timestamp_ns * 1e-9, {kv.key: kv.value for kv in status.values}))
+                        (m.timestamp_ns * 1e-9, values := {kv.key: kv.value for kv in status.values},
+                         values.get(conventions.INSTANCE_KEY, "")))
             continue
         recv, stamps = rows.setdefault(m.topic, ([], []))
         recv.append(m.timestamp_ns * 1e-9)
         stamps.append(_source_stamp(m.msg, m.msgtype))
+    bags.check_counts(info, {t: read.get(t, 0) + undecodable.get(t, 0) for t in set(read) | set(undecodable)})
     series = {t: TopicSeries(np.asarray(r), np.asarray(s)) for t, (r, s) in rows.items()}
-    return series, diagnostics, info.duration_s
+    return series, diagnostics, info.duration_s, undecodable
 
 
 # --- computing ------------------------------------------------------------------------------------
@@ -280,44 +304,106 @@ def _count(values: Mapping[str, str] | None, *keys: str, prefix: str | None = No
     """Sum of counters `keys` (+ every key starting with `prefix`); None if the node is not in the bag."""
     if values is None:
         return None
-    total = sum(int(float(values.get(k, "0"))) for k in keys)
+    total = sum(_int(values.get(k)) for k in keys)
     if prefix:
-        total += sum(int(float(v)) for k, v in values.items() if k.startswith(prefix))
+        total += sum(_int(v) for k, v in values.items() if k.startswith(prefix))
     return total
 
 
-def hop_counts(series: Mapping[str, TopicSeries], history: DiagnosticsHistory, namespace: str = "") -> list[HopCount]:
-    """Published (publisher's final counters) vs recorded (bag) vs consumed (consumer's final counters)."""
-    final = {name: snaps[-1][1] for name, snaps in history.items()}
+Snapshot = tuple[float, dict[str, str]]
 
-    def hop(topic: str, publisher: str, key: str, consumer: str | None = None, consumed: int | None = None
-            ) -> HopCount:
+
+def instances(snaps: list[tuple[float, dict[str, str], str]] | None) -> list[list[Snapshot]]:
+    """The statuses of one node name split into node processes (restarts, or two pipelines on one
+    domain): by instance id, or, for bags recorded before the id existed, where a counter goes down."""
+    if not snaps:
+        return []
+    if all(inst for _, _, inst in snaps):
+        groups: dict[str, list[Snapshot]] = {}
+        for recv, values, inst in snaps:
+            groups.setdefault(inst, []).append((recv, values))
+        return sorted(groups.values(), key=lambda g: g[0][0])
+    out: list[list[Snapshot]] = [[]]
+    for recv, values, _ in snaps:
+        if out[-1] and any(_int(values.get(k)) < _int(v) for k, v in out[-1][-1][1].items()):
+            out.append([])
+        out[-1].append((recv, values))
+    return out
+
+
+def _int(value: str | None) -> int:
+    try:
+        return int(float(value)) if value is not None else 0
+    except ValueError:
+        return 0
+
+
+def _windows(insts: list[list[Snapshot]]) -> list[tuple[float, float]]:
+    """Receive-time spans of each instance (the one that reported last: open-ended)."""
+    last = max(range(len(insts)), key=lambda i: insts[i][-1][0])
+    return [(g[0][0], np.inf if i == last else g[-1][0] + RESTART_GRACE_S) for i, g in enumerate(insts)]
+
+
+def concurrent(insts: list[list[Snapshot]]) -> bool:
+    """Two processes of one node name reported at the same time (two pipelines on one domain)."""
+    latest = -np.inf
+    for first, last in sorted((g[0][0], g[-1][0]) for g in insts):
+        if first < latest:
+            return True
+        latest = max(latest, last)
+    return False
+
+
+def _sum_final(insts: list[list[Snapshot]], *keys: str, prefix: str | None = None) -> int | None:
+    return sum(_count(g[-1][1], *keys, prefix=prefix) or 0 for g in insts) if insts else None
+
+
+def hop_counts(series: Mapping[str, TopicSeries], history: DiagnosticsHistory, namespace: str = "") -> list[HopCount]:
+    """Published (publishers' final counters) vs recorded (bag) vs consumed (consumers' final counters).
+
+    A node restarted during the run counts with every instance (each one's final counters; the
+    recorder's count over the time each one ran, from its first /diagnostics on). Two instances of
+    one node at the same time (two pipelines sharing a domain) mix their streams: nothing tells
+    which message came from which, so the consumer's loss is not computed (None) and the hop is
+    marked `concurrent`.
+    """
+    split = {name: instances(snaps) for name, snaps in history.items()}
+
+    def consumed(consumer: str, *keys: str, prefix: str) -> tuple[int | None, int, bool]:
+        insts = split.get(_fq(consumer), [])
+        return _sum_final(insts, *keys, prefix=prefix), len(insts), concurrent(insts)
+
+    def hop(topic: str, publisher: str, key: str, consumer: str | None = None,
+            got: tuple[int | None, int, bool] = (None, 0, False)) -> HopCount:
         s = series.get(topic)
         recv = np.zeros(0) if s is None else s.receive
-        snaps = history.get(_fq(publisher))
-        published = None if snaps is None else _count(snaps[-1][1], key)
+        insts = split.get(_fq(publisher), [])
+        published = _sum_final(insts, key)
         early, after = 0, None
-        if snaps:
-            first_recv, first = snaps[0]
-            early = _count(first, key) or 0
-            after = int(np.sum(recv >= first_recv))
-        return HopCount(topic, publisher, published, int(recv.size), consumer, consumed, early, after)
+        if insts:
+            early = sum(_count(g[0][1], key) or 0 for g in insts)
+            inside = np.zeros(recv.size, dtype=bool)
+            for lo, hi in _windows(insts):
+                inside |= (recv >= lo) & (recv <= hi)
+            after = int(np.sum(inside))
+        mixed = concurrent(insts) or got[2]
+        return HopCount(topic, publisher, published, int(recv.size), consumer, None if mixed else got[0], early,
+                        after, instances=len(insts), consumer_instances=got[1], concurrent=mixed)
 
-    ext, hier = final.get("/angle_extractor"), final.get("/gwr_hierarchy")
-    comp, sim = final.get(f"{namespace}/delay_compensator"), final.get(f"{namespace}/nao_sim")
+    comp, sim = f"{namespace}/delay_compensator", f"{namespace}/nao_sim"
     counts = [
         hop("/skeleton", "skeleton_source", "frames.published", "angle_extractor",
-            _count(ext, "skeleton.accepted", prefix="rejected.skeleton.")),
+            consumed("angle_extractor", "skeleton.accepted", prefix="rejected.skeleton.")),
         hop("/arm_angles", "angle_extractor", "angles.published", "gwr_hierarchy",
-            _count(hier, "frames.learned", "frames.seen", prefix="rejected.arm_angles.")),
-        hop("/arm_angles", "angle_extractor", "angles.published", f"{namespace}/delay_compensator",
-            _count(comp, "arm_angles.received", prefix="rejected.arm_angles.")),
-        hop("/predictions", "gwr_hierarchy", "predictions.published", f"{namespace}/delay_compensator",
-            _count(comp, "predictions.received", prefix="rejected.predictions.")),
+            consumed("gwr_hierarchy", "frames.learned", "frames.seen", prefix="rejected.arm_angles.")),
+        hop("/arm_angles", "angle_extractor", "angles.published", comp,
+            consumed(comp, "arm_angles.received", prefix="rejected.arm_angles.")),
+        hop("/predictions", "gwr_hierarchy", "predictions.published", comp,
+            consumed(comp, "predictions.received", prefix="rejected.predictions.")),
         hop("/predicted_angles", "gwr_hierarchy", "predictions.published"),
-        hop(f"{namespace}/joint_commands", f"{namespace}/delay_compensator", "commands.published",
-            f"{namespace}/nao_sim", _count(sim, "commands.accepted", prefix="rejected.joint_commands.")),
-        hop(f"{namespace}/joint_states", f"{namespace}/nao_sim", "states.published"),
+        hop(f"{namespace}/joint_commands", comp, "commands.published", sim,
+            consumed(sim, "commands.accepted", prefix="rejected.joint_commands.")),
+        hop(f"{namespace}/joint_states", sim, "states.published"),
     ]
     if namespace:  # the angles and predictions hops belong to the main pipeline
         counts = [c for c in counts if c.topic.startswith(namespace + "/")]
@@ -330,8 +416,9 @@ def _fq(name: str) -> str:
 
 def latency_report(bag: str | os.PathLike[str]) -> LatencyReport:
     """Read a pipeline bag and compute latencies and message counts. Raises bags.BagError."""
-    series, diagnostics, duration = read_series(bag)
-    report = LatencyReport(Path(bag), duration, compute_latencies(series), hop_counts(series, diagnostics))
+    series, diagnostics, duration, undecodable = read_series(bag)
+    report = LatencyReport(Path(bag), duration, compute_latencies(series), hop_counts(series, diagnostics),
+                           undecodable=undecodable)
     if "/uncompensated/joint_commands" in series:
         report.counts += hop_counts(series, diagnostics, "/uncompensated")
     return report

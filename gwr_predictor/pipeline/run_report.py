@@ -143,7 +143,10 @@ def read_run(bag: str | Path) -> RunData:
     diagnostics: dict[str, dict[str, str]] = {}
     angles_topic = "/" + conventions.TOPIC_ANGLES
     preds_topic = "/" + conventions.TOPIC_PREDICTIONS
-    for m in bags.read_bag(bag):
+    undecodable: dict[str, int] = {}
+    read: dict[str, int] = {}
+    for m in bags.read_bag(bag, undecodable=undecodable):
+        read[m.topic] = read.get(m.topic, 0) + 1
         if m.msg is None:
             continue
         if m.topic == angles_topic:
@@ -171,7 +174,8 @@ def read_run(bag: str | Path) -> RunData:
     for name, values in diagnostics.items():
         if name.endswith("/delay_compensator") and "mode" in values:
             modes[name[: -len("/delay_compensator")]] = values["mode"]
-    rejected: dict[str, int] = {}
+    bags.check_counts(info, {t: read.get(t, 0) + undecodable.get(t, 0) for t in set(read) | set(undecodable)})
+    rejected: dict[str, int] = {f"bag:undecodable.{t}": n for t, n in sorted(undecodable.items())}
     for name, values in diagnostics.items():
         for key, value in values.items():
             if key.startswith("rejected."):

@@ -186,6 +186,8 @@ class DelayCompensator:
         if p.mode == "none":
             return CompensatorOutput(self._clip(obs), 0, None)
         stamp = obs_stamp if obs_stamp is not None else (pred_stamp if pred_stamp is not None else now)
+        if self._history and stamp < self._history[-1][0]:
+            self._history.clear()  # stamps went back: a new sequence (a replay, a restarted source)
         if not self._history or stamp > self._history[-1][0]:
             self._history.append((stamp, obs))
         reason = self._unusable(now if obs_stamp is None else obs_stamp, predictions, pred_stamp)

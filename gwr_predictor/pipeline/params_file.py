@@ -1,0 +1,103 @@
+"""Start-up checks of a node's ROS arguments: params files and parameter names (one mechanism).
+
+rcl refuses a missing or malformed `--params-file` with a traceback-sized RCLError, and silently
+ignores keys that name no declared parameter, in a file or in `-p name:=value` alike. These
+functions, called by every node before and after it declares its parameters, turn the first into
+an error that names the file and the line, and the second into a warning per unknown key with the
+closest declared names.
+"""
+
+from __future__ import annotations
+
+import difflib
+from collections.abc import Iterable, Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from gwr_predictor.data.file_limits import check_file_size
+from gwr_predictor.errors import GwrPredictorError
+
+#: A params file is settings, never data: larger than this is not one.
+MAX_PARAMS_FILE_BYTES = 1 << 20
+
+
+class ParamsFileError(GwrPredictorError, ValueError):
+    """A params file that cannot be used; the message names the file and what is wrong."""
+
+
+def params_files(argv: Sequence[str]) -> list[Path]:
+    """The `--params-file` paths among the ROS arguments of `argv` (inside `--ros-args ... --`)."""
+    files: list[Path] = []
+    in_ros = False
+    it = iter(argv)
+    for arg in it:
+        if arg == "--ros-args":
+            in_ros = True
+        elif arg == "--":
+            in_ros = False
+        elif in_ros and arg == "--params-file":
+            value = next(it, None)
+            if value is None:
+                raise ParamsFileError("--params-file needs a file name")
+            files.append(Path(value))
+    return files
+
+
+def load_params_file(path: Path) -> dict[str, dict[str, Any]]:
+    """{node name pattern: {parameter: value}} of a ROS 2 params file, or ParamsFileError."""
+    if not path.is_file():
+        raise ParamsFileError(f"params file {path}: {'is a folder' if path.is_dir() else 'no such file'}")
+    check_file_size(path, MAX_PARAMS_FILE_BYTES, "params file", ParamsFileError)
+    try:
+        doc = yaml.safe_load(path.read_text())
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ParamsFileError(f"params file {path}: cannot be read: {exc}") from None
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None)
+        where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark is not None else ""
+        raise ParamsFileError(f"params file {path}: not valid YAML{where}: "
+                              f"{getattr(exc, 'problem', None) or exc}") from None
+    if not isinstance(doc, dict) or not doc:
+        raise ParamsFileError(f"params file {path}: expected '<node name>: {{ros__parameters: {{...}}}}' "
+                              f"sections, got {type(doc).__name__}")
+    sections: dict[str, dict[str, Any]] = {}
+    for node, body in doc.items():
+        if not isinstance(body, dict) or not isinstance(body.get("ros__parameters"), dict):
+            raise ParamsFileError(f"params file {path}: section {node!r} must hold a 'ros__parameters' mapping")
+        sections[str(node)] = flatten(body["ros__parameters"])
+    return sections
+
+
+def flatten(tree: Mapping[str, Any], prefix: str = "") -> dict[str, Any]:
+    """Nested YAML parameters -> {'gwr1.eps_b': value} as rcl names them."""
+    out: dict[str, Any] = {}
+    for key, value in tree.items():
+        name = f"{prefix}{key}"
+        if isinstance(value, dict):
+            out.update(flatten(value, name + "."))
+        else:
+            out[name] = value
+    return out
+
+
+def check_params_files(argv: Sequence[str]) -> list[Path]:
+    """Load every params file of `argv` (ParamsFileError on the first bad one); the files found."""
+    files = params_files(argv)
+    for path in files:
+        load_params_file(path)
+    return files
+
+
+def unknown_parameters(given: Iterable[str], declared: Iterable[str]) -> list[str]:
+    """One warning per given name that is no declared parameter, with the closest declared names."""
+    known = sorted(set(declared))
+    warnings = []
+    for name in sorted(set(given) - set(known)):
+        if name.startswith("qos_overrides."):  # declared by rclpy when the publisher is created
+            continue
+        close = difflib.get_close_matches(name, known, n=3, cutoff=0.6)
+        hint = f"; did you mean {' or '.join(repr(c) for c in close)}?" if close else ""
+        warnings.append(f"parameter {name!r} is not a parameter of this node and is ignored{hint}")
+    return warnings
