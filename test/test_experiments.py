@@ -10,7 +10,7 @@ import pytest
 
 from gwr_predictor.commands.cli import main
 from gwr_predictor.evaluation.experiments import EXPERIMENTS, UnknownExperiment, load
-from gwr_predictor.evaluation.experiments.output import ReportError, markdown_table, to_jsonable
+from gwr_predictor.evaluation.experiments.output import ExperimentOutputError, markdown_table, to_jsonable
 from gwr_predictor.evaluation.experiments.splits import SplitError, key, make_splits
 
 
@@ -47,7 +47,7 @@ def test_duplicate_demonstrations_are_refused():
 
 def test_report_helpers():
     assert to_jsonable({"a": np.array([1.0, np.nan]), "b": (np.int64(2),)}) == {"a": [1.0, None], "b": [2]}
-    with pytest.raises(ReportError):
+    with pytest.raises(ExperimentOutputError):
         to_jsonable(object())
     assert markdown_table(["x", "y"], [[1, 0.12345]]).splitlines()[-1] == "| 1 | 0.123 |"
     with pytest.raises(UnknownExperiment):

@@ -32,8 +32,8 @@ class Spy:
 
     def __init__(self, model):
         self.model, self.calls = model, []
-        self._learn = model.pgwr.learn_pair_unchecked
-        model.pgwr.learn_pair_unchecked = self
+        self._learn = model.pgwr.learn_unchecked
+        model.pgwr.learn_unchecked = self
 
     def __call__(self, x_in, x_out):
         self.calls.append((self.model.errors()["steps"] - 1, np.array(x_in), np.array(x_out)))

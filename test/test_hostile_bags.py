@@ -135,4 +135,4 @@ def test_files_that_cannot_be_recordings_are_refused_before_reading(tmp_path, mo
     monkeypatch.setattr("gwr_predictor.learning.checkpoint.MAX_CHECKPOINT_BYTES", 4 << 20)
     with pytest.raises(CheckpointError, match="inflate to 8 MB"):
         read_checkpoint(bomb, "Hierarchy")
-    assert file_limits.MAX_RECORDING_BYTES >= 200 << 20  # an hour at 30 fps is about 65 MB
+    assert file_limits.MAX_RECORDING_BYTES >= 200 << 20  # an hour at 30 fps is about 39 MB of positions

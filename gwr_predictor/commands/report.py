@@ -12,7 +12,7 @@ import sys
 from pathlib import Path
 
 from gwr_predictor.pipeline.bags import BagError
-from gwr_predictor.pipeline.run_report import ReportError, compute_report, plot_run, read_run
+from gwr_predictor.pipeline.run_report import BagSummaryError, compute_report, plot_run, read_run
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
@@ -28,7 +28,7 @@ def run(args: argparse.Namespace) -> int:
     try:
         data = read_run(bag)
         report = compute_report(data, max_lag_s=args.max_lag)
-    except (BagError, ReportError) as exc:
+    except (BagError, BagSummaryError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 1
     out.mkdir(parents=True, exist_ok=True)

@@ -2,8 +2,9 @@
 400 MB CSV, a 17 MB `.npz` that inflates to 4 GB) is refused with a message instead of taking the
 machine's memory.
 
-The limits are far above anything the pipeline writes: a skeleton recording is about 65 MB per
-hour at 30 fps as `.npz` (about 80 MB as CSV), a checkpoint of 5,000 neurons per layer is tens of MB.
+The limits are far above what the pipeline writes. Arithmetic, not a measurement: 15 joints x 3
+float64 at 30 fps are 39 MB per hour of `.npz` positions (a CSV row of 45 values of about 10
+characters: about 50 MB per hour).
 """
 
 from __future__ import annotations
@@ -12,9 +13,10 @@ import os
 import zipfile
 from pathlib import Path
 
-#: A skeleton recording as `.npz` (members inflated): about 4 hours at 30 fps.
+#: A skeleton recording as `.npz` (members inflated): over 6 hours at 30 fps.
 MAX_RECORDING_BYTES = 256 << 20
-#: A recording as CSV text (parsing takes about 14 times the file size in memory): about 1.5 hours.
+#: A recording as CSV text: over 2 hours. Issue 15 saw a 400 MB CSV take 5.5 GB (about 14 times its
+#: size) while parsing.
 MAX_CSV_BYTES = 128 << 20
 #: A model checkpoint (npz members inflated).
 MAX_CHECKPOINT_BYTES = 2 << 30

@@ -13,6 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from gwr_predictor.errors import GwrPredictorError
+from gwr_predictor.pending import target_steps
 
 
 class MetricsError(GwrPredictorError, ValueError):
@@ -100,14 +101,14 @@ def horizon_stats(predictions: np.ndarray, truth: np.ndarray) -> HorizonStats:
 
 
 def future_windows(values: np.ndarray, horizon: int) -> np.ndarray:
-    """(T, J) -> (T, horizon, J) with out[t, k] = values[t + 1 + k], NaN past the end."""
+    """(T, J) -> (T, horizon, J): out[t, k] = values[t + 1 + k], the frame that row k of a prediction
+    made at t targets (`pending.target_steps`), NaN past the end."""
     values = np.asarray(values, float)
     if values.ndim != 2:
         raise MetricsError(f"expected a (T, J) array, got {values.shape}")
     t, j = values.shape
     padded = np.concatenate([values, np.full((horizon + 1, j), np.nan)])
-    idx = np.arange(t)[:, None] + 1 + np.arange(horizon)[None, :]
-    return padded[idx]
+    return padded[target_steps(np.arange(t), horizon)]
 
 
 def moving_average(values: np.ndarray, window: int, centered: bool = False) -> np.ndarray:

@@ -20,7 +20,9 @@ trained 8 times as BMU before it can cause an insertion: h after k firings is 0.
 Storage is chosen for ~1,000-5,000 neurons: weights in a contiguous capacity-doubling matrix whose
 last column holds each neuron's squared norm, kept up to date on every change, so the BMU search
 is one BLAS matrix-vector product [w | ||w||^2] . [x | -1/2] = w.x - ||w||^2 / 2 followed by an
-argmax (the nearest neuron maximises it; ||x||^2 is common to all). Edges live in a dense
+argmax (the nearest neuron maximises it; ||x||^2 is common to all), all of it in one internal
+searcher (`_Search`: BMU and second BMU, the kept product), so `learn` reads as the steps above.
+Edges live in a dense
 symmetric int16 age matrix (-1 = no edge): the neighbours of b are one row scan and ageing is one
 indexed operation. b and its neighbours are updated together as one small gathered block. Only the
 first `match_dim` values of a vector are matched; the rest are carried in a second matrix (the
@@ -49,6 +51,55 @@ class InputError(GwrPredictorError, ValueError):
 def counter_decay(rho: float, kappa: float) -> tuple[float, float]:
     """(a, c) such that h + rho * kappa * (1 - h) - rho == h * a + c (Eq. 3)."""
     return 1.0 - rho * kappa, rho * kappa - rho
+
+
+class _Search:
+    """The nearest-neuron search of one network: BMU and second BMU of a query over the first n rows
+    of [w | ||w||^2], by one BLAS product with [x | -1/2] and an argmax (see the module docstring).
+
+    It keeps one result: `affinity(xm, n, keep=True)` computes into a second buffer that the next
+    `two_nearest` of the same query bytes reuses, as long as the network did not change in between
+    (learning calls `two_nearest`, which drops it). Recursive mode forecasts from r(t), then learns
+    (r(t), x(t+1)) next frame with the P-GWR unchanged in between: one 73-d product less per frame.
+    """
+
+    __slots__ = ("buf", "kept", "kept_buf", "wa", "xa")
+
+    def __init__(self, wa: np.ndarray) -> None:
+        cap, m1 = wa.shape
+        self.wa = wa
+        self.xa = np.empty(m1)  # [query | -1/2]
+        self.xa[-1] = -0.5
+        self.buf = np.empty(cap)
+        self.kept_buf = np.empty(cap)
+        self.kept: bytes | None = None  # the query whose affinity `kept_buf` holds
+
+    def affinity(self, xm: np.ndarray, n: int, keep: bool = False) -> np.ndarray:
+        """w.x - ||w||^2 / 2 of the first n neurons, largest for the nearest (one product)."""
+        xa = self.xa
+        xa[:-1] = xm
+        out = (self.kept_buf if keep else self.buf)[:n]
+        np.dot(self.wa[:n], xa, out=out)
+        if keep:
+            self.kept = xm.tobytes()
+        return out
+
+    def two_nearest(self, xm: np.ndarray, n: int) -> tuple[int, int]:
+        """(b, s): the nearest and second-nearest neuron of xm (a kept affinity is used and dropped)."""
+        if self.kept is not None and self.kept == xm.tobytes():
+            aff = self.kept_buf[:n]
+        else:  # `affinity`, inlined (a call less per learning step)
+            xa = self.xa
+            xa[:-1] = xm
+            aff = self.buf[:n]
+            np.dot(self.wa[:n], xa, out=aff)
+        self.kept = None
+        b = int(aff.argmax())
+        aff[b] = -np.inf
+        return b, int(aff.argmax())
+
+    def nearest(self, xm: np.ndarray, n: int) -> int:
+        return int(self.affinity(xm, n).argmax())
 
 
 class GWR:
@@ -113,9 +164,7 @@ class GWR:
             age[:n, :n] = self._age[:n, :n]
         self._wa, self._wo, self._h, self._age = wa, wo, h, age
         self._w = wa[:, :m]  # matched weights (strided view)
-        self._buf = np.empty(cap)
-        self._xa = np.empty(m + 1)
-        self._xa[m] = -0.5
+        self._search = _Search(wa)
         # per-row rate/decay vectors of the block [b, neighbours...], longest possible block
         self._eps_vec = np.full(cap, self._rates[1])
         self._eps_vec[0] = self._rates[0]
@@ -124,9 +173,6 @@ class GWR:
         self._decay_c = np.full(cap, self._decay[1][1])
         self._decay_c[0] = self._decay[0][1]
         self._block = np.empty(cap, dtype=np.intp)
-        # affinity kept by `search_keep` for the next `learn_unchecked` on the same query (see there)
-        self._kept_buf = np.empty(cap)
-        self._kept: bytes | None = None  # the query it was kept for
 
     def _put(self, idx: np.ndarray | int, rows: np.ndarray) -> None:
         """Write whole weight rows (matched + carried part) and refresh their norms."""
@@ -215,26 +261,18 @@ class GWR:
             raise InputError("input contains NaN or infinite values")
         return x
 
-    def _affinity(self, xm: np.ndarray) -> np.ndarray:
-        """w.x - ||w||^2 / 2 of every neuron, largest for the nearest (one matrix-vector product)."""
-        xa = self._xa
-        xa[:-1] = xm
-        out = self._buf[:self._n]
-        np.dot(self._wa[:self._n], xa, out=out)
-        return out
-
     def _distance(self, i: int, xm: np.ndarray) -> float:
         diff = xm - self._w[i]
         return math.sqrt(float(np.dot(diff, diff)))
 
     def nearest(self, xm: np.ndarray) -> int:
         """Index of the BMU of a matched-part vector (trusted input: no checks, no state change)."""
-        return int(self._affinity(xm).argmax())
+        return self._search.nearest(xm, self._n)
 
     def bmu(self, x: np.ndarray) -> tuple[int, float]:
         """(index, Euclidean distance) of the BMU of x, given whole or as its matched part. No learning."""
         xm = self._check_input(x, self.dim if np.shape(x) == (self.dim,) else self.match_dim)[:self.match_dim]
-        b = int(self._affinity(xm).argmax())
+        b = self._search.nearest(xm, self._n)
         dist = self._distance(b, xm)
         self.last_distance = dist
         return b, dist
@@ -243,25 +281,17 @@ class GWR:
         """(A, xa, buf, w) for inlined read-only BMU searches in hot loops: write the query into
         xa[:-1], `np.dot(A, xa, out=buf)`, and buf.argmax() is the BMU, w its matched weights.
         Valid only until the network next changes (learning may reallocate or resize)."""
-        n = self._n
-        return self._wa[:n], self._xa, self._buf[:n], self._w
+        n, search = self._n, self._search
+        return search.wa[:n], search.xa, search.buf[:n], self._w
 
     def search_keep(self, xm: np.ndarray) -> np.ndarray:
-        """The affinity of a trusted matched-part vector (as `_affinity`), computed into a separate
-        buffer and kept: the next `learn_unchecked` on the unchanged network whose matched part has
-        the same bytes reuses it instead of repeating the product (same operands, same result).
-        Recursive mode forecasts from r(t), then learns (r(t), x(t+1)) next frame, with the P-GWR
-        unchanged in between: one 73-d product less per frame. Any learning step drops it."""
-        xa = self._xa
-        xa[:-1] = xm
-        out = self._kept_buf[:self._n]
-        np.dot(self._wa[:self._n], xa, out=out)
-        self._kept = xm.tobytes()
-        return out
+        """The affinity of a trusted matched-part vector, kept for the next learning step on the same
+        query if the network does not change before it (`_Search`)."""
+        return self._search.affinity(xm, self._n, keep=True)
 
     def match_unchecked(self, xm: np.ndarray) -> int:
         """BMU index of a trusted matched-part vector; records `last_distance`. No learning."""
-        b = int(self._affinity(xm).argmax())
+        b = self._search.nearest(xm, self._n)
         self.last_distance = self._distance(b, xm)
         return b
 
@@ -278,20 +308,14 @@ class GWR:
         """One GWR step on x (shape (dim,)); returns the final index of the BMU."""
         return self.learn_unchecked(self._check_input(x, self.dim))
 
-    def learn_unchecked(self, x: np.ndarray) -> int:
-        """`learn` on a trusted finite (dim,) float vector (callers that built it themselves)."""
+    def learn_unchecked(self, x: np.ndarray, carried: np.ndarray | None = None) -> int:
+        """`learn` on trusted finite float vectors: x whole (dim,), or x its matched part and
+        `carried` the rest (a Predictive GWR's (x_in, x_out): no concatenated copy)."""
         p = self.params
         n = self._n
         m = self.match_dim
-        xm = x[:m]
-        if self._kept is not None and self._kept == xm.tobytes():  # see `search_keep`
-            affinity = self._kept_buf[:n]
-        else:
-            affinity = self._affinity(xm)
-        self._kept = None
-        b = int(affinity.argmax())
-        affinity[b] = -np.inf
-        s = int(affinity.argmax())
+        xm, xc = (x[:m], x[m:]) if carried is None else (x, carried)
+        b, s = self._search.two_nearest(xm, n)  # 1. the two nearest neurons
         dist = self._distance(b, xm)
         self.last_distance = dist
 
@@ -317,7 +341,7 @@ class GWR:
             self._wa[block] = wa
             if m < self.dim:
                 wo = self._wo.take(block, axis=0)
-                step = x[m:] - wo
+                step = xc - wo
                 step *= rate
                 wo += step
                 self._wo[block] = wo
@@ -334,7 +358,7 @@ class GWR:
         # topology
         r = -1
         if insert:  # Eq. 2
-            r = self._append(x, b)
+            r = self._append(xm, xc, b)
             age = self._age  # may have been reallocated
             age[b, s] = age[s, b] = _NO_EDGE
             age[r, b] = age[b, r] = 0
@@ -349,15 +373,15 @@ class GWR:
         return b
 
     # --- structure changes ----------------------------------------------------------------------
-    def _append(self, x: np.ndarray, b: int) -> int:
-        """New neuron at 0.5 (x + w_b) with h = 1; returns its index."""
+    def _append(self, xm: np.ndarray, xc: np.ndarray, b: int) -> int:
+        """New neuron at 0.5 (x + w_b) with h = 1 (x as matched and carried part); returns its index."""
         if self._n == self._w.shape[0]:
             self._alloc(self._capacity_for(2 * self._n, self._n + 1))
         r = self._n
         m = self.match_dim
-        w = 0.5 * (x[:m] + self._w[b])
+        w = 0.5 * (xm + self._w[b])
         self._w[r] = w
-        self._wo[r] = 0.5 * (x[m:] + self._wo[b])
+        self._wo[r] = 0.5 * (xc + self._wo[b])
         self._wa[r, m] = w @ w
         self._h[r] = 1.0
         self._n = r + 1

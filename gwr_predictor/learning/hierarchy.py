@@ -37,25 +37,23 @@ from gwr_predictor.learning.gwr import GWR, InputError
 from gwr_predictor.learning.params import LAYERS, HierarchyParams
 from gwr_predictor.learning.predictive_gwr import PredictiveGWR
 from gwr_predictor.learning.scaling import InputScaling
+from gwr_predictor.pending import PendingPredictions
 
 
 class ErrorTracker:
     """P.E./C.P.E. per horizon step (MSE, rad^2) and per-layer quantization errors (rad).
 
-    Predictions are filed under the step they target (a ring of `horizon` slots), so scoring a
-    frame is one vectorised look-up and a prediction is scored exactly when its target arrives.
-    Squared errors are summed over joints here and divided by the joint count in `summary`.
+    Predictions wait in `pending.PendingPredictions` under the step they target, so a prediction is
+    scored exactly when its target arrives. Squared errors are summed over joints here and divided
+    by the joint count in `summary`.
     """
 
     def __init__(self, horizon: int, n_joints: int, layers: tuple[str, ...]) -> None:
         self.horizon = horizon
         self.n_joints = n_joints
         self.layers = layers
-        self._k = np.arange(horizon)
-        self._slots = [(t + 1 + self._k) % horizon for t in range(horizon)]  # by t % horizon
         self._targets = np.empty((2, 1, n_joints))  # [P.E. target, C.P.E. target]
-        self.pending = np.zeros((horizon, horizon, n_joints))  # [target slot, step k-1, joint]
-        self.valid = np.zeros((horizon, horizon), dtype=bool)
+        self._pending = PendingPredictions(horizon, n_joints)
         self.reset()
 
     def reset(self) -> None:
@@ -67,28 +65,25 @@ class ErrorTracker:
         self.q_count = {name: 0 for name in self.layers}
 
     def forget_pending(self) -> None:
-        self.valid[:] = False
+        self._pending.drop()
 
     def expect(self, t: int, prediction: np.ndarray) -> None:
         """File the prediction (horizon, joints) made at step t: row k targets step t + k + 1."""
-        slots = self._slots[t % self.horizon]
-        self.pending[slots, self._k] = prediction
-        self.valid[slots, self._k] = True
+        self._pending.file(t, prediction)
 
     def score(self, t: int, frame: np.ndarray | None, represented: np.ndarray | None) -> None:
         """Score the predictions targeting step t (None: missing frame, they are dropped)."""
-        valid = self.valid[t % self.horizon]
+        predicted, valid = self._pending.take(t)
         if frame is not None and valid.any():
             targets = self._targets
             targets[0, 0] = represented
             targets[1, 0] = frame
-            diff = self.pending[t % self.horizon] - targets
+            diff = predicted - targets
             err = np.vecdot(diff, diff)
             if not valid.all():
                 err *= valid
             self.sse += err
             self.count += valid
-        valid[:] = False
 
     def quantization(self, layer: str, distance_rad: float) -> None:
         self.q_last[layer] = distance_rad
@@ -114,13 +109,16 @@ class ErrorTracker:
     ARRAYS = ("err.sse", "err.count", "err.pending", "err.valid")
 
     def arrays(self) -> dict[str, np.ndarray]:
-        return dict(zip(self.ARRAYS, (self.sse, self.count, self.pending, self.valid), strict=True))
+        return dict(zip(self.ARRAYS, self._state(), strict=True))
+
+    def _state(self) -> tuple[np.ndarray, ...]:
+        return self.sse, self.count, self._pending.pending, self._pending.valid
 
     def header(self) -> dict[str, Any]:
         return {"q_last": self.q_last, "q_sum": self.q_sum, "q_count": self.q_count}
 
     def restore(self, header: dict[str, Any], arrays: dict[str, np.ndarray]) -> None:
-        for name, current in zip(self.ARRAYS, (self.sse, self.count, self.pending, self.valid), strict=True):
+        for name, current in zip(self.ARRAYS, self._state(), strict=True):
             _copy_into(current, arrays[name], name)
         self.q_last = {k: float(v) for k, v in header["q_last"].items()}
         self.q_sum = {k: float(v) for k, v in header["q_sum"].items()}
@@ -235,9 +233,9 @@ class _OnlinePredictor:
         if self._delta:  # displacement of each target frame from the regressor's newest frame
             target = self._target.reshape(k, -1)
             np.subtract(buf[1:], buf[0], out=target)
-            self.pgwr.learn_pair_unchecked(reg, self._target)
+            self.pgwr.learn_unchecked(reg, self._target)
         else:
-            self.pgwr.learn_pair_unchecked(reg, buf[1:].reshape(-1))
+            self.pgwr.learn_unchecked(reg, buf[1:].reshape(-1))
 
     def _forecast(self, reg: np.ndarray, record: bool) -> np.ndarray:
         p = self.params

@@ -25,7 +25,6 @@ class PredictiveGWR(GWR):
             raise ValueError(f"PredictiveGWR out_dim must be >= 1, got {out_dim}")
         super().__init__(in_dim + out_dim, params, rng, match_dim=in_dim, init_low=init_low,
                          init_high=init_high, distance_factor=distance_factor)
-        self._xcat = np.empty(self.dim)
 
     @classmethod
     def from_arrays(cls, weights: np.ndarray, params: GWRParams, *, edges: Any = (),
@@ -38,7 +37,6 @@ class PredictiveGWR(GWR):
                                   distance_factor=distance_factor)
         if net.match_dim == net.dim:
             raise ValueError("PredictiveGWR needs at least one output value (match_dim < dim)")
-        net._xcat = np.empty(net.dim)
         return net
 
     @property
@@ -64,17 +62,7 @@ class PredictiveGWR(GWR):
         [x_in | x_out] vector."""
         if x_out is None:
             return super().learn(x_in)
-        xcat = self._xcat
-        xcat[:self.match_dim] = self._check_input(x_in, self.match_dim)
-        xcat[self.match_dim:] = self._check_input(x_out, self.out_dim)
-        return self.learn_unchecked(xcat)
-
-    def learn_pair_unchecked(self, x_in: np.ndarray, x_out: np.ndarray) -> int:
-        """`learn` without input checks, for callers that built finite vectors of the right size."""
-        xcat = self._xcat
-        xcat[:self.match_dim] = x_in
-        xcat[self.match_dim:] = x_out
-        return self.learn_unchecked(xcat)
+        return self.learn_unchecked(self._check_input(x_in, self.match_dim), self._check_input(x_out, self.out_dim))
 
     def predict(self, x_in: np.ndarray) -> np.ndarray:
         """Eq. 10: a copy of the output weights of the BMU of x_in."""
@@ -91,7 +79,7 @@ class PredictiveGWR(GWR):
         regressor xm, averaged with weights 1/distance (a neuron at distance 0 takes all). k = 1 is
         Eq. 10 (a view of the BMU's output row). With `record`, `last_distance` is the BMU's distance.
         `affinity`: xm's affinity if already computed (e.g. by `search_keep`)."""
-        aff = self._affinity(xm) if affinity is None else affinity
+        aff = self._search.affinity(xm, self._n) if affinity is None else affinity
         k = min(k, self._n)
         if k == 1:
             b = int(aff.argmax())

@@ -28,7 +28,7 @@ _EXPORTS = {
     "read_run": "run_report",
     "plot_run": "run_report",
     "PipelineReport": "run_report",
-    "ReportError": "run_report",
+    "BagSummaryError": "run_report",
     "plot_angle_series": "plotting",
     "PlotError": "plotting",
 }

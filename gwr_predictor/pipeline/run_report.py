@@ -33,7 +33,7 @@ from gwr_predictor.robot.nao import ARM_JOINTS
 from gwr_predictor.robot.tracking import LagError, estimate_lag, tracking_error
 
 
-class ReportError(GwrPredictorError, ValueError):
+class BagSummaryError(GwrPredictorError, ValueError):
     """A bag that cannot be summarised (missing topics, too little data); the message names it."""
 
 
@@ -131,7 +131,7 @@ def _namespace(topic: str, base: str) -> str | None:
 
 
 def read_run(bag: str | Path) -> RunData:
-    """Read the topics a report needs from a pipeline bag. Raises bags.BagError / ReportError."""
+    """Read the topics a report needs from a pipeline bag. Raises bags.BagError / BagSummaryError."""
     bag = Path(bag)
     info = bags.bag_info(bag)
     person: list[tuple[float, np.ndarray]] = []
@@ -214,7 +214,7 @@ def prediction_errors(run: RunData, period: float) -> tuple[np.ndarray, float, i
     """(MAE per step (h,), hold-baseline MAE at h, predictions scored at h)."""
     n, h = run.predictions.shape[:2]
     if n == 0:
-        raise ReportError(f"{run.bag}: no /predictions recorded")
+        raise BagSummaryError(f"{run.bag}: no /predictions recorded")
     mae = np.full(h, np.nan)
     for k in range(1, h + 1):
         idx = match_frames(run.person, run.predictions_t + k * period, 0.5 * period)
@@ -266,7 +266,7 @@ def compute_report(run: RunData, period: float = 1.0 / conventions.ANGLE_FPS, dt
                    max_lag_s: float = 1.5, max_gap_s: float = conventions.MAX_GAP_S) -> PipelineReport:
     """The report of a run (see the module docstring for the definitions)."""
     if run.person.t.size == 0:
-        raise ReportError(f"{run.bag}: no /{conventions.TOPIC_ANGLES} recorded")
+        raise BagSummaryError(f"{run.bag}: no /{conventions.TOPIC_ANGLES} recorded")
     mae, hold, scored = prediction_errors(run, period)
     neurons = {layer: int(float(run.learner[key])) for layer, key in conventions.NEURON_KEYS.items()
                if key in run.learner}

@@ -27,6 +27,7 @@ import numpy as np
 
 from gwr_predictor.errors import GwrPredictorError
 from gwr_predictor.learning.checkpoint import CheckpointError, read_checkpoint, write_checkpoint
+from gwr_predictor.pending import PendingPredictions, target_steps
 from gwr_predictor.pipeline.conventions import DEFAULT_HORIZON
 from gwr_predictor.protocol import Predictor
 
@@ -64,9 +65,9 @@ class BlendParams:
 class BlendedPredictor:
     """Per-horizon-step inverse-MSE blend of several online predictors (the `Predictor` protocol).
 
-    Every `step` calls every member's `step` with the same sample. Pending predictions are kept in a
-    ring `(members, horizon, horizon, joints)`: row r holds the prediction made r + 1 frames ago, so
-    its step r + 1 targets the current frame and is scored when the current frame is observed.
+    Every `step` calls every member's `step` with the same sample. Member predictions wait in one
+    `pending.PendingPredictions` (members leading) under the frame they target, and are scored when
+    that frame is observed. `_t` counts frames (missing ones too).
     """
 
     def __init__(self, members: Mapping[str, Predictor], params: BlendParams | None = None) -> None:
@@ -83,8 +84,8 @@ class BlendedPredictor:
         self._sse = np.zeros((n, h))  # decayed sum of squared errors (mean over joints) per member, step
         self._weight = np.zeros((n, h))  # decayed number of scored predictions
         self._count = np.zeros((n, h), dtype=np.int64)  # scored predictions, undecayed
-        self._diag = np.arange(h)
-        self._pending: np.ndarray | None = None  # (members, h, h, joints), allocated on the first sample
+        self._t = 0
+        self._pending: PendingPredictions | None = None  # allocated on the first sample (joints known)
         self._outputs: np.ndarray | None = None  # latest member outputs (members, h, joints), NaN = none
         self.reset_sequence()
 
@@ -94,7 +95,7 @@ class BlendedPredictor:
         for m in self.members.values():
             m.reset_sequence()
         if self._pending is not None:
-            self._pending.fill(np.nan)
+            self._pending.drop()
             self._outputs.fill(np.nan)
 
     def step(self, x: np.ndarray | None, learn: bool = True) -> np.ndarray | None:
@@ -102,16 +103,18 @@ class BlendedPredictor:
         obs = None
         if x is not None:
             obs = np.asarray(x, dtype=float)
-            if obs.ndim != 1 or (self._pending is not None and obs.shape[0] != self._pending.shape[-1]):
-                joints = "joints" if self._pending is None else self._pending.shape[-1]
+            if obs.ndim != 1 or (self._pending is not None and obs.shape[0] != self._joints):
+                joints = "joints" if self._pending is None else self._joints
                 raise BlendError(f"expected a ({joints},) sample, got shape {obs.shape}")
             if self._pending is None:
                 self._allocate(obs.shape[0])
             if not np.isfinite(obs).all():
                 obs = None  # a missing sample, for the members too
-        if obs is not None and (learn or self.params.adapt_frozen):
-            self._score(obs)
+        due = None if self._pending is None else self._pending.take(self._t)
+        if due is not None and obs is not None and (learn or self.params.adapt_frozen):
+            self._score(obs, *due)
         outputs = [m.step(obs, learn=learn) for m in self.members.values()]
+        self._t += 1
         if self._pending is None:  # nothing observed yet: members cannot have predicted
             if any(o is not None for o in outputs):
                 self._allocate(np.asarray(next(o for o in outputs if o is not None)).shape[1])
@@ -198,9 +201,11 @@ class BlendedPredictor:
         arrays.update({"blend:sse": self._sse, "blend:weight": self._weight, "blend:count": self._count})
         joints = None
         if self._pending is not None:
-            joints = int(self._pending.shape[-1])
-            arrays.update({"blend:pending": self._pending, "blend:outputs": self._outputs})
-        header = {"blend": {"params": asdict(self.params), "members": members, "joints": joints}}
+            joints = self._joints
+            arrays.update({"blend:pending": self._pending.pending, "blend:valid": self._pending.valid,
+                           "blend:outputs": self._outputs})
+        header = {"blend": {"params": asdict(self.params), "members": members, "joints": joints,
+                            "t": self._t}}
         write_checkpoint(path, self.kind, header, arrays)
 
     @classmethod
@@ -234,11 +239,19 @@ class BlendedPredictor:
             blend._count = np.array(arrays["blend:count"], dtype=np.int64)
             if meta["joints"] is not None:
                 blend._allocate(int(meta["joints"]))
-                for a, dest in (("pending", blend._pending), ("outputs", blend._outputs)):
+                old_layout = "t" not in meta  # written before the blend used PendingPredictions
+                blend._t = 0 if old_layout else int(meta["t"])
+                ring = blend._pending
+                names = ("pending", "outputs") if old_layout else ("pending", "valid", "outputs")
+                dests = (np.empty_like(ring.pending), blend._outputs) if old_layout else (
+                    ring.pending, ring.valid, blend._outputs)
+                for a, dest in zip(names, dests, strict=True):
                     if arrays[f"blend:{a}"].shape != dest.shape:
                         raise ValueError(f"array blend:{a} has shape {arrays[f'blend:{a}'].shape}, "
                                          f"expected {dest.shape}")
                     dest[...] = arrays[f"blend:{a}"]
+                if old_layout:
+                    blend._refile(dests[0])
         except CheckpointError:
             raise
         except (KeyError, ValueError, TypeError, IndexError) as exc:  # BlendError, BaselineError are ValueErrors
@@ -254,28 +267,39 @@ class BlendedPredictor:
         n = len(members)
         blend._sse, blend._weight = np.zeros((n, h)), np.zeros((n, h))
         blend._count = np.zeros((n, h), dtype=np.int64)
-        blend._diag = np.arange(h)
+        blend._t = 0
         blend._pending = blend._outputs = None
         return blend
 
     # --- internals ------------------------------------------------------------------------------
     def _allocate(self, joints: int) -> None:
         n, h = len(self.names), self.horizon
-        self._pending = np.full((n, h, h, joints), np.nan)
+        self._joints = joints
+        self._pending = PendingPredictions(h, joints, (n,))
         self._outputs = np.full((n, h, joints), np.nan)
 
-    def _score(self, obs: np.ndarray) -> None:
-        """Score every pending prediction that targets this (observed) frame and update the MSEs."""
-        targeted = self._pending[:, self._diag, self._diag, :]  # (members, h, joints): step r+1 made r+1 ago
+    def _refile(self, by_age: np.ndarray) -> None:
+        """File the pending predictions of a checkpoint written before PendingPredictions, where
+        `by_age[:, r]` was the prediction made r + 1 frames before the next one (NaN = none)."""
+        h = self.horizon
+        for r in range(h):  # rows k >= r still target the next frame or a later one
+            made = by_age[:, r, r:]
+            slots = target_steps(self._t - 1 - r, h)[r:] % h
+            self._pending.pending[:, slots, np.arange(r, h)] = made
+            self._pending.valid[:, slots, np.arange(r, h)] = np.isfinite(made).all(axis=-1)
+
+    def _score(self, obs: np.ndarray, targeted: np.ndarray, valid: np.ndarray) -> None:
+        """Score the member predictions (members, h, joints) due at this (observed) frame, row k made
+        k + 1 frames ago, and update the MSEs."""
         err = np.mean((targeted - obs) ** 2, axis=2)  # NaN where a member did not predict
-        scored = np.isfinite(err)
+        scored = valid & np.isfinite(err)
         decay = np.where(scored, self.params.decay, 1.0)
         self._sse = decay * self._sse + np.where(scored, err, 0.0)
         self._weight = decay * self._weight + scored
         self._count += scored
 
     def _stack(self, outputs: list[Any]) -> np.ndarray:
-        joints = self._pending.shape[-1]
+        joints = self._joints
         out = np.full((len(outputs), self.horizon, joints), np.nan)
         for i, o in enumerate(outputs):
             if o is None:
@@ -288,10 +312,9 @@ class BlendedPredictor:
         return out
 
     def _store(self, outputs: list[Any]) -> None:
-        """Advance the ring by one frame (also on a missing sample) and file this frame's predictions."""
+        """File this frame's member predictions (made at frame `_t - 1`; NaN rows = none)."""
         self._outputs = self._stack(outputs)
-        self._pending[:, 1:] = self._pending[:, :-1]
-        self._pending[:, 0] = self._outputs
+        self._pending.file(self._t - 1, self._outputs, np.isfinite(self._outputs).all(axis=-1))
 
     def _blend(self, preds: np.ndarray) -> np.ndarray | None:
         """Weighted mean over the members that predicted (all steps of a member's output, or none)."""

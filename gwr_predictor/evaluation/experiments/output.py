@@ -23,7 +23,7 @@ from gwr_predictor import json_safe
 from gwr_predictor.errors import GwrPredictorError
 
 
-class ReportError(GwrPredictorError, RuntimeError):
+class ExperimentOutputError(GwrPredictorError, RuntimeError):
     """An output that cannot be written; the message names the file."""
 
 
@@ -41,11 +41,11 @@ class ExperimentOutput:
 
 
 def to_jsonable(obj: Any) -> Any:
-    """`gwr_predictor.json_safe.to_jsonable`, with ReportError for an object that has no JSON form."""
+    """`json_safe.to_jsonable`, raising ExperimentOutputError for an object with no JSON form."""
     try:
         return json_safe.to_jsonable(obj)
     except json_safe.NotJsonError as exc:
-        raise ReportError(str(exc)) from None
+        raise ExperimentOutputError(str(exc)) from None
 
 
 def write_json(path: Path, obj: Any) -> Path:
@@ -57,7 +57,7 @@ def write_json(path: Path, obj: Any) -> Path:
     try:
         path.write_text(text + "\n")
     except OSError as exc:
-        raise ReportError(f"cannot write {path}: {exc}") from exc
+        raise ExperimentOutputError(f"cannot write {path}: {exc}") from exc
     return path
 
 
@@ -75,7 +75,7 @@ def markdown_table(headers: Sequence[str], rows: Sequence[Sequence[Any]], digits
     lines = ["| " + " | ".join(headers) + " |", "|" + "|".join("---" for _ in headers) + "|"]
     for row in rows:
         if len(row) != len(headers):
-            raise ReportError(f"table row has {len(row)} cells for {len(headers)} headers")
+            raise ExperimentOutputError(f"table row has {len(row)} cells for {len(headers)} headers")
         lines.append("| " + " | ".join(fmt(c, digits) for c in row) + " |")
     return "\n".join(lines)
 
@@ -97,7 +97,7 @@ def save_figure(fig: Any, out: Path, name: str, dpi: int = 80) -> str:
         with Image.open(buf) as img:
             img.convert("RGB").quantize(colors=64).save(path, optimize=True)
     except OSError as exc:
-        raise ReportError(f"cannot write {path}: {exc}") from exc
+        raise ExperimentOutputError(f"cannot write {path}: {exc}") from exc
     finally:
         plt.close(fig)
     return path.name
@@ -132,5 +132,5 @@ def write_output(out: Path, output: ExperimentOutput, seed: int, quick: bool,
     try:
         md_path.write_text("\n".join(md).rstrip() + "\n")
     except OSError as exc:
-        raise ReportError(f"cannot write {md_path}: {exc}") from exc
+        raise ExperimentOutputError(f"cannot write {md_path}: {exc}") from exc
     return json_path, md_path
