@@ -29,7 +29,7 @@ from .node_base import NodeFatalError, ParameterError, PipelineNode, run_node, s
 
 PARAMS = (
     ParamSpec("backend", "pybullet", "robot model", choices=("pybullet", "kinematic")),
-    ParamSpec("gui", False, "open the PyBullet window (needs a display); default DIRECT, headless"),
+    ParamSpec("gui", False, "open the PyBullet window, a live view (needs DISPLAY; without one: a warning, headless)"),
     replace(ROBOT_SPECS["delay_s"], live=True),
     ParamSpec("delay_amplitude_s", 0.0, "variable delay: delay_s + amplitude * sin(2 pi t / delay_period_s)",
               0.0, 30.0),
@@ -56,8 +56,15 @@ class NaoSimNode(PipelineNode):
         if p["backend"] == "pybullet":
             from gwr_predictor.robot.pybullet_nao import NaoSimulator, SimulatorError
 
+            step = min(p["control_period_s"], 1.0 / 240.0)
             try:
-                self.sim = NaoSimulator(gui=p["gui"], time_step=min(p["control_period_s"], 1.0 / 240.0))
+                try:
+                    self.sim = NaoSimulator(gui=p["gui"], time_step=step)
+                except SimulatorError as exc:
+                    if not p["gui"]:
+                        raise
+                    self.get_logger().warning(f"parameter 'gui': {exc}; running headless instead")
+                    self.sim = NaoSimulator(gui=False, time_step=step)
             except SimulatorError as exc:
                 raise NodeFatalError(f"cannot start the PyBullet simulator: {exc}") from None
         try:

@@ -8,9 +8,9 @@ import pytest
 import yaml
 from ros_harness import ROOT
 
-from gwr_predictor.commands.pretrain import _flatten
 from gwr_predictor.learning.params import hierarchy_parameter_specs
 from gwr_predictor.nodes.node_base import COMMON_PARAMS, ParameterError
+from gwr_predictor.pipeline.params_file import flatten
 
 NODES = ["skeleton_source", "angle_extractor", "gwr_hierarchy", "delay_compensator", "nao_sim", "bag_recorder",
          "bag_player"]
@@ -28,7 +28,7 @@ def yaml_parameters(path: Path, node: str) -> dict:
     doc = yaml.safe_load(path.read_text())
     key = f"/**/{node}"
     assert key in doc, f"{path.name}: parameters must be under '{key}'"
-    return _flatten(doc[key]["ros__parameters"])
+    return flatten(doc[key]["ros__parameters"])
 
 
 @pytest.mark.parametrize("node", NODES)
@@ -47,7 +47,7 @@ def test_scenario_yamls_name_only_declared_parameters(path):
     for key, section in doc.items():
         node = key.rsplit("/", 1)[-1]
         specs = declared_specs(node)
-        values = _flatten(section["ros__parameters"])
+        values = flatten(section["ros__parameters"])
         assert set(values) <= set(specs), f"{path.name}: {node} has no parameters {sorted(set(values) - set(specs))}"
         for name, value in values.items():
             specs[name].check(value)

@@ -19,7 +19,7 @@ PYTHON_KEYS = {
     "pybullet": "python3-pybullet-pip",
 }
 # Imports with no rosdep key anywhere: installed with pip, as the README says.
-PIP_ONLY = {"rosbags": "rosbags", "mcap": "mcap"}
+PIP_ONLY = {"rosbags": "rosbags", "mcap": "mcap", "imageio_ffmpeg": "imageio-ffmpeg"}
 # ROS packages: the import name is the package name (and the rosdep key).
 ROS_PACKAGES = {
     "rclpy", "builtin_interfaces", "rcl_interfaces", "std_msgs", "sensor_msgs", "diagnostic_msgs",

@@ -25,6 +25,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "pretrain": ("gwr_predictor.commands.pretrain", "train a hierarchy offline and save a checkpoint"),
     "report": ("gwr_predictor.commands.report", "summarise a recorded pipeline bag: errors, lag, plot"),
     "latency": ("gwr_predictor.commands.latency", "latency percentiles per hop and message loss of a recorded run"),
+    "render": ("gwr_predictor.commands.render", "video of a recorded run: person, compensated and uncompensated Nao"),
 }
 
 

@@ -52,6 +52,8 @@ def node_parameters(path: Path, node: str = NODE_NAME) -> dict[str, Any]:
     """The flat (dotted) ros__parameters of `node` in a ROS params YAML (keys '/**', 'node', '/node', '/**/node')."""
     import yaml
 
+    from gwr_predictor.pipeline.params_file import flatten
+
     try:
         doc = yaml.safe_load(path.read_text()) or {}
     except (OSError, yaml.YAMLError) as exc:
@@ -60,19 +62,8 @@ def node_parameters(path: Path, node: str = NODE_NAME) -> dict[str, Any]:
     for key in ("/**", node, "/" + node, "/**/" + node):
         section = doc.get(key, {}) if isinstance(doc, dict) else {}
         params = section.get("ros__parameters", {}) if isinstance(section, dict) else {}
-        flat.update(_flatten(params))
+        flat.update(flatten(params))
     return flat
-
-
-def _flatten(tree: dict[str, Any], prefix: str = "") -> dict[str, Any]:
-    out: dict[str, Any] = {}
-    for key, value in tree.items():
-        name = f"{prefix}{key}"
-        if isinstance(value, dict):
-            out.update(_flatten(value, name + "."))
-        else:
-            out[name] = value
-    return out
 
 
 def hierarchy_params(flat: dict[str, Any]) -> HierarchyParams:

@@ -1,4 +1,5 @@
-"""What the ROS pipeline shares without ROS: message conventions, input gates, bags, run reports, latency, plots.
+"""What the ROS pipeline shares without ROS: message conventions, input gates, bags, run reports, latency, plots,
+videos.
 """
 
 from gwr_predictor._exports import lazy_exports
@@ -31,6 +32,11 @@ _EXPORTS = {
     "BagSummaryError": "run_report",
     "plot_angle_series": "plotting",
     "PlotError": "plotting",
+    "read_video_run": "video",
+    "render_video": "video",
+    "FrameRenderer": "video",
+    "VideoError": "video",
+    "VideoWriter": "video_files",
 }
 __all__ = sorted(_EXPORTS)
 __getattr__, __dir__ = lazy_exports(__name__, _EXPORTS)

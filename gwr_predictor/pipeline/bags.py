@@ -357,6 +357,8 @@ def read_bag(path: str | os.PathLike[str], topics: Iterable[str] | None = None, 
     reader = _open_reader(path)
     try:
         conns = [c for c in reader.connections if wanted is None or c.topic in wanted]
+        if not conns:
+            return  # (rosbags reads every topic when given no connection)
         for conn, timestamp, raw in reader.messages(connections=conns):
             msg = None
             if (decode or undecodable is not None) and conn.msgtype in TYPESTORE.types:

@@ -8,6 +8,7 @@ touches PyBullet's global default client) and a connection that is always closed
 from __future__ import annotations
 
 import math
+import os
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -50,6 +51,9 @@ class NaoSimulator:
         self.urdf_path = Path(urdf_path) if urdf_path is not None else default_urdf_path()
         if not self.urdf_path.is_file():
             raise SimulatorError(f"URDF not found: {self.urdf_path}")
+        if gui and not os.environ.get("DISPLAY"):
+            # PyBullet's GUI would exit the whole process without an X display: refuse instead.
+            raise SimulatorError("gui=True needs a display, but DISPLAY is not set (run headless with gui=False)")
         p = _pybullet()
         self._p = p
         self.client = p.connect(p.GUI if gui else p.DIRECT)
@@ -57,6 +61,8 @@ class NaoSimulator:
             raise SimulatorError(f"PyBullet could not connect ({'GUI' if gui else 'DIRECT'})")
         try:
             self._setup(gravity, floor)
+            if gui:  # the live view looks at the robot from the front, as the videos do
+                p.resetDebugVisualizerCamera(1.0, 70.0, -10.0, [0.0, 0.0, 0.0], physicsClientId=self.client)
         except Exception:
             self.close()
             raise
