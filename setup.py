@@ -39,6 +39,7 @@ setup(
         ("share/ament_index/resource_index/packages", [f"resource/{PACKAGE}"]),
         (f"share/{PACKAGE}", ["package.xml"]),
         (f"share/{PACKAGE}/config", glob("config/*.yaml")),
+        (f"share/{PACKAGE}/launch", glob("launch/*.launch.py")),
         (f"share/{PACKAGE}/urdf", ["gwr_predictor/robot/nao.urdf"]),
     ]
     + tree_data_files("bags", f"share/{PACKAGE}/bags"),

@@ -1,19 +1,27 @@
-"""bag_player: replays a rosbag2 MCAP bag with its recorded timing, publishing the raw CDR bytes.
+"""bag_player: replays a rosbag2 MCAP bag (directory or bare .mcap file) with its recorded timing,
+publishing the raw CDR bytes with the QoS the recorded publishers offered.
 
 Topic selection (`topics`), renaming (`remap`, e.g. "/skeleton:=/replayed/skeleton"), speed
-(`rate`), an optional wait for subscribers, looping, and `restamp`: shift every stamp in the data
-(JointState headers, the stamp in data[0] of the labelled arrays, DiagnosticArray headers) by the
-offset between recording and replay, so that nodes which compare stamps with their clock (the
-delay compensator's staleness check) see a live stream. Exits with 0 at the end of the bag.
+(`rate`), an optional wait for subscribers, looping, and two ways to make nodes that compare
+stamps with their clock (the delay compensator's staleness check) see a live stream:
+- `restamp`: shift every stamp in the data (JointState headers, the stamp in data[0] of the
+  labelled arrays, DiagnosticArray headers) by the offset between recording and replay;
+- `clock`: publish /clock (rosgraph_msgs/Clock) with the recorded time, for nodes started with
+  `use_sim_time:=true`; at `rate` 2 the simulated time runs twice as fast as the wall clock.
+The player itself schedules by the wall clock (it is the time source). Exits with 0 at the end of
+the bag.
 """
 
 from __future__ import annotations
 
+import math
 import time
 from pathlib import Path
 from typing import Any
 
+from rclpy.clock import Clock, ClockType
 from rclpy.duration import Duration
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
 from gwr_predictor.parameter_spec import ParamSpec
 from gwr_predictor.pipeline import bags
@@ -22,7 +30,7 @@ from . import messages
 from .node_base import NodeFatalError, ParameterError, PipelineNode, run_node, stream_qos
 
 PARAMS = (
-    ParamSpec("bag", "", "bag directory to replay (rosbag2, MCAP)"),
+    ParamSpec("bag", "", "bag to replay: a rosbag2 directory (MCAP) or a bare .mcap file"),
     ParamSpec("rate", 1.0, "replay speed factor (2.0 = twice as fast)", 0.01, 1000.0),
     ParamSpec("topics", [], "topics to replay (names as recorded); empty: every topic with messages"),
     ParamSpec("remap", [], "renames 'recorded:=published', e.g. '/skeleton:=/replayed/skeleton'"),
@@ -33,7 +41,23 @@ PARAMS = (
     ParamSpec("loop", False, "start again at the end of the bag"),
     ParamSpec("restamp", False, "shift the stamps inside the messages to the replay time"),
     ParamSpec("tick_s", 0.002, "scheduling period: messages go out at most this late (s)", 0.0005, 0.1),
+    ParamSpec("clock", False, "publish /clock with the recorded time (for nodes with use_sim_time:=true)"),
+    ParamSpec("clock_period_s", 0.005, "wall-clock period of /clock while playing (s); a node timer needs a "
+              "period above clock_period_s * rate to keep its rate", 0.001, 1.0),
 )
+
+_RELIABILITY = {"reliable": ReliabilityPolicy.RELIABLE, "best_effort": ReliabilityPolicy.BEST_EFFORT}
+_DURABILITY = {"volatile": DurabilityPolicy.VOLATILE, "transient_local": DurabilityPolicy.TRANSIENT_LOCAL}
+
+
+def publisher_qos(offered: list[Any]) -> QoSProfile:
+    """The recorded publishers' QoS (`bags.replay_qos`), or the pipeline's stream QoS for bags without it."""
+    chosen = bags.replay_qos(offered, stream_qos().depth)
+    if chosen is None:
+        return stream_qos()
+    return QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=chosen.depth,
+                      reliability=_RELIABILITY[chosen.reliability], durability=_DURABILITY[chosen.durability])
+
 
 class BagPlayerNode(PipelineNode):
     NODE_NAME = "bag_player"
@@ -42,7 +66,10 @@ class BagPlayerNode(PipelineNode):
         super().__init__(self.NODE_NAME, PARAMS)
         p = self.params
         if not p["bag"]:
-            raise ParameterError("parameter 'bag' is empty: give the bag directory to replay")
+            raise ParameterError("parameter 'bag' is empty: give the bag directory or .mcap file to replay")
+        if p["clock"] and p["restamp"]:
+            raise ParameterError("parameters 'clock' and 'restamp' exclude each other: with clock:=true the nodes "
+                                 "run on the recorded time, so the stamps must stay as recorded")
         try:
             self.remaps = bags.parse_remaps(p["remap"])
         except ValueError as exc:
@@ -59,9 +86,12 @@ class BagPlayerNode(PipelineNode):
             raise ParameterError(f"parameter 'topics': no messages on {missing} in {self.bag} "
                                  f"(it has messages on {sorted(stored)})")
         self.topics = sorted(wanted)
+        self.qos = {topic: publisher_qos(info.offered_qos.get(topic, [])) for topic in self.topics}
         self.publishers_ = {topic: self.create_publisher(messages.message_class(info.topics[topic][0]),
-                                                         self.remaps.get(topic, topic), stream_qos())
+                                                         self.remaps.get(topic, topic), self.qos[topic])
                             for topic in self.topics}
+        self.clock_pub = self.create_publisher(messages.Clock, "/clock", clock_qos()) if p["clock"] else None
+        self.last_clock_wall = -math.inf
         self.messages: list[bags.BagMessage] = []
         self.index = 0
         self.start_wall: float | None = None
@@ -69,10 +99,13 @@ class BagPlayerNode(PipelineNode):
         self.restamp_offset = 0.0
         self.wait_started = time.monotonic()
         self.load()
-        self.create_timer(p["tick_s"], self.tick)
+        # the wall clock, also under use_sim_time: the player is the time source, not a consumer
+        self.create_timer(p["tick_s"], self.tick, clock=Clock(clock_type=ClockType.STEADY_TIME))
         self.get_logger().info(f"replaying {len(self.messages)} messages of {self.bag} "
-                               f"({info.duration_s:.1f} s at rate {p['rate']}) on "
-                               + ", ".join(f"{t}->{self.publishers_[t].topic_name}" for t in self.topics))
+                               f"({info.duration_s:.1f} s at rate {p['rate']}"
+                               + (", publishing /clock" if p["clock"] else "") + ") on "
+                               + ", ".join(f"{t}->{self.publishers_[t].topic_name} "
+                                           f"({describe_qos(self.qos[t])})" for t in self.topics))
 
     def load(self) -> None:
         """Read the selected messages (raw) into memory: pipeline bags are a few MB."""
@@ -101,14 +134,28 @@ class BagPlayerNode(PipelineNode):
                 self.get_logger().warning(f"subscribers missing after {p['wait_timeout_s']} s; playing anyway")
         return waited >= p["start_delay_s"]
 
+    def publish_clock(self, recorded_ns: int) -> None:
+        """/clock at the recorded time `recorded_ns`, at most once per clock_period_s of wall time."""
+        wall = time.monotonic()
+        if self.clock_pub is None or wall - self.last_clock_wall < self.params["clock_period_s"]:
+            return
+        self.last_clock_wall = wall
+        self.clock_pub.publish(messages.clock_msg(recorded_ns))
+        self.counters.count("clock_published")
+
     def tick(self) -> None:
-        """Publish every message whose (scaled) recorded time has come."""
+        """Publish every message whose (scaled) recorded time has come, after the clock."""
         if self.start_wall is None:
+            self.publish_clock(self.first_ns)  # nodes see the start time while the player waits
             if not self.ready():
                 return
             self.start_wall = time.monotonic()
             self.restamp_offset = self.now_s() - self.first_ns * 1e-9
         elapsed_ns = (time.monotonic() - self.start_wall) * self.params["rate"] * 1e9
+        due = self.index < len(self.messages) and self.messages[self.index].timestamp_ns - self.first_ns <= elapsed_ns
+        if due:
+            self.last_clock_wall = -math.inf  # a message goes out: the clock first, so it is never behind
+        self.publish_clock(self.first_ns + int(elapsed_ns))
         while self.index < len(self.messages) and self.messages[self.index].timestamp_ns - self.first_ns <= elapsed_ns:
             self.publish(self.messages[self.index])
             self.index += 1
@@ -132,6 +179,17 @@ class BagPlayerNode(PipelineNode):
             pub.wait_for_all_acked(Duration(seconds=2))  # reliable subscribers got everything
         self.get_logger().info(f"end of {self.bag}: {self.index} messages published")
         self.finish(0)
+
+
+def clock_qos() -> QoSProfile:
+    """/clock as rclcpp's ClockQoS: keep last 1, best effort (what rclpy's time source subscribes with);
+    an old clock value is worth nothing once a newer one exists."""
+    return QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1, reliability=ReliabilityPolicy.BEST_EFFORT,
+                      durability=DurabilityPolicy.VOLATILE)
+
+
+def describe_qos(qos: QoSProfile) -> str:
+    return f"{qos.reliability.name.lower()}, {qos.durability.name.lower()}, depth {qos.depth}"
 
 
 def main(args: list[str] | None = None) -> int:

@@ -4,6 +4,10 @@ No rosbag2_py on PyPI, so recording is the package's own job: raw subscriptions 
 bytes from the wire, which `gwr_predictor.pipeline.bags.BagWriter` stores unchanged. The bag is flushed
 periodically (a crash loses at most one flush period; `bags.recover_bag` repairs it) and closed
 properly on Ctrl-C and SIGTERM. An unwritable path or a full disk stops the node with exit code 1.
+
+Each topic's entry in the bag carries the QoS profiles its publishers offer, read from the ROS
+graph when the topic's first message arrives (as rosbag2 records them), so that `ros2 bag play`
+and `bag_player` publish with them again.
 """
 
 from __future__ import annotations
@@ -11,6 +15,9 @@ from __future__ import annotations
 import time
 from collections.abc import Callable
 from pathlib import Path
+
+from rclpy.clock import Clock, ClockType
+from rclpy.qos import QoSProfile
 
 from gwr_predictor.parameter_spec import ParamSpec
 from gwr_predictor.pipeline import bags, conventions
@@ -46,6 +53,15 @@ def topic_types(resolve: Callable[[str], str], names: list[str]) -> dict[str, st
     return resolved
 
 
+def offered_profile(qos: QoSProfile) -> bags.Qos:
+    """An rclpy QoSProfile (as discovered for a publisher) -> the profile stored in the bag."""
+    return bags.qos_profile(history=qos.history.name, depth=qos.depth, reliability=qos.reliability.name,
+                            durability=qos.durability.name, deadline_ns=qos.deadline.nanoseconds,
+                            lifespan_ns=qos.lifespan.nanoseconds, liveliness=qos.liveliness.name,
+                            liveliness_lease_ns=qos.liveliness_lease_duration.nanoseconds,
+                            avoid_ros_namespace_conventions=qos.avoid_ros_namespace_conventions)
+
+
 class BagRecorderNode(PipelineNode):
     NODE_NAME = "bag_recorder"
 
@@ -59,7 +75,7 @@ class BagRecorderNode(PipelineNode):
             raise ParameterError(f"parameter 'topics': {exc}") from None
         if not topics:
             raise ParameterError("parameter 'topics' is empty: nothing to record")
-        self.writer = bags.BagWriter(path, topics)
+        self.writer = bags.BagWriter(path, topics, offered_qos=self.offered_qos)
         self.on_disk = 0  # messages written as of the last flush: what survives a SIGKILL
         self.failure: str | None = None
         try:
@@ -72,20 +88,44 @@ class BagRecorderNode(PipelineNode):
             self.create_subscription(messages.message_class(msgtype), topic,
                                      lambda raw, topic=topic: self.on_message(topic, raw),
                                      standard_messages.latched_qos() if latched else qos, raw=True)
-        self.create_timer(p["flush_period_s"], self.flush)
+        self.before_clock: list[tuple[str, bytes]] = []  # use_sim_time: received before the first /clock
+        # the wall clock: what a crash may lose is wall time, and under sim time /clock may stop
+        self.create_timer(p["flush_period_s"], self.flush, clock=Clock(clock_type=ClockType.STEADY_TIME))
         self.get_logger().info(f"recording {len(topics)} topics into {path}: {', '.join(topics)}")
 
+    def offered_qos(self, topic: str) -> list[bags.Qos]:
+        """The QoS profiles the topic's publishers offer now (one per publisher, as the graph reports them)."""
+        return [offered_profile(info.qos_profile) for info in self.get_publishers_info_by_topic(topic)]
+
     def on_message(self, topic: str, raw: bytes) -> None:
-        """Store the bytes as received, stamped with the receive time."""
+        """Store the bytes as received, stamped with the receive time (the node clock).
+
+        Under use_sim_time, messages that arrive before the first /clock (the clock still at 0) are
+        held and stamped with the first clock value, so that the bag's time line is the simulated one.
+        """
+        stamp = self.get_clock().now().nanoseconds
+        self.counters.count(f"recorded.{topic}")
+        if stamp == 0:
+            self.before_clock.append((topic, bytes(raw)))
+            self.counters.count("recorded_before_clock")
+            return
         try:
-            self.writer.write_raw(topic, self.get_clock().now().nanoseconds, raw)
+            self.write_held(stamp)
+            self.writer.write_raw(topic, stamp, raw)
         except bags.BagError as exc:
             self.stop_recording(exc)
-        self.counters.count(f"recorded.{topic}")
+
+    def write_held(self, stamp: int) -> None:
+        """Write the messages held back until the clock started, at `stamp`."""
+        held, self.before_clock = self.before_clock, []
+        for topic, raw in held:
+            self.writer.write_raw(topic, stamp, raw)
 
     def flush(self) -> None:
         """Put everything received on disk (a SIGKILL then loses at most one flush period)."""
         try:
+            if self.before_clock and self.get_clock().now().nanoseconds:
+                self.write_held(self.get_clock().now().nanoseconds)
             self.writer.flush()
         except bags.BagError as exc:
             self.stop_recording(exc)
@@ -109,6 +149,10 @@ class BagRecorderNode(PipelineNode):
                                  "were flushed before the failure: recover them with "
                                  f"gwr_predictor.pipeline.bags.recover_bag({str(self.writer.path)!r})")
         try:
+            if self.before_clock:  # use_sim_time and no /clock ever: nothing better than 0
+                self.get_logger().warning(f"no /clock during the recording: {len(self.before_clock)} messages "
+                                          "stamped 0 in the bag")
+                self.write_held(0)
             self.writer.close()
         except bags.BagError as exc:
             raise NodeFatalError(str(exc)) from None

@@ -63,6 +63,7 @@ class DelayCompensatorNode(PipelineNode):
         self.robot_state_time = -np.inf
         self.obs_stamp: float | None = None
         self.fallback_sent_for: float | None = None  # the observation last commanded as a fallback
+        self.command_stamp = 0.0  # stamp of the last command
         output = p["output"]
         self.command_pub = (self.create_publisher(messages.JointState, conventions.TOPIC_COMMAND, stream_qos())
                             if output in ("joint_state", "both") else None)
@@ -162,8 +163,11 @@ class DelayCompensatorNode(PipelineNode):
                                          f"commanding the latest observation: {out.fallback_reason}", "info")
         self.counters.count(f"step_used.{out.step_used}")
         self.counters.count("commands.published")
+        # strictly increasing stamps even when two commands fall on one tick of a simulated clock
+        # (/clock moves in steps), so that the robot does not reject the newer one as a repeat
+        self.command_stamp = max(now, self.command_stamp + 1e-6)
         if self.command_pub is not None:
-            self.command_pub.publish(messages.joint_state(now, ARM_JOINTS, out.angles))
+            self.command_pub.publish(messages.joint_state(self.command_stamp, ARM_JOINTS, out.angles))
         if self.trajectory_pub is not None:
             # stamp 0: the controller starts the trajectory when it arrives (one stamped in the past
             # could end in the past and be refused); the pose is reached trajectory_time_s later

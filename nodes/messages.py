@@ -12,6 +12,7 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray, MultiArrayDimension
 
@@ -28,6 +29,12 @@ def to_time(seconds: float) -> Time:
 
 
 from_time = conventions.stamp_seconds  # builtin_interfaces/Time -> seconds (float)
+
+
+def clock_msg(nanoseconds: int) -> Clock:
+    """rosgraph_msgs/Clock at `nanoseconds` (exact: no float on the way)."""
+    sec, nanosec = divmod(int(nanoseconds), 1_000_000_000)
+    return Clock(clock=Time(sec=sec, nanosec=nanosec))
 
 
 # --- labelled Float64MultiArray ----------------------------------------------------------------

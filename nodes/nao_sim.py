@@ -72,7 +72,7 @@ class NaoSimNode(PipelineNode):
                                         simulator=self.sim)
         except RobotError as exc:
             raise ParameterError(str(exc)) from None
-        self.t0 = self.now_s()
+        self.t0: float | None = None  # node-clock time of robot time 0: the first tick (under sim time, /clock)
         self.gate = self.arm_gate("joint_commands")
         self.state_pub = self.create_publisher(messages.JointState, conventions.TOPIC_ROBOT_STATE, stream_qos())
         self.publish_robot_description()
@@ -91,7 +91,14 @@ class NaoSimNode(PipelineNode):
     def advance(self) -> None:
         """Step the robot up to the node clock (whole control periods), with the delay in force."""
         p = self.params
-        t = self.now_s() - self.t0
+        now = self.now_s()
+        if now == 0.0:
+            return  # use_sim_time and no /clock yet: no time has passed
+        if self.t0 is None or now - self.t0 < self.robot.t - 1.0:
+            if self.t0 is not None:  # the clock jumped back (a looping replay): carry on from here
+                self.get_logger().info(f"node clock jumped back to {now:.3f} s: robot time continues")
+            self.t0 = now - self.robot.t
+        t = now - self.t0
         if p["delay_amplitude_s"] > 0.0:
             self.robot.delay_s = sine_delay(t, p["delay_s"], p["delay_amplitude_s"], p["delay_period_s"])
         if t > self.robot.t:

@@ -5,6 +5,10 @@
 - the counters and input gates are library code (`gwr_predictor.pipeline.gates`).
 - `PipelineNode`: a Node with the above plus a periodic DiagnosticArray on /diagnostics carrying
   every counter, a `done` future for nodes that finish on their own, and an `on_shutdown` hook.
+  Every timer and stamp uses the node clock, so `use_sim_time:=true` with a /clock source (e.g.
+  `bag_player clock:=true rate:=2.0`) runs the node on simulated time, faster than real time too;
+  without /clock that clock stands at 0 and nothing timed happens, so the node warns
+  (`SimClockWatch`). Diagnostics run on the wall clock: a node reports even while its clock stands.
 - `run_node`: init, build, spin, quiet exit on Ctrl-C / SIGTERM, final hook, destroy, shutdown;
   params files and ROS arguments are checked first (exit 2 with a message), unknown parameter names
   warned about (`gwr_predictor.pipeline.params_file`).
@@ -23,6 +27,7 @@ from typing import Any
 
 import rclpy
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor, SetParametersResult
+from rclpy.clock import Clock, ClockType
 from rclpy.duration import Duration
 from rclpy.exceptions import (
     InvalidNamespaceException,
@@ -157,6 +162,51 @@ COMMON_PARAMS = (
 )
 
 
+class SimClockWatch:
+    """Under use_sim_time, says in the log when /clock is missing or has stopped, instead of silence.
+
+    Checked once per wall-clock second: no /clock `no_clock_after_s` after the start (the ROS clock
+    still at 0) is warned about every `throttle_s`; the first /clock is logged; a simulated time that
+    stands still for `stalled_after_s` (the clock source stopped or paused) is logged once per stall.
+    """
+
+    def __init__(self, node: Node, counters: RejectionCounter, no_clock_after_s: float = 5.0,
+                 stalled_after_s: float = 5.0) -> None:
+        self._node = node
+        self._counters = counters
+        self._no_clock_after_s = no_clock_after_s
+        self._stalled_after_s = stalled_after_s
+        self._started = time.monotonic()
+        self._last_ns = 0
+        self._last_change = self._started
+        self._stall_reported = False
+        self.timer = node.create_timer(1.0, self.check, clock=Clock(clock_type=ClockType.STEADY_TIME))
+
+    def check(self) -> None:
+        now_ns = self._node.get_clock().now().nanoseconds
+        wall = time.monotonic()
+        logger = self._node.get_logger()
+        if now_ns == 0:
+            waited = wall - self._started
+            if waited >= self._no_clock_after_s:
+                self._counters.count("sim_time.no_clock_checks")
+                self._counters.warn_throttled(
+                    "sim_time.no_clock_checks",
+                    f"use_sim_time is true but no /clock received for {waited:.0f} s: the node clock stands at 0, "
+                    "so its timers do not fire and it publishes nothing timed; start a clock source "
+                    "(bag_player clock:=true) or run with use_sim_time:=false")
+            return
+        if self._last_ns == 0:
+            logger.info(f"/clock received: simulated time {now_ns * 1e-9:.3f} s")
+        if now_ns != self._last_ns:
+            self._last_ns, self._last_change, self._stall_reported = now_ns, wall, False
+        elif not self._stall_reported and wall - self._last_change >= self._stalled_after_s:
+            self._stall_reported = True
+            self._counters.count("sim_time.stalls")
+            logger.warning(f"simulated time has stood at {now_ns * 1e-9:.3f} s for {self._stalled_after_s:.0f} s "
+                           "(the /clock source stopped or paused): timers wait until it moves again")
+
+
 class PipelineNode(Node):
     """A Node with validated parameters, counters published on /diagnostics and a final hook."""
 
@@ -178,7 +228,10 @@ class PipelineNode(Node):
         self.instance_id = f"{socket.gethostname()}:{os.getpid()}:{self.started_ns}"
         # absolute: diagnostic_aggregator listens on /diagnostics whatever the node's namespace
         self._diag_pub = self.create_publisher(messages.DiagnosticArray, conventions.DIAGNOSTICS_TOPIC, status_qos())
-        self._diag_timer = self.create_timer(self.params["diagnostics_period_s"], self.publish_diagnostics)
+        self._diag_timer = self.create_timer(self.params["diagnostics_period_s"], self.publish_diagnostics,
+                                             clock=Clock(clock_type=ClockType.STEADY_TIME))
+        self.uses_sim_time = bool(self.get_parameter("use_sim_time").value)
+        self._sim_clock_watch = SimClockWatch(self, self.counters) if self.uses_sim_time else None
         if self.params["stop_if_duplicate"]:
             self.create_subscription(messages.DiagnosticArray, conventions.DIAGNOSTICS_TOPIC,
                                      self._check_duplicate, status_qos())

@@ -65,7 +65,7 @@ class SkeletonSourceNode(PipelineNode):
         self.current: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None  # schedule s, positions, kept
         self.index = 0
         self.next_start: float | None = None  # node-clock time of the next sequence's first frame
-        self.started_at = self.now_s()
+        self.started_at: float | None = None  # the first tick (under sim time, the first /clock)
         self.create_timer(p["tick_s"], self.tick)
 
     def sequence_iterator(self) -> Iterator[SkeletonSequence]:
@@ -126,6 +126,8 @@ class SkeletonSourceNode(PipelineNode):
 
     def ready(self, now: float) -> bool:
         p = self.params
+        if self.started_at is None:
+            self.started_at = now
         if p["wait_for_subscribers"] and self.pub.get_subscription_count() < p["wait_for_subscribers"]:
             return False
         return now - self.started_at >= p["start_delay_s"]

@@ -5,14 +5,17 @@
 # The player restamps the messages to the replay time, so the nodes see a live stream.
 #
 # usage: scripts/replay.sh BAG [--out DIR] [--topic /skeleton|/arm_angles] [--rate R]
-#                          [--checkpoint FILE] [--params-dir DIR] [--no-baseline]
-#   BAG                a bag directory (e.g. bags/demo_sample or results/<run>/bag)
+#                          [--checkpoint FILE] [--params-dir DIR] [--no-baseline] [--sim-time]
+#   BAG                a bag directory (e.g. bags/demo_sample or results/<run>/bag) or a bare .mcap file
 #   --out DIR          run folder for the new bag, model and logs (default results/replay_<time>)
 #   --topic T          what to replay (default /skeleton)
 #   --rate R           replay speed (default 1.0; the robot's delay is in real time, so keep 1.0
-#                      when the robot's lag matters)
+#                      when the robot's lag matters, or use --sim-time)
 #   --checkpoint FILE  learner start model (default: a fresh one)
 #   --no-baseline      no uncompensated robot
+#   --sim-time         run every node on the recorded time: the player publishes /clock (at --rate)
+#                      instead of restamping, the nodes use_sim_time:=true (the robot's delay then
+#                      runs on the replayed clock, so any --rate keeps the lag as recorded)
 # Then: gwr-predictor report DIR
 set -euo pipefail
 HERE="$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)"
@@ -21,8 +24,8 @@ source "$HERE/env.sh"
 # shellcheck source=lib.sh
 source "$HERE/lib.sh"
 
-[ $# -ge 1 ] || { sed -n '2,16p' "$0"; exit 2; }
-case "$1" in -h|--help) sed -n '2,16p' "$0"; exit 0 ;; esac
+[ $# -ge 1 ] || { sed -n '2,19p' "$0"; exit 2; }
+case "$1" in -h|--help) sed -n '2,19p' "$0"; exit 0 ;; esac
 bag="$1"
 shift
 out=""
@@ -31,6 +34,7 @@ rate="1.0"
 checkpoint=""
 params_dir="$GWR_ROOT/config"
 baseline=1
+sim_time=0
 while [ $# -gt 0 ]; do
     case "$1" in
         --out) out="$2"; shift 2 ;;
@@ -39,11 +43,16 @@ while [ $# -gt 0 ]; do
         --checkpoint) checkpoint="$2"; shift 2 ;;
         --params-dir) params_dir="$2"; shift 2 ;;
         --no-baseline) baseline=0; shift ;;
+        --sim-time) sim_time=1; shift ;;
         *) gwr_die "unknown argument $1 (see --help)" ;;
     esac
 done
-[ -f "$bag/metadata.yaml" ] || gwr_die "$bag is not a bag directory (no metadata.yaml)"
-bag="$(cd "$bag" && pwd)"
+if [ -f "$bag" ] && [[ "$bag" == *.mcap ]]; then
+    bag="$(cd "$(dirname "$bag")" && pwd)/$(basename "$bag")"
+else
+    [ -f "$bag/metadata.yaml" ] || gwr_die "$bag is neither a bag directory (no metadata.yaml) nor a .mcap file"
+    bag="$(cd "$bag" && pwd)"
+fi
 case "$topic" in /skeleton|/arm_angles) ;; *) gwr_die "--topic must be /skeleton or /arm_angles" ;; esac
 [ -z "$checkpoint" ] || [ -f "$checkpoint" ] || gwr_die "--checkpoint $checkpoint not found"
 out="$(gwr_run_folder "$out" replay)"
@@ -58,6 +67,7 @@ start_node() {  # start_node LABEL NODE [extra ROS args...]
     shift 2
     local a
     mapfile -t a < <(gwr_node_args "$node" "$params_dir")
+    if [ "$sim_time" = 1 ]; then a+=(-p use_sim_time:=true); fi
     gwr_start "$label" "$out" "$node" "${a[@]}" "$@"
 }
 
@@ -81,7 +91,8 @@ fi
 for n in "${waiting[@]}"; do gwr_wait_ready "$n" 60; done
 # start once every consumer of the replayed topic (and the recorder) is matched, so nothing is lost
 if [ "$topic" = /skeleton ]; then subscribers=2; else subscribers=$((3 + baseline)); fi
-start_node bag_player bag_player -p "bag:=$bag" -p "topics:=[$topic]" -p "rate:=$rate" -p restamp:=true \
+if [ "$sim_time" = 1 ]; then timing=(-p clock:=true -p restamp:=false -p use_sim_time:=false); else timing=(-p restamp:=true); fi
+start_node bag_player bag_player -p "bag:=$bag" -p "topics:=[$topic]" -p "rate:=$rate" "${timing[@]}" \
     -p "wait_for_subscribers:=$subscribers" -p start_delay_s:=1.0
 status=0
 gwr_wait_exit bag_player || status=$?

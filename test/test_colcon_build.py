@@ -38,6 +38,7 @@ def test_colcon_install_has_every_node_config_and_index_marker(installed):
         assert (share / "gwr_predictor" / "config" / f"{node}.yaml").is_file()
     assert (share / "ament_index" / "resource_index" / "packages" / "gwr_predictor").is_file()
     assert (share / "gwr_predictor" / "package.xml").is_file()
+    assert (share / "gwr_predictor" / "launch" / "pipeline.launch.py").is_file()  # where ros2 launch looks
 
     # the CLI from the install space: its subpackages (commands, learning, data...) are installed
     site = next((installed / "gwr_predictor" / "lib").glob("python3*/site-packages"))

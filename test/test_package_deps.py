@@ -7,7 +7,7 @@ import xml.etree.ElementTree as ET
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-RUNTIME_DIRS = ("gwr_predictor", "nodes")
+RUNTIME_DIRS = ("gwr_predictor", "nodes", "launch")
 
 # Python import -> rosdep key (checked against ros/rosdistro rosdep/python.yaml, 2026-12).
 PYTHON_KEYS = {
@@ -24,6 +24,7 @@ PIP_ONLY = {"rosbags": "rosbags", "mcap": "mcap", "imageio_ffmpeg": "imageio-ffm
 ROS_PACKAGES = {
     "rclpy", "builtin_interfaces", "rcl_interfaces", "std_msgs", "sensor_msgs", "diagnostic_msgs",
     "visualization_msgs", "trajectory_msgs", "rosgraph_msgs", "geometry_msgs",
+    "launch", "launch_ros", "ament_index_python",  # launch/pipeline.launch.py
 }
 
 

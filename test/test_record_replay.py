@@ -57,8 +57,9 @@ def test_replayed_angles_reproduce_the_recorded_predictions_exactly(ros, tmp_pat
     replay_recorder = ros.start("bag_recorder", label="recorder_replay", params={
         **FAST, "path": str(tmp_path / "replay"), "topics": ["predictions"]})
     learner = ros.start("gwr_hierarchy", label="learner_replay", params=learner_params)
-    for name in ("/bag_recorder", "/gwr_hierarchy"):
-        ros.wait_for_node(diagnostics, name, timeout=60)
+    # their 'ready' lines, not /diagnostics: a late final status of the live recorder could pass for one
+    for proc in (replay_recorder, learner):
+        ros.wait_for_log(proc, "]: ready", timeout=60)
     probe.wait_for_graph({"/predictions": ("gwr_hierarchy", ["bag_recorder"])})
     code, output = ros.run("bag_player", timeout=60, params={
         **FAST, "bag": str(tmp_path / "live"), "topics": ["/arm_angles"], "rate": 4.0,

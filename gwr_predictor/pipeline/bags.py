@@ -9,6 +9,13 @@ Crash safety: rosbags keeps the current MCAP chunk (up to 1 MiB) in memory and w
 summary, footer and metadata.yaml only on close. `BagWriter.flush()` (or `flush_every`) closes the
 pending chunk and flushes the file, so after a crash everything up to the last flush is on disk;
 `recover_bag()` rebuilds a valid bag (MCAP summary + metadata.yaml) from those chunks.
+
+Offered QoS: as rosbag2 does, each topic carries the QoS profiles its publishers offered
+(`offered_qos_profiles` in metadata.yaml and in the MCAP channel metadata), so that `ros2 bag play`
+and `bag_player` replay with them (`replay_qos`). The writer therefore adds a topic's connection
+when its first message arrives (the publishers are known by then) or, without messages, on close.
+
+Reading accepts a bag directory or a bare `.mcap` file (e.g. one copied out of a bag).
 """
 
 from __future__ import annotations
@@ -16,14 +23,16 @@ from __future__ import annotations
 import os
 import shutil
 import struct
-from collections.abc import Iterable, Iterator, Mapping
-from dataclasses import dataclass
+from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, NamedTuple
 
 import numpy as np
+from rosbags.interfaces import Qos, QosDurability, QosHistory, QosLiveliness, QosReliability, QosTime
 from rosbags.rosbag2 import Reader, StoragePlugin, Writer
 from rosbags.rosbag2.errors import ReaderError, WriterError
+from rosbags.rosbag2.metadata import parse_qos
 from rosbags.typesys import Stores, get_typestore
 
 from gwr_predictor.errors import GwrPredictorError
@@ -63,6 +72,8 @@ class BagInfo:
     start_ns: int
     end_ns: int
     topics: dict[str, tuple[str, int]]
+    #: topic -> the QoS profiles its publishers offered while recording (empty: not recorded)
+    offered_qos: dict[str, list[Qos]] = field(default_factory=dict)
 
     @property
     def duration_s(self) -> float:
@@ -122,6 +133,64 @@ def deserialize(raw: bytes, msgtype: str) -> Any:
     return TYPESTORE.deserialize_cdr(raw, msgtype)
 
 
+# --- offered QoS ---------------------------------------------------------------------------------
+
+_INFINITE_NS = 2**63 - 1  # RMW_DURATION_INFINITE
+
+
+def _qos_time(ns: int) -> QosTime:
+    sec, nsec = divmod(min(max(0, int(ns)), _INFINITE_NS), 1_000_000_000)
+    return QosTime(sec, nsec)
+
+
+def qos_profile(*, history: str, depth: int, reliability: str, durability: str, deadline_ns: int = _INFINITE_NS,
+                lifespan_ns: int = _INFINITE_NS, liveliness: str = "automatic",
+                liveliness_lease_ns: int = _INFINITE_NS, avoid_ros_namespace_conventions: bool = False) -> Qos:
+    """One offered QoS profile as stored in a bag, from policy names ('keep_last', 'reliable', ...).
+
+    Policy names are rclpy's enum names in any case, so a node converts with `policy.name`.
+    BagError names a policy value that ROS 2 does not have.
+    """
+    def policy(enum: Any, kind: str, value: str) -> Any:
+        try:
+            return enum[str(value).upper()]
+        except KeyError:
+            raise BagError(f"QoS {kind} {value!r} is not one of {[m.name.lower() for m in enum]}") from None
+
+    return Qos(policy(QosHistory, "history", history), max(0, int(depth)),
+               policy(QosReliability, "reliability", reliability), policy(QosDurability, "durability", durability),
+               _qos_time(deadline_ns), _qos_time(lifespan_ns), policy(QosLiveliness, "liveliness", liveliness),
+               _qos_time(liveliness_lease_ns), bool(avoid_ros_namespace_conventions))
+
+
+@dataclass(frozen=True)
+class ReplayQos:
+    """The QoS to publish a recorded topic with: policy names in lower case, depth."""
+
+    reliability: str
+    durability: str
+    depth: int
+
+
+def replay_qos(profiles: Iterable[Qos], default_depth: int) -> ReplayQos | None:
+    """The publisher QoS that every recorded subscriber can match, as `ros2 bag play` chooses it.
+
+    One profile (or several alike): its reliability and durability. Publishers that differed: the
+    weakest offer, reliable only if every publisher was reliable and transient-local only if every
+    one was, so that no subscriber that matched one of them is refused. Depth: the recorded one, or
+    `default_depth` where DDS did not report it (depth 0). None without profiles (old bags): the
+    caller keeps its default.
+    """
+    profiles = list(profiles)
+    if not profiles:
+        return None
+    reliable = all(q.reliability == QosReliability.RELIABLE for q in profiles)
+    transient = all(q.durability == QosDurability.TRANSIENT_LOCAL for q in profiles)
+    depth = max(q.depth for q in profiles) or default_depth
+    return ReplayQos("reliable" if reliable else "best_effort", "transient_local" if transient else "volatile",
+                     depth)
+
+
 # --- writing ------------------------------------------------------------------------------------
 
 
@@ -129,9 +198,12 @@ class BagWriter:
     """A rosbag2 (version 9, MCAP) bag writer for a fixed set of topics; use as a context manager.
 
     `flush_every` > 0 flushes after that many messages (see the module docstring on crashes).
+    `offered_qos(topic)`, when given, returns the QoS profiles the topic's publishers offer; it is
+    asked when the topic's first message is written (or on close for a topic without messages).
     """
 
-    def __init__(self, path: str | os.PathLike[str], topics: Mapping[str, str], *, flush_every: int = 0) -> None:
+    def __init__(self, path: str | os.PathLike[str], topics: Mapping[str, str], *, flush_every: int = 0,
+                 offered_qos: Callable[[str], Sequence[Qos]] | None = None) -> None:
         self.path = Path(path)
         if not topics:
             raise BagError(f"{self.path}: BagWriter needs at least one topic")
@@ -142,6 +214,7 @@ class BagWriter:
             raise BagError(f"{self.path}: flush_every must be an int >= 0, got {flush_every!r}")
         self.topics = dict(topics)
         self.flush_every = flush_every
+        self.offered_qos = offered_qos
         self.messages_written: dict[str, int] = dict.fromkeys(self.topics, 0)
         self._writer: Writer | None = None
         self._connections: dict[str, Any] = {}
@@ -167,19 +240,29 @@ class BagWriter:
         except (OSError, WriterError) as err:
             raise BagError(f"{self.path}: cannot create bag: {err}") from err
         self._writer = writer
+
+    def _connection(self, topic: str) -> Any:
+        """The topic's connection, added on first use with the QoS its publishers offer now."""
+        conn = self._connections.get(topic)
+        if conn is not None:
+            return conn
+        writer = self._require_open()
+        msgtype = self.topics.get(topic)
+        if msgtype is None:
+            raise BagError(f"{self.path}: topic {topic!r} was not declared (declared: {sorted(self.topics)})")
+        qos = list(self.offered_qos(topic)) if self.offered_qos is not None else []
         try:
-            for topic, msgtype in self.topics.items():
-                self._connections[topic] = writer.add_connection(topic, msgtype, typestore=TYPESTORE)
+            conn = writer.add_connection(topic, msgtype, typestore=TYPESTORE, offered_qos_profiles=qos)
         except (OSError, WriterError) as err:
             self._abort()
-            raise BagError(f"{self.path}: cannot add topics: {err}") from err
+            raise BagError(f"{self.path}: cannot add topic {topic!r}: {err}") from err
+        self._connections[topic] = conn
+        return conn
 
     def write_raw(self, topic: str, timestamp_ns: int, data: bytes | memoryview) -> None:
         """Store CDR bytes as received from DDS (receive time `timestamp_ns`)."""
         writer = self._require_open()
-        conn = self._connections.get(topic)
-        if conn is None:
-            raise BagError(f"{self.path}: topic {topic!r} was not declared (declared: {sorted(self.topics)})")
+        conn = self._connection(topic)
         if isinstance(timestamp_ns, bool) or not isinstance(timestamp_ns, (int, np.integer)) or timestamp_ns < 0:
             raise BagError(f"{self.path}: timestamp_ns must be an int >= 0, got {timestamp_ns!r}")
         try:
@@ -214,9 +297,11 @@ class BagWriter:
 
     def close(self) -> None:
         """Write the MCAP summary and metadata.yaml (idempotent)."""
-        writer, self._writer = self._writer, None
-        if writer is None:
+        if self._writer is None:
             return
+        for topic in self.topics:  # topics without messages are listed too, as rosbag2 does
+            self._connection(topic)
+        writer, self._writer = self._writer, None
         try:
             writer.close()
         except (OSError, WriterError) as err:
@@ -238,8 +323,16 @@ class BagWriter:
 
 
 def _open_reader(path: Path) -> Reader:
+    """A rosbags Reader of a bag directory or of a bare .mcap file."""
+    if path.is_file() and path.suffix == ".mcap":
+        try:
+            reader = Reader(path)
+            reader.open()
+        except (ReaderError, OSError, KeyError, ValueError, struct.error) as err:
+            raise BagError(f"{path}: unreadable MCAP file: {err}") from err
+        return reader
     if not path.is_dir():
-        raise BagError(f"{path}: not a bag directory")
+        raise BagError(f"{path}: neither a bag directory nor a .mcap file")
     if not (path / "metadata.yaml").is_file():
         raise BagError(f"{path}: no metadata.yaml (writer not closed? try recover_bag({str(path)!r}))")
     try:
@@ -303,12 +396,15 @@ def bag_info(path: str | os.PathLike[str]) -> BagInfo:
     reader = _open_reader(path)
     try:
         topics: dict[str, tuple[str, int]] = {}
+        qos: dict[str, list[Qos]] = {}
         for conn in reader.connections:
             old = topics.get(conn.topic, (conn.msgtype, 0))
             topics[conn.topic] = (conn.msgtype, old[1] + conn.msgcount)
+            qos.setdefault(conn.topic, []).extend(getattr(conn.ext, "offered_qos_profiles", []))
         count = reader.message_count
-        return BagInfo(path, "mcap" if any(p.suffix == ".mcap" for p in path.iterdir()) else "sqlite3", count,
-                       reader.start_time if count else 0, reader.end_time - 1 if count else 0, topics)
+        files = [path] if path.is_file() else list(path.iterdir())
+        return BagInfo(path, "mcap" if any(p.suffix == ".mcap" for p in files) else "sqlite3", count,
+                       reader.start_time if count else 0, reader.end_time - 1 if count else 0, topics, qos)
     finally:
         reader.close()
 
@@ -320,6 +416,7 @@ class _Salvage(NamedTuple):
     channels: dict[int, tuple[str, str]]  # channel id -> (topic, msgtype)
     messages: list[tuple[int, int, bytes]]  # (channel id, log_time, data)
     complete: bool  # the file had its footer
+    qos: dict[str, str]  # topic -> offered_qos_profiles (YAML) of its channel
 
 
 def _salvage_mcap(mcap_path: Path) -> _Salvage:
@@ -332,12 +429,15 @@ def _salvage_mcap(mcap_path: Path) -> _Salvage:
     channels: dict[int, tuple[str, str]] = {}
     messages: list[tuple[int, int, bytes]] = []
     complete = False
+    qos: dict[str, str] = {}
 
     def take(record: Any) -> None:
         if isinstance(record, Schema):
             schemas[record.id] = record.name
         elif isinstance(record, Channel):
             channels[record.id] = (record.topic, schemas.get(record.schema_id, ""))
+            if record.metadata.get("offered_qos_profiles"):
+                qos[record.topic] = record.metadata["offered_qos_profiles"]
         elif isinstance(record, Message) and record.channel_id in channels:
             messages.append((record.channel_id, record.log_time, bytes(record.data)))
 
@@ -355,7 +455,7 @@ def _salvage_mcap(mcap_path: Path) -> _Salvage:
                     take(record)
         except (McapError, struct.error, ValueError):
             pass  # the file ends inside a record (or a compressed chunk is cut): keep what was read
-    return _Salvage(channels, messages, complete)
+    return _Salvage(channels, messages, complete, qos)
 
 
 def _mcap_complete(mcap_path: Path) -> bool:
@@ -407,7 +507,11 @@ def recover_bag(path: str | os.PathLike[str]) -> BagInfo:
     try:
         topics = {topic: msgtype for topic, msgtype in salvage.channels.values()}
         cid_topic = {cid: topic for cid, (topic, _) in salvage.channels.items()}
-        with BagWriter(staging, topics) as writer:
+        try:
+            offered = {topic: parse_qos(text) for topic, text in salvage.qos.items()}
+        except Exception:  # unreadable QoS text: the messages matter more than their QoS
+            offered = {}
+        with BagWriter(staging, topics, offered_qos=lambda topic: offered.get(topic, [])) as writer:
             for cid, log_time, data in sorted(salvage.messages, key=lambda m: m[1]):
                 writer.write_raw(cid_topic[cid], log_time, data)
         damaged.rename(damaged.with_name(damaged.name + ".damaged"))
