@@ -2,6 +2,8 @@
 rule, skeleton reordering, the corrupt-checkpoint policy, the sine delay, the robot-state timeout and
 the one skeleton -> median -> angles -> clip path."""
 
+import warnings
+
 import numpy as np
 import pytest
 
@@ -11,8 +13,8 @@ from gwr_predictor.data.extraction import extract_angles, frame_angles
 from gwr_predictor.learning.checkpoint import set_aside
 from gwr_predictor.learning.params import hierarchy_parameter_specs
 from gwr_predictor.parameter_spec import ParameterError, ParamSpec
-from gwr_predictor.pipeline.conventions import SKELETON_JOINTS, split_stamp, stamp_seconds
-from gwr_predictor.pipeline.gates import RejectionCounter, SkeletonReorder, missing_frames
+from gwr_predictor.pipeline.conventions import ARM_JOINTS, SKELETON_JOINTS, split_stamp, stamp_seconds
+from gwr_predictor.pipeline.gates import ArmAnglesGate, RejectionCounter, SkeletonReorder, missing_frames
 from gwr_predictor.robot.compensator import DelayCompensator, recent_state
 from gwr_predictor.robot.delayed_arm import sine_delay
 from gwr_predictor.robot.nao import clip_to_limits
@@ -112,3 +114,14 @@ def test_one_extraction_path_clips_once_and_the_dataset_uses_it():
     np.testing.assert_array_equal(data.angles, ext.angles)
     clipped, raw = frame_angles(seq.positions[1])
     np.testing.assert_array_equal(clipped, clip_to_limits(raw))
+
+
+def test_arm_angles_gate_rejects_huge_and_non_finite_angles_without_numeric_warnings():
+    counters = RejectionCounter(_Log())
+    gate = ArmAnglesGate(counters, "arm_angles", check_stamps=False)
+    angles = np.zeros(len(ARM_JOINTS))
+    angles[:2] = [1e308, np.nan]  # the rejection's message once overflowed while rounding 1e308
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert gate.accept(1.0, ARM_JOINTS, angles) is None
+    assert counters.get("rejected.arm_angles.non_finite") == 1

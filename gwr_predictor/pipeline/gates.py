@@ -135,7 +135,7 @@ class ArmAnglesGate:
             self._reject("missing_joints" if "missing joints" in str(exc) else "layout", str(exc))
             return None
         if not np.all(np.isfinite(angles)):
-            self._reject("non_finite", f"non-finite angles {np.round(angles, 3).tolist()}")
+            self._reject("non_finite", f"non-finite angles {np.array2string(angles, precision=3, separator=', ')}")
             return None
         if np.any(angles < self._lo - self._margin) or np.any(angles > self._hi + self._margin):
             self._reject("out_of_limits", f"angles beyond the joint limits by more than {self._margin} rad")
