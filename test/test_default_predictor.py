@@ -117,6 +117,28 @@ def test_checkpoint_continues_bit_for_bit(tmp_path):
     assert again.neuron_counts == model.neuron_counts
 
 
+def test_a_checkpoint_with_the_first_by_age_ring_continues_bit_for_bit():
+    """The gate first kept its pending predictions as a ring by age (row r made r + 1 steps ago);
+    such a state, built here from what the gate predicted at each step, loads and continues alike."""
+    model = make_gated_llm()
+    x = _periodic(300)
+    h, joints = model.params.horizon, model.params.joints
+    made = []  # (newest pose, model step - pose) per step, NaN where the gate made no prediction
+    for t, f in enumerate(x[:200]):
+        model.step(None if t == 197 else f)
+        diff = model._out_diff
+        made.append((model._last.copy(), diff.copy()) if diff is not None
+                    else (np.full(joints, np.nan), np.full((h, joints), np.nan)))
+    header, arrays = model.state()
+    del header["t"], arrays["gate:pending"], arrays["gate:valid"]
+    arrays["gate:pose"] = np.stack([made[-1 - r][0] for r in range(h)])
+    arrays["gate:diff"] = np.stack([made[-1 - r][1] for r in range(h)])
+    again = GatedPredictor.from_state(header, arrays)
+    for f in x[200:]:
+        np.testing.assert_array_equal(model.step(f), again.step(f))
+    assert again.errors() == model.errors()  # every pending prediction was scored once, in both
+
+
 def test_bad_checkpoint_and_bad_output_are_named(tmp_path):
     path = tmp_path / "m.npz"
     make_gated_llm().save(path)

@@ -28,6 +28,7 @@ import numpy as np
 
 from gwr_predictor.errors import GwrPredictorError
 from gwr_predictor.learning.checkpoint import CheckpointError, read_checkpoint, write_checkpoint
+from gwr_predictor.pending import PendingPredictions
 from gwr_predictor.pipeline.conventions import DEFAULT_HORIZON
 from gwr_predictor.predictors.baselines import N_JOINTS, observation
 
@@ -74,14 +75,13 @@ class GatedPredictor:
         shape = (p.horizon, p.joints)
         self._sxy, self._sxx = np.zeros(shape), np.zeros(shape)
         self._scored = np.zeros(p.horizon, dtype=np.int64)
-        self._steps = np.arange(p.horizon)
+        # per prediction: [newest pose at prediction time, model step k - that pose], filed by target step
+        self._pending = PendingPredictions(p.horizon, p.joints, lead=(2,))
+        self._t = 0  # steps seen, observed or not: the clock of the pending predictions
         self._clear_sequence()
 
     def _clear_sequence(self) -> None:
-        p = self.params
-        # row r: (newest pose, model step m - pose) of the prediction made r + 1 frames ago
-        self._pose = np.full((p.horizon, p.joints), np.nan)
-        self._diff = np.full((p.horizon, p.horizon, p.joints), np.nan)
+        self._pending.drop()
         self._last: np.ndarray | None = None
         self._out_diff: np.ndarray | None = None
 
@@ -93,8 +93,9 @@ class GatedPredictor:
     def step(self, x: np.ndarray | None, learn: bool = True) -> np.ndarray | None:
         p = self.params
         obs = observation(x, p.joints)
+        due, valid = self._pending.take(self._t)
         if obs is not None:
-            self._score(obs)
+            self._score(obs, due, valid)
             self._last = obs.copy()
         out = self.model.step(obs, learn=learn)
         diff = None
@@ -106,17 +107,9 @@ class GatedPredictor:
             diff = out[:p.horizon] - self._last
             if not np.isfinite(diff.sum()):
                 diff = None
-        # ring of pending predictions: row r was made r + 1 frames ago (a shift of a few hundred values)
-        self._pose[1:] = self._pose[:-1]
-        self._diff[1:] = self._diff[:-1]
-        if self._last is None:
-            self._pose[0] = np.nan
-        else:
-            self._pose[0] = self._last
-        if diff is None:
-            self._diff[0] = np.nan
-        else:
-            self._diff[0] = diff
+        if diff is not None:  # a prediction implies a newest pose
+            self._pending.file(self._t, np.stack([np.broadcast_to(self._last, diff.shape), diff]))
+        self._t += 1
         self._out_diff = diff
         return self._gated(diff)
 
@@ -134,11 +127,11 @@ class GatedPredictor:
         out += self._last
         return out
 
-    def _score(self, obs: np.ndarray) -> None:
-        """Score the pending predictions that target this observed frame: row r's step r + 1."""
-        diff = self._diff[self._steps, self._steps]  # (h, J); a row is all NaN or all finite
-        resid = obs - self._pose  # y - newest pose at prediction time
-        ok = ~(np.isnan(diff[:, 0]) | np.isnan(resid[:, 0]))
+    def _score(self, obs: np.ndarray, due: np.ndarray, valid: np.ndarray) -> None:
+        """Score the pending predictions that target this observed frame (row k made k + 1 steps ago)."""
+        diff = due[1]  # (h, J)
+        resid = obs - due[0]  # y - newest pose at prediction time
+        ok = valid[0]
         n_ok = int(ok.sum())
         if n_ok == 0:
             return
@@ -190,10 +183,10 @@ class GatedPredictor:
         m_header, m_arrays = state()
         header = {"gate": dataclasses.asdict(self.params), "model_kind": self.model.kind, "model": m_header,
                   "last": None if self._last is None else self._last.tolist(),
-                  "out_diff": self._out_diff is not None}
+                  "out_diff": self._out_diff is not None, "t": self._t}
         arrays = {f"model:{k}": v for k, v in m_arrays.items()}
         arrays.update({"gate:sxy": self._sxy, "gate:sxx": self._sxx, "gate:scored": self._scored,
-                       "gate:pose": self._pose, "gate:diff": self._diff})
+                       "gate:pending": self._pending.pending, "gate:valid": self._pending.valid})
         if self._out_diff is not None:
             arrays["gate:out_diff"] = self._out_diff
         return header, arrays
@@ -209,12 +202,18 @@ class GatedPredictor:
             sub = {k[len("model:"):]: v for k, v in arrays.items() if k.startswith("model:")}
             gate = cls(model_cls.from_state(header["model"], sub, f"{source} (gated model)"),
                        GateParams(**header["gate"]))
-            for name in ("sxy", "sxx", "scored", "pose", "diff"):
-                dest = getattr(gate, f"_{name}")
+            targets = {"sxy": gate._sxy, "sxx": gate._sxx, "scored": gate._scored}
+            if "t" in header:
+                gate._t = int(header["t"])
+                targets.update(pending=gate._pending.pending, valid=gate._pending.valid)
+            for name, dest in targets.items():
                 src = arrays[f"gate:{name}"]
                 if np.shape(src) != dest.shape:
                     raise ValueError(f"array gate:{name} has shape {np.shape(src)}, expected {dest.shape}")
                 dest[...] = src
+            if "t" not in header:  # the first layout: a ring by age, row r made r + 1 steps ago
+                gate._refile_ring(np.asarray(arrays["gate:pose"], dtype=float),
+                                  np.asarray(arrays["gate:diff"], dtype=float))
             gate._last = None if header["last"] is None else np.asarray(header["last"], dtype=float)
             gate._out_diff = np.array(arrays["gate:out_diff"], dtype=float) if header["out_diff"] else None
         except CheckpointError:
@@ -222,6 +221,16 @@ class GatedPredictor:
         except (KeyError, ValueError, TypeError, IndexError) as exc:
             raise CheckpointError(f"{source}: inconsistent gate checkpoint: {type(exc).__name__}: {exc}") from exc
         return gate
+
+    def _refile_ring(self, pose: np.ndarray, diff: np.ndarray) -> None:
+        """File a by-age ring (row r: the prediction made r + 1 steps ago) as pending predictions."""
+        h = self.params.horizon
+        if pose.shape != (h, self.params.joints) or diff.shape != (h, h, self.params.joints):
+            raise ValueError(f"ring arrays of shapes {pose.shape} and {diff.shape} for horizon {h}")
+        self._t = h
+        for r in range(h):
+            row_ok = ~(np.isnan(pose[r, 0]) | np.isnan(diff[r, :, 0])) & (np.arange(h) >= r)  # targets to come
+            self._pending.file(self._t - 1 - r, np.stack([np.broadcast_to(pose[r], diff[r].shape), diff[r]]), row_ok)
 
     def save(self, path: str | os.PathLike[str]) -> None:
         """One atomic, versioned checkpoint of the gate and its model."""
