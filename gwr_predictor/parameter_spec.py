@@ -12,6 +12,7 @@ accept `set_parameters` for the parameters that may change while it runs.
 from __future__ import annotations
 
 import math
+from collections.abc import Iterable
 from dataclasses import dataclass
 from typing import Any
 
@@ -136,3 +137,18 @@ class ParamSpec:
         if kind in ("string list", "double list"):
             value = list(value) if value is not None else list(self.default)
         return value
+
+
+def check_fields(instance: Any, specs: Iterable[ParamSpec], error: type[Exception] = ParameterError) -> None:
+    """Check the fields of a settings dataclass against their specs, in its `__post_init__`.
+
+    `error` lets a module raise its own class (derived from ValueError, as ParameterError is) with the
+    spec's message, so that callers catching that class keep working."""
+    owner = type(instance).__name__
+    for spec in specs:
+        try:
+            spec.check(getattr(instance, spec.name), owner)
+        except ParameterError as exc:
+            if error is ParameterError:
+                raise
+            raise error(str(exc)) from None

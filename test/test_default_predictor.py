@@ -10,7 +10,7 @@ from gwr_predictor.evaluation.experiments import common
 from gwr_predictor.evaluation.experiments.splits import make_splits
 from gwr_predictor.evaluation.online import compare_online
 from gwr_predictor.learning.checkpoint import CheckpointError
-from gwr_predictor.learning.local_linear import LocalLinearParams, LocalLinearPredictor
+from gwr_predictor.learning.local_linear import LocalLinearError, LocalLinearParams, LocalLinearPredictor
 from gwr_predictor.predictors.baselines import HoldLast
 from gwr_predictor.predictors.gate import GatedPredictor, GateError, GateParams, make_gated_llm
 from gwr_predictor.predictors.registry import DEFAULT_PREDICTOR, load_predictor, make_predictor
@@ -221,3 +221,14 @@ def test_data_loss_does_not_hurt_what_is_learned():
     clean, lossy = (dataloss.one_level(cfg, loss, data, 0, False)["heldout"] for loss in cfg.losses)
     assert lossy[common.DEFAULT]["mse"][-1] <= 1.1 * clean[common.DEFAULT]["mse"][-1]
     assert clean[common.DEFAULT]["mse"][-1] <= 0.5 * clean["hold"]["mse"][-1]
+
+
+@pytest.mark.parametrize("cls, error, field, value", [
+    (LocalLinearParams, LocalLinearError, "order", 0), (LocalLinearParams, LocalLinearError, "motion_decay", 1.0),
+    (LocalLinearParams, LocalLinearError, "noise_floor", 0.0), (LocalLinearParams, LocalLinearError, "rate", 2.0),
+    (GateParams, GateError, "decay", 0.0), (GateParams, GateError, "prior", float("nan")),
+    (GateParams, GateError, "horizon", 0),
+])
+def test_settings_out_of_range_are_refused_with_the_field_and_the_allowed_range(cls, error, field, value):
+    with pytest.raises(error, match=rf"{cls.__name__}\.{field} must be"):
+        cls(**{field: value})

@@ -44,6 +44,7 @@ from gwr_predictor.learning.hierarchy import ErrorTracker
 from gwr_predictor.learning.params import GWRParams
 from gwr_predictor.learning.predictive_gwr import PredictiveGWR
 from gwr_predictor.learning.scaling import InputScaling
+from gwr_predictor.parameter_spec import ParamSpec, check_fields
 from gwr_predictor.pipeline.conventions import DEFAULT_HORIZON
 
 
@@ -150,6 +151,21 @@ def _default_gwr() -> GWRParams:
     return GWRParams(max_edge_age=100)
 
 
+_LOCAL_LINEAR_SPECS = {spec.name: spec for spec in (
+    ParamSpec("order", 4, "frames in the regressor", 1, 32),
+    ParamSpec("horizon", DEFAULT_HORIZON, "frames predicted", 1, 64),
+    ParamSpec("n_joints", 8, "joints per frame", 1),
+    ParamSpec("insertion_scale", 1.5, "insertion distance in units of the motion scale", 0.0, 1e3,
+              lo_open=True, hi_open=True),
+    ParamSpec("noise_floor", 0.01, "lower bound of the motion scale (rad)", 0.0, 10.0, lo_open=True, hi_open=True),
+    ParamSpec("motion_decay", 0.999, "forgetting of the motion estimate per frame", 0.0, 1.0,
+              lo_open=True, hi_open=True),
+    ParamSpec("rate", 0.1, "NLMS rate of the local models", 0.0, 1.5),
+    ParamSpec("readout_k", 3, "neurons blended in the read-out", 1, 64),
+    ParamSpec("neighbour_rate", 0.02, "NLMS rate of the BMU's neighbours", 0.0, 1.5),
+)}
+
+
 @dataclass(frozen=True)
 class LocalLinearParams:
     """Settings of `LocalLinearPredictor` (chosen by `gwr-predictor experiment tune`, see docs).
@@ -162,26 +178,19 @@ class LocalLinearParams:
     the constant -ln a_T the scaled distance is compared with).
     """
 
-    order: int = 4
-    horizon: int = DEFAULT_HORIZON
-    n_joints: int = 8
-    insertion_scale: float = 1.5
-    noise_floor: float = 0.01
-    motion_decay: float = 0.999
-    rate: float = 0.1
-    readout_k: int = 3
-    neighbour_rate: float = 0.02
+    order: int = _LOCAL_LINEAR_SPECS["order"].default
+    horizon: int = _LOCAL_LINEAR_SPECS["horizon"].default
+    n_joints: int = _LOCAL_LINEAR_SPECS["n_joints"].default
+    insertion_scale: float = _LOCAL_LINEAR_SPECS["insertion_scale"].default
+    noise_floor: float = _LOCAL_LINEAR_SPECS["noise_floor"].default
+    motion_decay: float = _LOCAL_LINEAR_SPECS["motion_decay"].default
+    rate: float = _LOCAL_LINEAR_SPECS["rate"].default
+    readout_k: int = _LOCAL_LINEAR_SPECS["readout_k"].default
+    neighbour_rate: float = _LOCAL_LINEAR_SPECS["neighbour_rate"].default
     gwr: GWRParams = field(default_factory=_default_gwr)
 
     def __post_init__(self) -> None:
-        checks = {"order": 1 <= self.order <= 32, "horizon": 1 <= self.horizon <= 64,
-                  "n_joints": self.n_joints >= 1, "insertion_scale": 0 < self.insertion_scale < 1e3,
-                  "noise_floor": 0 < self.noise_floor < 10, "motion_decay": 0 < self.motion_decay < 1,
-                  "rate": 0 <= self.rate <= 1.5, "readout_k": 1 <= self.readout_k <= 64,
-                  "neighbour_rate": 0 <= self.neighbour_rate <= 1.5}
-        for name, ok in checks.items():
-            if not ok:
-                raise LocalLinearError(f"LocalLinearParams.{name}={getattr(self, name)!r} is out of range")
+        check_fields(self, _LOCAL_LINEAR_SPECS.values(), LocalLinearError)
         if not isinstance(self.gwr, GWRParams):
             raise LocalLinearError(f"LocalLinearParams.gwr must be GWRParams, got {type(self.gwr).__name__}")
 

@@ -14,7 +14,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
-from gwr_predictor.parameter_spec import ParameterError, ParamSpec
+from gwr_predictor.parameter_spec import ParameterError, ParamSpec, check_fields
 
 #: Edge ages are stored as int16, so the age limit stays well inside its range.
 MAX_EDGE_AGE_LIMIT = 30000
@@ -121,8 +121,7 @@ class HierarchyParams:
 
     def __post_init__(self) -> None:
         owner = type(self).__name__
-        for name, spec in _HIER_SPECS.items():
-            spec.check(getattr(self, name), owner)
+        check_fields(self, _HIER_SPECS.values())
         for layer in LAYERS:
             if not isinstance(getattr(self, layer), GWRParams):
                 raise ParameterError(f"{owner}.{layer} must be a GWRParams, got {type(getattr(self, layer)).__name__}")

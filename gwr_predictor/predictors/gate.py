@@ -28,6 +28,7 @@ import numpy as np
 
 from gwr_predictor.errors import GwrPredictorError
 from gwr_predictor.learning.checkpoint import CheckpointError, read_checkpoint, write_checkpoint
+from gwr_predictor.parameter_spec import ParamSpec, check_fields
 from gwr_predictor.pending import PendingPredictions
 from gwr_predictor.pipeline.conventions import DEFAULT_HORIZON
 from gwr_predictor.predictors.baselines import N_JOINTS, observation
@@ -37,26 +38,29 @@ class GateError(GwrPredictorError, ValueError):
     """Invalid gate parameters, or a wrapped model's output of the wrong shape."""
 
 
+_GATE_SPECS = {spec.name: spec for spec in (
+    ParamSpec("decay", 0.99, "forgetting per scored frame", 0.0, 1.0, lo_open=True),
+    ParamSpec("prior", 0.01, "rad^2 added to S_xx", 0.0, lo_open=True),
+    ParamSpec("per_joint", True, "one alpha per (step, joint)"),
+    ParamSpec("horizon", DEFAULT_HORIZON, "steps gated", 1),
+    ParamSpec("joints", N_JOINTS, "joints per frame", 1),
+)}
+
+
 @dataclass(frozen=True)
 class GateParams:
     """`decay`: forgetting per scored frame (0.99 ~ the last 100 frames). `prior` (rad^2): added to
     S_xx, so alpha stays near 0 until the model's steps have some weight of evidence. `per_joint`:
     one alpha per (step, joint) instead of per step."""
 
-    decay: float = 0.99
-    prior: float = 0.01
-    per_joint: bool = True
-    horizon: int = DEFAULT_HORIZON
-    joints: int = N_JOINTS
+    decay: float = _GATE_SPECS["decay"].default
+    prior: float = _GATE_SPECS["prior"].default
+    per_joint: bool = _GATE_SPECS["per_joint"].default
+    horizon: int = _GATE_SPECS["horizon"].default
+    joints: int = _GATE_SPECS["joints"].default
 
     def __post_init__(self) -> None:
-        if not 0.0 < self.decay <= 1.0:
-            raise GateError(f"GateParams.decay must be in (0, 1], got {self.decay}")
-        if not (np.isfinite(self.prior) and self.prior > 0):
-            raise GateError(f"GateParams.prior must be a finite number > 0, got {self.prior}")
-        if int(self.horizon) != self.horizon or self.horizon < 1 or self.joints < 1:
-            raise GateError(f"GateParams horizon and joints must be positive integers, got "
-                            f"{self.horizon!r}, {self.joints!r}")
+        check_fields(self, _GATE_SPECS.values(), GateError)
 
 
 class GatedPredictor:

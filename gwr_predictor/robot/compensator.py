@@ -40,7 +40,7 @@ from typing import Literal, NamedTuple
 import numpy as np
 
 from gwr_predictor.errors import GwrPredictorError
-from gwr_predictor.parameter_spec import ParameterError, ParamSpec
+from gwr_predictor.parameter_spec import ParamSpec, check_fields
 from gwr_predictor.robot.nao import ARM_JOINTS, clip_to_limits
 
 MODES = ("none", "guarded", "fixed", "variable")
@@ -94,11 +94,7 @@ class CompensatorParams:
     guard_decay: float = PARAM_SPECS["guard_decay"].default
 
     def __post_init__(self) -> None:
-        for name, spec in PARAM_SPECS.items():
-            try:
-                spec.check(getattr(self, name), "CompensatorParams")
-            except ParameterError as exc:
-                raise CompensatorError(str(exc)) from None
+        check_fields(self, PARAM_SPECS.values(), CompensatorError)
 
 
 class CompensatorOutput(NamedTuple):
