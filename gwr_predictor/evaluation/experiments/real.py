@@ -75,6 +75,15 @@ def _stats(res: Any) -> dict[str, Any]:
     return {**res.stats.to_dict(), "scored_frames": res.scored_frames}
 
 
+def _score_clip(models: dict[str, Any], clip: dict[str, Any], params: Any, progress: bool, desc: str,
+                per_clip: dict[str, dict[str, Any]], pooled: dict[str, HorizonStats]) -> None:
+    """Run `models` online over one clip; its stats under its name, and merged into `pooled`."""
+    res = compare_online(models, [clip["angles"]], horizon=params.horizon, progress=progress, desc=desc)
+    per_clip[clip["name"]] = {m: _stats(r) for m, r in res.items()}
+    for m, r in res.items():
+        pooled[m] = pooled[m].merge(r.stats)
+
+
 def one_pass(clips: list[dict[str, Any]], methods: tuple[str, ...], params: Any, seed: int, progress: bool
              ) -> tuple[dict[str, dict[str, Any]], dict[str, HorizonStats]]:
     """Per clip, fresh models learning online from the first frame; and the pooled stats."""
@@ -82,11 +91,7 @@ def one_pass(clips: list[dict[str, Any]], methods: tuple[str, ...], params: Any,
     pooled = {m: HorizonStats.empty(params.horizon, params.n_joints) for m in methods}
     for clip in clips:
         models = common.make_models(methods, params, seed)
-        res = compare_online(models, [clip["angles"]], horizon=params.horizon, progress=progress,
-                             desc=f"{NAME} one pass {clip['name']}")
-        per_clip[clip["name"]] = {m: _stats(r) for m, r in res.items()}
-        for m, r in res.items():
-            pooled[m] = pooled[m].merge(r.stats)
+        _score_clip(models, clip, params, progress, f"{NAME} one pass {clip['name']}", per_clip, pooled)
     return per_clip, pooled
 
 
@@ -112,11 +117,7 @@ def leave_one_out(clips: list[dict[str, Any]], methods: tuple[str, ...], params:
                 train_online(model, others, passes=config.train_passes, progress=progress,
                              desc=f"{NAME} train {m} without {held['name']}")
             models[KNN] = KnnPredictor(others, k=config.knn_k, span=params.span, horizon=params.horizon)
-            res = compare_online(models, [held["angles"]], horizon=params.horizon, progress=progress,
-                                 desc=f"{NAME} held out {held['name']}")
-            per_take[held["name"]] = {m: _stats(r) for m, r in res.items()}
-            for m, r in res.items():
-                pooled[m] = pooled[m].merge(r.stats)
+            _score_clip(models, held, params, progress, f"{NAME} held out {held['name']}", per_take, pooled)
     return per_take, pooled
 
 
