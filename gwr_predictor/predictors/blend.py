@@ -27,6 +27,7 @@ import numpy as np
 
 from gwr_predictor.errors import GwrPredictorError
 from gwr_predictor.learning.checkpoint import CheckpointError, read_checkpoint, write_checkpoint
+from gwr_predictor.parameter_spec import ParamSpec, check_fields
 from gwr_predictor.pending import PendingPredictions, target_steps
 from gwr_predictor.pipeline.conventions import DEFAULT_HORIZON
 from gwr_predictor.protocol import Predictor
@@ -34,6 +35,14 @@ from gwr_predictor.protocol import Predictor
 
 class BlendError(GwrPredictorError, ValueError):
     """Invalid blend parameters or members, or a member output of the wrong shape."""
+
+
+_BLEND_SPECS = {spec.name: spec for spec in (
+    ParamSpec("decay", 0.99, "forgetting of the running MSE per scored frame", 0.0, 1.0, lo_open=True),
+    ParamSpec("floor", 1e-6, "lower bound of the MSE (rad^2)", 0.0, lo_open=True),
+    ParamSpec("horizon", DEFAULT_HORIZON, "steps predicted", 1),
+    ParamSpec("adapt_frozen", True, "keep scoring members when not learning"),
+)}
 
 
 @dataclass(frozen=True)
@@ -48,18 +57,13 @@ class BlendParams:
     running statistic of observed errors, not learned parameters of a model.
     """
 
-    decay: float = 0.99
-    floor: float = 1e-6
-    horizon: int = DEFAULT_HORIZON
-    adapt_frozen: bool = True
+    decay: float = _BLEND_SPECS["decay"].default
+    floor: float = _BLEND_SPECS["floor"].default
+    horizon: int = _BLEND_SPECS["horizon"].default
+    adapt_frozen: bool = _BLEND_SPECS["adapt_frozen"].default
 
     def __post_init__(self) -> None:
-        if not 0.0 < self.decay <= 1.0:
-            raise BlendError(f"decay must be in (0, 1], got {self.decay}")
-        if not (np.isfinite(self.floor) and self.floor > 0):
-            raise BlendError(f"floor must be a finite number > 0, got {self.floor}")
-        if int(self.horizon) != self.horizon or self.horizon < 1:
-            raise BlendError(f"horizon must be a positive integer, got {self.horizon!r}")
+        check_fields(self, _BLEND_SPECS.values(), BlendError)
 
 
 class BlendedPredictor:
