@@ -139,6 +139,84 @@ def test_a_checkpoint_with_the_first_by_age_ring_continues_bit_for_bit():
     assert again.errors() == model.errors()  # every pending prediction was scored once, in both
 
 
+def test_a_checkpoint_of_the_plain_gate_loads_as_the_plain_gate():
+    """Checkpoints written before the confidence bound and the short memory hold S_xy and S_xx only
+    and gate settings without `confidence`: they load as the plain least-squares gate and continue
+    bit for bit."""
+    plain = GateParams(confidence=0.0, fast_decay=0.0, fast_confidence=0.0, per_joint=True)
+    model = GatedPredictor(LocalLinearPredictor(LocalLinearParams()), plain)
+    x = _periodic(300)
+    for f in x[:200]:
+        model.step(f)
+    header, arrays = model.state()
+    for name in ("confidence", "fast_decay", "fast_confidence"):
+        del header["gate"][name]
+    stats = arrays.pop("gate:stats")
+    arrays["gate:sxy"], arrays["gate:sxx"] = stats[0, 0], stats[0, 1]
+    again = GatedPredictor.from_state(header, arrays)
+    assert again.params == plain
+    for f in x[200:]:
+        np.testing.assert_array_equal(model.step(f), again.step(f))
+
+
+class _Oracle:
+    """Knows the sequence: predicts the true future until `fails_at`, then the opposite movement."""
+
+    def __init__(self, x: np.ndarray, fails_at: int, h: int = 6) -> None:
+        self.x, self.fails_at, self.h, self.t = x, fails_at, h, -1
+
+    def step(self, obs, learn=True):
+        self.t += 1
+        future = self.x[self.t + 1:self.t + 1 + self.h]
+        if len(future) < self.h:
+            return None
+        now = self.x[self.t]
+        return future if self.t < self.fails_at else 2 * now - future
+
+    def reset_sequence(self):
+        self.t = -1
+
+
+def _alphas(gate: GatedPredictor, x: np.ndarray) -> np.ndarray:
+    out = []
+    for f in x:
+        gate.step(f)
+        out.append(gate.alpha().mean())
+    return np.array(out)
+
+
+def test_the_short_memory_shuts_a_failing_model_out_within_a_few_frames():
+    """A model that was right for 300 frames and then goes wrong: the long memory alone keeps
+    trusting it for dozens of frames; the short memory's cap shuts it out within 10."""
+    x = _periodic(400)
+    with_fast = _alphas(GatedPredictor(_Oracle(x, 300)), x)
+    long_only = _alphas(GatedPredictor(_Oracle(x, 300), GateParams(fast_decay=0.0)), x)
+    assert with_fast[290] > 0.9 and long_only[290] > 0.9  # both trust a model that is right
+    assert with_fast[300 + 6 + 10] < 0.05  # its wrong predictions are scored from frame 301 on
+    assert long_only[300 + 6 + 10] > 0.5
+    res = compare_online({"hold": HoldLast(), "gated": GatedPredictor(_Oracle(x, 0))}, [x], progress=False)
+    assert np.all(np.array(res["gated"].stats.mae) <= 1.02 * np.array(res["hold"].stats.mae))
+
+
+def test_the_confidence_bound_ignores_luck():
+    """A model whose steps are noise unrelated to the motion: the plain least-squares gate lets
+    chance correlations through; the lower confidence bound keeps alpha at 0 nearly always."""
+
+    class Noise:
+        rng = np.random.default_rng(1)
+
+        def step(self, obs, learn=True):
+            return None if obs is None else obs + self.rng.normal(scale=0.05, size=(6, 8))
+
+        def reset_sequence(self):
+            pass
+
+    x = _walk(600)
+    bounded = _alphas(GatedPredictor(Noise(), GateParams(fast_decay=0.0)), x)[50:]
+    plain = _alphas(GatedPredictor(Noise(), GateParams(confidence=0.0, fast_decay=0.0)), x)[50:]
+    assert np.mean(bounded > 0) < 0.1 < np.mean(plain > 0)
+
+
 def test_bad_checkpoint_and_bad_output_are_named(tmp_path):
     path = tmp_path / "m.npz"
     make_gated_llm().save(path)
