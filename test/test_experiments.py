@@ -80,6 +80,11 @@ def test_experiment_compare(tmp_path):
         # every method is scored on the same frames
         assert len({v["scored_frames"] for v in cond.values()}) == 1
     assert len(r["neurons"]["hierarchy"]) == 3
+    # a new user's first pass over each pattern, from scratch: the default never far above holding still
+    from gwr_predictor.evaluation.experiments.common import DEFAULT, worst_ratio_to_hold
+
+    assert set(r["from_scratch"]) == set(cfg["patterns"])
+    assert all(worst_ratio_to_hold(stats, DEFAULT) <= 1.02 for stats in r["from_scratch"].values())
 
 
 def test_experiment_horizon(tmp_path):
@@ -118,6 +123,11 @@ def test_experiment_incremental(tmp_path):
     assert np.array(r["neurons_mean"]).shape == (epochs, 3)
     assert len(r["cpe_mean"]) == len(r["pe_mean"]) == len(r["evaluated_at"]) == epochs // cfg["eval_every"]
     assert len(r["late_growth_share"]) == 3
+    f = r["forgetting"]  # each pattern scored on its own after every block: first and last entries
+    assert set(f["just_learned"]) == set(f["after_all"]) == set(cfg["patterns"])
+    last = r["runs"][0]["order"][-1]
+    assert f["just_learned"][last] == f["after_all"][last]  # the last pattern has only one block
+    assert f["max_rise"] >= f["mean_rise"]
 
 
 def test_experiment_threshold(tmp_path):
@@ -187,6 +197,17 @@ def test_experiment_real(tmp_path, monkeypatch):
     assert loo["pooled"]["knn"]["mae"][-1] < 0.5 * loo["pooled"]["hold"]["mae"][-1]
     hold = loo["pooled"]["hold"]["mae"]
     assert hold[-1] > hold[0]
+
+
+def test_experiment_gate(tmp_path):
+    """Every variant replays the same recorded model outputs: the ungated replay is the model itself,
+    and the default gate stays within the band on every pattern learned from scratch."""
+    r, cfg = _run("gate", tmp_path, figures=False)
+    assert set(r["ratio_to_hold"]) == set(cfg["variants"])
+    default = r["ratio_to_hold"]["default (bound z=2 + short memory)"]
+    assert all(max(v["mae"]) <= 1.02 for name, v in default.items() if "from scratch" in name)
+    ungated = r["ratio_to_hold"]["ungated model"]
+    assert ungated.keys() == default.keys() and any(ungated[n] != default[n] for n in ungated)
 
 
 def test_evaluate_prints_a_json_last_line(tmp_path, capsys):

@@ -91,3 +91,13 @@ def shuffled(items: Sequence[Any], rng: np.random.Generator) -> list[Any]:
 
 def frames_in(sequences: Sequence[Any]) -> int:
     return int(sum(np.asarray(getattr(s, "angles", s)).shape[0] for s in sequences))
+
+
+def worst_ratio_to_hold(stats: Mapping[str, Mapping[str, Any]], method: str) -> float | None:
+    """max over horizon steps of MAE(method) / MAE(hold) in one condition's {method: stats dict}:
+    the figure of the "never worse than holding still" band (None without hold or scores)."""
+    if "hold" not in stats or method not in stats:
+        return None
+    pairs = [(m, h) for m, h in zip(stats[method]["mae"], stats["hold"]["mae"], strict=True)
+             if m is not None and h]
+    return max(m / h for m, h in pairs) if pairs else None

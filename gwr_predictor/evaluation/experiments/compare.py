@@ -48,6 +48,11 @@ def train_and_evaluate(config: Config, seed: int, progress: bool) -> dict[str, A
     params = common.make_params(config.overrides)
     data = common.demo_data(config.patterns, config.subjects, config.repetitions, seed)
     splits = make_splits(data, config.heldout_subjects, config.heldout_repetitions)
+    from_scratch = {}
+    for pattern, seqs in common.by_pattern(data).items():  # a new user's first minutes: no training
+        res = compare_online(common.make_models(config.methods, params, seed), seqs, horizon=params.horizon,
+                             progress=progress, desc=f"{NAME} from scratch {pattern}")
+        from_scratch[pattern] = {m: r.summary() for m, r in res.items()}
     models = common.make_models(config.methods, params, seed)
     rng = np.random.default_rng(seed)
     curve: dict[str, list[float]] = {m: [] for m in config.methods}
@@ -68,6 +73,7 @@ def train_and_evaluate(config: Config, seed: int, progress: bool) -> dict[str, A
             conditions[f"{split_name}/{'online' if learn else 'frozen'}"] = {m: r.summary() for m, r in res.items()}
     return {"params": params.to_flat(), "splits": splits.sizes(), "frames_per_epoch": common.frames_in(splits.train),
             "learning_curve_mae_h": curve, "neurons_per_epoch": growth, "conditions": conditions,
+            "from_scratch": from_scratch,
             "neurons": {m: common.neuron_counts(models[m]) for m in config.methods}}
 
 
@@ -89,10 +95,21 @@ def run(config: Config, out: Path, seed: int = 0, progress: bool = True) -> Expe
           f"neurons: {r['neurons']}.", "", table("mae"), "",
           "Best MAE per column: " + ", ".join(f"{c}: {common.label(m)}" for c, m in best.items()) + ".", "",
           "MSE (rad²) at the same horizon, same frames (large errors weigh more):", "", table("mse"), "",
-          "Best MSE per column: " + ", ".join(f"{c}: {common.label(m)}" for c, m in best_mse.items()) + "."]
+          "Best MSE per column: " + ", ".join(f"{c}: {common.label(m)}" for c, m in best_mse.items()) + ".",
+          "", *_from_scratch_table(r, methods)]
     out = Path(out)
     figs = [_plot_horizons(r, methods, out), _plot_curve(r, methods, out)]
     return ExperimentOutput(NAME, "Hierarchy vs baselines and ablation", _config_dict(config), r, md, figs)
+
+
+def _from_scratch_table(r: dict[str, Any], methods: tuple[str, ...]) -> list[str]:
+    """Per pattern, one online pass from scratch: each method's worst MAE ratio to hold-last over the horizons."""
+    per = r["from_scratch"]
+    ratio = {m: [common.worst_ratio_to_hold(per[p], m) for p in per] for m in methods if m != "hold"}
+    return ["One online pass from scratch over each pattern's recordings (fresh models, no training): worst MAE "
+            "ratio to hold-last over the horizons (below 1: better than holding the last pose at every horizon):",
+            "", markdown_table(["method", *per], [[common.label(m), *["–" if v is None else f"{v:.3f}" for v in vals]]
+                                                  for m, vals in ratio.items()])]
 
 
 def _config_dict(config: Config) -> dict[str, Any]:

@@ -10,6 +10,7 @@ lower layers). Neurons per layer are recorded after every epoch.
 
 from __future__ import annotations
 
+import copy
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
@@ -52,6 +53,7 @@ def one_order(config: Config, order: list[str], by_pattern: dict[str, list[Any]]
     rng = np.random.default_rng([seed, 1])
     neurons, online, cpe, pe, evaluated_at = [], [], [], [], []
     learned: list[Any] = []
+    per_pattern: dict[str, list[float]] = {}  # pattern -> MSE on it at the end of every block since it was learned
     epoch = 0
     for pattern in order:
         demos = by_pattern[pattern]
@@ -69,8 +71,30 @@ def one_order(config: Config, order: list[str], by_pattern: dict[str, list[Any]]
                 cpe.append(ev.stats.mse[-1])
                 pe.append(errs["pe"][-1])
                 evaluated_at.append(epoch)
+        for old in order[:order.index(pattern) + 1]:  # forgetting: each learned pattern on its own
+            seqs = [s for s in learned if s.pattern == old]
+            ev = compare_online({"h": copy.deepcopy(model)}, seqs, learn=False, horizon=params.horizon,
+                                progress=False)["h"]
+            per_pattern.setdefault(old, []).append(float(ev.stats.mse[-1]))
     return {"order": order, "neurons": neurons, "online_mse": online, "cpe": cpe, "pe": pe,
-            "evaluated_at": evaluated_at, "layers": [LAYER_LABELS.get(n, n) for n in learner.layer_names]}
+            "evaluated_at": evaluated_at, "layers": [LAYER_LABELS.get(n, n) for n in learner.layer_names],
+            "per_pattern_mse": per_pattern}
+
+
+def forgetting(runs: list[dict[str, Any]]) -> dict[str, Any]:
+    """Per pattern: MSE right after its block and after the last block (mean over orders), and the
+    largest rise any pattern showed; a C.P.E. that rises because harder patterns join the set scored
+    is not forgetting, a pattern whose own error rises is."""
+    first: dict[str, list[float]] = {}
+    last: dict[str, list[float]] = {}
+    for r in runs:
+        for pattern, mses in r["per_pattern_mse"].items():
+            first.setdefault(pattern, []).append(mses[0])
+            last.setdefault(pattern, []).append(mses[-1])
+    rise = [b - a for p in first for a, b in zip(first[p], last[p], strict=True)]
+    return {"just_learned": {p: float(np.mean(v)) for p, v in first.items()},
+            "after_all": {p: float(np.mean(v)) for p, v in last.items()},
+            "mean_rise": float(np.mean(rise)), "max_rise": float(np.max(rise))}
 
 
 def growth_share(neurons: np.ndarray, block: int) -> np.ndarray:
@@ -108,7 +132,7 @@ def run(config: Config, out: Path, seed: int = 0, progress: bool = True) -> Expe
     results = {"runs": runs, "layers": layer_names, "neurons_mean": neurons.mean(axis=0),
                "neurons_std": neurons.std(axis=0),
                "cpe_mean": cpe.mean(axis=0), "pe_mean": pe.mean(axis=0), "late_growth_share": share,
-               "evaluated_at": runs[0]["evaluated_at"]}
+               "evaluated_at": runs[0]["evaluated_at"], "forgetting": forgetting(runs)}
     e = config.epochs_per_pattern
     ends = [(i + 1) * e - 1 for i in range(len(names))]
     rows = [[i + 1, *[int(v) for v in neurons.mean(axis=0)[k]], cpe.mean(axis=0)[runs[0]["evaluated_at"].index(k + 1)],
@@ -120,9 +144,19 @@ def run(config: Config, out: Path, seed: int = 0, progress: bool = True) -> Expe
           "", markdown_table(["patterns learned", *layer_names, "C.P.E.", "P.E."], rows, digits=4), "",
           "Share of each pattern's neuron growth that happened in the second half of its epochs "
           f"(0 = levelled off, {steady_share(e):.2f} = growing steadily): "
-          + ", ".join(f"{n} {s:.2f}" for n, s in zip(layer_names, share, strict=True)) + "."]
+          + ", ".join(f"{n} {s:.2f}" for n, s in zip(layer_names, share, strict=True)) + ".", "",
+          *_forgetting_table(results["forgetting"])]
     return ExperimentOutput(NAME, "Incremental learning of the patterns", asdict(config), results, md,
                             [_plot(results, config, len(names), Path(out))])
+
+
+def _forgetting_table(f: dict[str, Any]) -> list[str]:
+    rows = [[p, f["just_learned"][p], f["after_all"][p], f["after_all"][p] - f["just_learned"][p]]
+            for p in f["just_learned"]]
+    return ["Forgetting: each pattern's own MSE (rad², frozen, last horizon step) right after its block and "
+            "after the last block, mean over the orders:", "",
+            markdown_table(["pattern", "just learned", "after all patterns", "change"], rows, digits=4), "",
+            f"Mean change {f['mean_rise']:+.4f}, largest rise of any pattern in any order {f['max_rise']:+.4f} rad²."]
 
 
 def _plot(r: dict[str, Any], config: Config, n_patterns: int, out: Path) -> str:

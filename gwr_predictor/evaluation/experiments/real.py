@@ -137,6 +137,9 @@ def run(config: Config, out: Path, seed: int = 0, progress: bool = True) -> Expe
         "leave_one_take_out": {"per_take": per_take,
                                "pooled": {m: s.to_dict() for m, s in pooled_loo.items()} if per_take else {}},
     }
+    results["worst_ratio_to_hold"] = {
+        "one_pass": {n: common.worst_ratio_to_hold(st, default) for n, st in per_clip.items()},
+        "leave_one_take_out": {n: common.worst_ratio_to_hold(st, default) for n, st in per_take.items()}}
     md = _markdown(results, clips, methods, params.horizon, default)
     out = Path(out)
     figs = [_plot_horizons(results, methods, out), _plot_clips(results, clips, methods, params.horizon, out)]
@@ -150,7 +153,8 @@ def _name(m: str) -> str:
 
 
 def _label(m: str, default: str) -> str:
-    return _name(m) + (" (node default)" if m == default else "")
+    name = _name(m)
+    return name + (" (node default)" if m == default and "default" not in name else "")
 
 
 def _horizon_tables(pooled: dict[str, dict[str, Any]], names: tuple[str, ...], horizon: int, default: str
@@ -200,8 +204,22 @@ def _markdown(r: dict[str, Any], clips: list[dict[str, Any]], methods: tuple[str
                "Each take held out in turn: the models learned the other takes online first and keep learning on "
                "it; k-NN is fitted on the other takes and never learns.", ""]
         md += _horizon_tables(loo["pooled"], (*methods, KNN), horizon, default)
-    md += ["", _verdict(r, methods, horizon, default)]
+    md += ["", _verdict(r, methods, horizon, default), "", *_band_table(r, methods, default)]
     return md
+
+
+def _band_table(r: dict[str, Any], methods: tuple[str, ...], default: str) -> list[str]:
+    """Per clip (and held-out take), each method's worst MAE ratio to hold-last over the horizons."""
+    conds = [("one pass", r["one_pass"]["per_clip"]), ("left out", r["leave_one_take_out"]["per_take"])]
+    cols = [(f"{name} ({word})", per[name]) for word, per in conds for name in per]
+    ratio = {m: [common.worst_ratio_to_hold(stats, m) for _, stats in cols] for m in methods if m != "hold"}
+    worst = [v for v in ratio.get(default, []) if v is not None]
+    line = (f"The node default's worst clip: {max(worst):.3f} x hold-last's MAE (the band: 1.02)." if worst else "")
+    return ["Worst MAE ratio to hold-last over the horizons 1..h, per clip (one pass from scratch) and per "
+            "held-out take (below 1: better than holding the last pose at every horizon):", "",
+            markdown_table(["method", *[c for c, _ in cols]],
+                           [[_label(m, default), *["–" if v is None else f"{v:.3f}" for v in vals]]
+                            for m, vals in ratio.items()]), "", line]
 
 
 def _verdict(r: dict[str, Any], methods: tuple[str, ...], horizon: int, default: str) -> str:
