@@ -41,6 +41,7 @@ import numpy as np
 
 from gwr_predictor.errors import GwrPredictorError
 from gwr_predictor.parameter_spec import ParamSpec, check_fields
+from gwr_predictor.pending import PendingPredictions
 from gwr_predictor.robot.nao import ARM_JOINTS, clip_to_limits
 
 MODES = ("none", "guarded", "fixed", "variable")
@@ -282,16 +283,21 @@ class DelayCompensator:
 class _Guard:
     """Running MSE of executing P(t+j) (j = 0: the pose held since t) when the person is at t + k.
 
-    A prediction set made at t is kept until its targets t + k * frame_period (k = 1..h) have been
-    observed; each observed target frame scores every candidate j = 0..h against it (mean over
-    joints), so `allowed(k)` can pick the candidate that has recently been closest to where the
-    person was k frames later. Only observations that arrive count (no peeking); each prediction
-    set is scored once per target.
+    A prediction set made at t waits in `pending.PendingPredictions` (the one scorer of pending
+    predictions), its step clock the frame index round(t / frame_period), until its targets
+    t + k * frame_period (k = 1..h) are observed; each observed target frame scores every candidate
+    j = 0..h against it (mean over joints), so `allowed(k)` can pick the candidate that has recently
+    been closest to where the person was k frames later. Only observations that arrive count (no
+    peeking); each prediction set is filed once per frame and scored once per target; a frame that
+    is never observed drops what targets it; stamps that go back (a new sequence) drop everything
+    pending, as does a change of horizon (which also restarts the statistics).
     """
 
     def __init__(self, decay: float, frame_period: float) -> None:
         self.decay, self.period = decay, frame_period
-        self._pending: dict[int, np.ndarray] = {}  # frame index -> candidates (h + 1, J): [base, P(t+1..t+h)]
+        self._pending: PendingPredictions | None = None  # candidates [base, P(t+1..t+h)] lead, allocated on use
+        self._filed = np.zeros(0, dtype=np.int64)  # by frame % h: the frame whose set was filed there
+        self._clock: int | None = None  # the last frame taken from the pending predictions
         self._sse = np.zeros((0, 1))  # (target step k - 1, candidate j)
         self._weight = np.zeros(0)
 
@@ -299,29 +305,45 @@ class _Guard:
         return math.floor(t / self.period + 0.5)
 
     def expect(self, t: float, preds: np.ndarray, base: np.ndarray) -> None:
-        i = self._index(t)
-        if i not in self._pending:
-            self._pending[i] = np.vstack([base[None, :], preds])
-        h = preds.shape[0]
-        if self._sse.shape[0] < h:
-            self._sse = np.zeros((h, h + 1))
-            self._weight = np.zeros(h)
+        """File the candidates of the prediction set made at t (the first one given for its frame)."""
+        i, (h, joints) = self._index(t), preds.shape
+        if self._pending is None or self._pending.horizon != h:
+            self._pending = PendingPredictions(h, joints, lead=(h + 1,))
+            self._filed = np.full(h, np.iinfo(np.int64).min)
+            self._sse, self._weight = np.zeros((h, h + 1)), np.zeros(h)
+        if self._clock is None:
+            self._clock = i
+        if self._filed[i % h] == i or i + h <= self._clock:
+            return  # filed already, or every target has passed
+        self._filed[i % h] = i
+        cands = np.vstack([base[None, :], preds])  # (h + 1, J)
+        ahead = i + 1 + np.arange(h) > self._clock  # rows whose target is still to come
+        self._pending.file(i, np.broadcast_to(cands[:, None, :], (h + 1, h, joints)),
+                           np.broadcast_to(ahead, (h + 1, h)))
 
     def observe(self, t: float, obs: np.ndarray) -> None:
+        """Score the candidates of every pending set that targets the frame stamped t."""
         j = self._index(t)
-        for i in list(self._pending):
-            cands = self._pending[i]
-            h = cands.shape[0] - 1
-            k = j - i
-            if k < 1 or k > min(h, self._weight.shape[0]):
-                if k > h:
-                    del self._pending[i]
-                continue
-            err = np.mean((cands - obs) ** 2, axis=1)
-            self._sse[k - 1] = self.decay * self._sse[k - 1] + err
-            self._weight[k - 1] = self.decay * self._weight[k - 1] + 1.0
-            if k == h:
-                del self._pending[i]
+        if self._pending is None or self._clock is None or j < self._clock:
+            if self._pending is not None:  # stamps went back: a new sequence
+                self._pending.drop()
+                self._filed[:] = np.iinfo(np.int64).min
+            self._clock = j
+            return
+        if j == self._clock:
+            return  # this frame was scored already
+        if j - self._clock > self._pending.horizon:
+            self._pending.drop()  # a gap longer than the horizon: every target in between is lost
+        else:
+            for missing in range(self._clock + 1, j):
+                self._pending.take(missing)  # frames never observed drop what targets them
+        self._clock = j
+        due, valid = self._pending.take(j)  # (h + 1, h, J): candidate, row k made k + 1 frames ago
+        rows = valid[0]
+        if rows.any():
+            err = np.mean((due[:, rows] - obs) ** 2, axis=-1).T  # (scored rows, candidate)
+            self._sse[rows] = self.decay * self._sse[rows] + err
+            self._weight[rows] = self.decay * self._weight[rows] + 1.0
 
     def mse(self) -> tuple[np.ndarray, np.ndarray]:
         """(MSE of P(t+k) at step k, MSE of holding still at step k), k = 1..h; NaN before any score."""
