@@ -268,3 +268,28 @@ def test_guard_survives_a_jump_longer_than_its_horizon():
     assert np.all(model < 1e-20) and np.all(hold > 1e-3)
     x = later[1][-1] + DIRECTION
     assert comp.command(100.9, x, predictions_from(x), 100.9).step_used == 3
+
+
+def _scored_run(comp, poses, noisy_preds):
+    out = None
+    for t, (x, p) in enumerate(zip(poses, noisy_preds, strict=True)):
+        out = comp.command(0.1 * t, x, p, 0.1 * t, obs_stamp=0.1 * t)
+    return out
+
+
+@pytest.mark.parametrize(("shrink", "margin", "step"), [(0.98, 0.93, 0), (0.98, 1.0, 3), (0.95, 0.93, 3)])
+def test_guard_needs_a_lead_to_beat_holding_by_its_margin(shrink, margin, step):
+    """A lead whose MSE is `shrink`^2 x holding still's is used only if that is below `guard_margin`."""
+    _, poses, _ = _walk(40)
+    # P(t+i) = pose + (1 - shrink) i d: its error at every step is shrink x holding still's (i d)
+    partial = [x + (1 - shrink) * DIRECTION * np.arange(1, 7)[:, None] for x in poses]
+    comp = DelayCompensator(params=CompensatorParams("guarded", 0.3, guard_margin=margin))
+    assert _scored_run(comp, poses, partial).step_used == step
+
+
+def test_guard_waits_for_its_evidence():
+    _, poses, preds = _walk(30)
+    comp = DelayCompensator(params=CompensatorParams("guarded", 0.3, guard_min_frames=5))
+    steps = [comp.command(0.1 * t, x, p, 0.1 * t).step_used for t, (x, p) in enumerate(zip(poses, preds, strict=True))]
+    # step 3 is first scored at frame 3 (on the set of frame 0), and used once scored 5 times (frame 7)
+    assert steps[:8] == [0] * 7 + [3] and set(steps[8:]) == {3}

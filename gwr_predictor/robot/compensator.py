@@ -6,11 +6,15 @@ P(t+0). Every rule executes P(t+k) for one step k in [0, h]:
 - ``none``: k = 0, the newest observation (the uncompensated baseline);
 - ``fixed``: k = round(delay_s / frame_period), the configured delay (clamped to [0, h]);
 - ``guarded`` (the default): as ``fixed``, but per command the largest step k' <= k whose pose
-  has recently been closer than holding still (k' = 0) to where the person was k frames later:
-  the compensator scores every prediction set it was given against the observations that later
-  arrive for its target frames (running MSE with `guard_decay` per scored frame, for every
-  candidate P(t+j), j = 0..h); k' = 0 until the lead has been scored. So a predictor that is
-  failing right now costs nothing;
+  has recently been clearly closer than holding still (k' = 0) to where the person was k frames
+  later: the compensator scores every prediction set it was given against the observations that
+  later arrive for its target frames (running MSE with `guard_decay` per scored frame, for every
+  candidate P(t+j), j = 0..h), and a candidate must have an MSE below `guard_margin` times holding
+  still's; k' = 0 until the lead has been scored on `guard_min_frames` frames. So a predictor that
+  is failing right now costs nothing. Why the margin and the evidence: in the closed loop a lead
+  that is only a little better than holding on the scored frames, or better on a handful of them,
+  is not better on the robot (with neither, the robot was up to 8 % worse than uncompensated on
+  real motion; docs/robot.md);
 - ``variable``: k = round(xi / frame_period) for a delay estimate xi that the robot's own joint
   state keeps up to date through the paper's Eq. 11, P* = argmin_i ||J_xi(t) - P(t+i)||.
 
@@ -71,6 +75,9 @@ PARAM_SPECS: dict[str, ParamSpec] = {s.name: s for s in (
     ParamSpec("history_frames", 20, "variable: observations searched for the robot's pose", 1, 10_000),
     ParamSpec("min_motion", 0.03, "variable: rad per frame below which the arm counts as still", 0.0, 10.0),
     ParamSpec("guard_decay", 0.98, "guarded: forgetting of the running errors per scored frame", 0.5, 1.0),
+    ParamSpec("guard_margin", 0.93, "guarded: a lead is used only if its recent MSE is below this share of "
+              "holding still's", 0.0, 1.0, lo_open=True),
+    ParamSpec("guard_min_frames", 10, "guarded: frames a lead must have been scored on before it is used", 1, 100_000),
 )}
 
 
@@ -81,7 +88,8 @@ class CompensatorParams:
     `tracking_gain`, `deadband` (in frames), `history_frames` (observations searched for the
     robot's pose) and `min_motion` (rad per frame below which the arm counts as still and the
     estimate is left alone) matter to ``variable`` only; `guard_decay` (forgetting of the running
-    errors per scored frame) to ``guarded`` only.
+    errors per scored frame), `guard_margin` (the share of holding still's MSE a lead must stay
+    below) and `guard_min_frames` (the evidence it needs first) to ``guarded`` only.
     """
 
     mode: Mode = PARAM_SPECS["mode"].default
@@ -93,6 +101,8 @@ class CompensatorParams:
     history_frames: int = PARAM_SPECS["history_frames"].default
     min_motion: float = PARAM_SPECS["min_motion"].default
     guard_decay: float = PARAM_SPECS["guard_decay"].default
+    guard_margin: float = PARAM_SPECS["guard_margin"].default
+    guard_min_frames: int = PARAM_SPECS["guard_min_frames"].default
 
     def __post_init__(self) -> None:
         check_fields(self, PARAM_SPECS.values(), CompensatorError)
@@ -159,7 +169,11 @@ class DelayCompensator:
         #: The last residual lag measured from the robot's state (``variable``), NaN before any.
         self.last_robot_lag_s = math.nan
         self._history: deque[tuple[float, np.ndarray]] = deque(maxlen=self.params.history_frames)
-        self._guard = _Guard(self.params.guard_decay, self.params.frame_period)
+        self._guard = self._new_guard()
+
+    def _new_guard(self) -> _Guard:
+        p = self.params
+        return _Guard(p.guard_decay, p.frame_period, p.guard_margin, p.guard_min_frames)
 
     @property
     def fallback_count(self) -> int:
@@ -172,7 +186,7 @@ class DelayCompensator:
         self.delay_estimate_s = self.params.delay_s
         self.last_robot_lag_s = math.nan
         self._history.clear()
-        self._guard = _Guard(self.params.guard_decay, self.params.frame_period)
+        self._guard = self._new_guard()
 
     @property
     def guard_mse(self) -> tuple[np.ndarray, np.ndarray]:
@@ -293,13 +307,14 @@ class _Guard:
     pending, as does a change of horizon (which also restarts the statistics).
     """
 
-    def __init__(self, decay: float, frame_period: float) -> None:
-        self.decay, self.period = decay, frame_period
+    def __init__(self, decay: float, frame_period: float, margin: float = 1.0, min_frames: int = 1) -> None:
+        self.decay, self.period, self.margin, self.min_frames = decay, frame_period, margin, min_frames
         self._pending: PendingPredictions | None = None  # candidates [base, P(t+1..t+h)] lead, allocated on use
         self._filed = np.zeros(0, dtype=np.int64)  # by frame % h: the frame whose set was filed there
         self._clock: int | None = None  # the last frame taken from the pending predictions
         self._sse = np.zeros((0, 1))  # (target step k - 1, candidate j)
         self._weight = np.zeros(0)
+        self._scored = np.zeros(0, dtype=np.int64)  # frames scored per target step, not decayed
 
     def _index(self, t: float) -> int:
         return math.floor(t / self.period + 0.5)
@@ -310,7 +325,7 @@ class _Guard:
         if self._pending is None or self._pending.horizon != h:
             self._pending = PendingPredictions(h, joints, lead=(h + 1,))
             self._filed = np.full(h, np.iinfo(np.int64).min)
-            self._sse, self._weight = np.zeros((h, h + 1)), np.zeros(h)
+            self._sse, self._weight, self._scored = np.zeros((h, h + 1)), np.zeros(h), np.zeros(h, dtype=np.int64)
         if self._clock is None:
             self._clock = i
         if self._filed[i % h] == i or i + h <= self._clock:
@@ -344,6 +359,7 @@ class _Guard:
             err = np.mean((due[:, rows] - obs) ** 2, axis=-1).T  # (scored rows, candidate)
             self._sse[rows] = self.decay * self._sse[rows] + err
             self._weight[rows] = self.decay * self._weight[rows] + 1.0
+            self._scored[rows] += 1
 
     def mse(self) -> tuple[np.ndarray, np.ndarray]:
         """(MSE of P(t+k) at step k, MSE of holding still at step k), k = 1..h; NaN before any score."""
@@ -353,10 +369,10 @@ class _Guard:
         return m[k, k + 1], m[:, 0]
 
     def allowed(self, step: int) -> int:
-        """The largest j <= step whose recent error at target step `step` beats holding still (j = 0);
-        0 (the observation) until that step has been scored."""
-        if step < 1 or step > self._weight.shape[0] or self._weight[step - 1] <= 0:
+        """The largest j <= step whose recent error at target step `step` is below `margin` times
+        holding still's (j = 0); 0 (the observation) until that step has been scored `min_frames` times."""
+        if step < 1 or step > self._weight.shape[0] or self._scored[step - 1] < self.min_frames:
             return 0
         row = self._sse[step - 1, :step + 1]
-        better = (row[1:] < row[0]).nonzero()[0]
+        better = (row[1:] < self.margin * row[0]).nonzero()[0]
         return int(better[-1]) + 1 if better.size else 0
