@@ -147,6 +147,9 @@ def test_experiment_delay(tmp_path, monkeypatch):
     for x in runs:
         if x["rule"] == "none":  # uncompensated: the robot lags by the delay plus its motor latency
             assert x["lag_s"] == pytest.approx(x["delay_s"] + 0.035, abs=0.06)
+    none = {x["delay_s"]: x["mae"] for x in runs if x["rule"] == "none"}
+    for x in r["oracle"]:  # a perfect predictor leaves only the motors' lag: far below uncompensated
+        assert x["mae"] < 0.5 * none[x["delay_s"]] and x["lag_s"] < 0.1
     real = r["real"]
     assert real["clips"] == list(cfg["real_clips"]) and real["predictor"] == "gated_llm_gwr"
     assert len(real["runs"]) == len(real["clips"]) * len(cfg["delays"]) * len(cfg["real_rules"])

@@ -93,21 +93,43 @@ def measure(config: Config, seed: int, progress: bool) -> dict[str, Any]:
             for rule in config.rules:
                 rows.append({"predictor": name, "delay_s": delay, "rule": rule,
                              **one_run(person, lambda m=model: copy.deepcopy(m), delay, rule, config.skip_s)})
-    out = {"params": params.to_flat(), "person_frames": int(person.shape[0]), "runs": rows}
+    oracle = [{"delay_s": d, **one_run(person, lambda: Oracle(person, params.horizon), d, "fixed_true", config.skip_s)}
+              for d in config.delays]
+    out = {"params": params.to_flat(), "person_frames": int(person.shape[0]), "runs": rows, "oracle": oracle}
     if config.real:
         out["real"] = measure_clips(load_real_clips(config), config, params, seed)
     return out
 
 
+class Oracle:
+    """A perfect predictor (the person's true next frames): what is left is the robot's own lag."""
+
+    def __init__(self, angles: np.ndarray, horizon: int) -> None:
+        self.angles, self.horizon, self.t = np.asarray(angles, float), horizon, -1
+
+    def step(self, x: np.ndarray | None, learn: bool = True) -> np.ndarray:
+        self.t += 1
+        return self.angles[np.minimum(self.t + 1 + np.arange(self.horizon), len(self.angles) - 1)]
+
+    def reset_sequence(self) -> None:
+        self.t = -1
+
+
 def one_run(angles: np.ndarray, model: Callable[[], Predictor], delay: float, rule: str, skip_s: float
             ) -> dict[str, Any]:
-    """Lag, tracking error, mean step and fallbacks of one closed loop (`model()` builds the predictor)."""
+    """Lag, tracking error, mean step and fallbacks of one closed loop (`model()` builds the predictor),
+    and `command_mae`: how far the commands were from where the person was `delay` later (for
+    ``none``, holding still's error), which tells prediction error from what the motors add."""
     mode, assumed = RULES[rule]
     res = run_closed_loop(angles, model(), delay_s=delay, compensation=mode,  # type: ignore[arg-type]
                           compensator_delay_s=delay if assumed is None else assumed)
     err = res.errors(skip_s=skip_s)
     steps = res.steps_used[res.steps_used >= 0]
+    period = float(res.t[1] - res.t[0])
+    k, start = round(delay / period), round(skip_s / period)
+    gap = np.abs(res.commands[start:len(angles) - k] - angles[start + k:])
     return {"lag_s": res.lag_s(skip_s=skip_s), "mae": err["mae"], "rmse": err["rmse"],
+            "command_mae": float(np.nanmean(gap)) if np.isfinite(gap).any() else None,
             "mean_step": float(steps.mean()) if steps.size else None, "fallbacks": int(res.fallback_count)}
 
 
@@ -145,11 +167,25 @@ def run(config: Config, out: Path, seed: int = 0, progress: bool = True) -> Expe
                                                        for k in config.rules]])
         md += ["", f"**{common.label(name)}** (lag / MAE rad)", "",
                markdown_table(["delay", *config.rules], table)]
+        if {"none", "guarded_true"} <= set(config.rules):
+            md += ["", _breakdown(r, name, max(config.delays))]
     figures = [_plot(r, config, Path(out))]
     if "real" in r:
         md += _real_markdown(r["real"], config)
         figures.append(_plot_real(r["real"], config, Path(out)))
     return ExperimentOutput(NAME, "Closed-loop delay compensation", asdict(config), r, md, figures)
+
+
+def _breakdown(r: dict[str, Any], name: str, delay: float) -> str:
+    """Where the compensated robot's error comes from at `delay`: the commands' own error, the motors."""
+    cell = {x["rule"]: x for x in r["runs"] if x["predictor"] == name and x["delay_s"] == delay}
+    oracle = next(x for x in r["oracle"] if x["delay_s"] == delay)
+    g, n = cell["guarded_true"], cell["none"]
+    return (f"At {1000 * delay:.0f} ms, guarded at the true delay: tracking {g['mae']:.3f} vs {n['mae']:.3f} "
+            f"uncompensated ({100 * (g['mae'] / n['mae'] - 1):+.1f} %), mean step {g['mean_step']:.2f}; its commands "
+            f"are {g['command_mae']:.3f} rad from where the person was {1000 * delay:.0f} ms later (holding still: "
+            f"{n['command_mae']:.3f}); a perfect predictor tracks at {oracle['mae']:.3f} (motor latency and rate "
+            "limits).")
 
 
 def _ratio(runs: list[dict[str, Any]], clip: str, delay: float, rule: str) -> float:
