@@ -20,6 +20,9 @@ fi
 unset _gwr_stamp _py
 
 export VIRTUAL_ENV="$GWR_VENV"
+# This checkout's code first: a .venv shared between checkouts (git worktrees) holds an editable
+# install of only one of them, and console scripts do not put the working directory on sys.path.
+export PYTHONPATH="$GWR_ROOT${PYTHONPATH:+:$PYTHONPATH}"
 export PATH="$GWR_VENV/bin:$PATH"
 # Discovery stays on this machine unless the user widens it on purpose (see README).
 export ROS_AUTOMATIC_DISCOVERY_RANGE="${ROS_AUTOMATIC_DISCOVERY_RANGE:-LOCALHOST}"
