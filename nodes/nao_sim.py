@@ -5,6 +5,8 @@ kinematic model): commands reach its motors `delay_s` later (the paper's 600 ms 
 transport) plus `latency_s` of motor response. A timer advances it to the node clock in control
 periods (the physics runs at 240 Hz inside) and publishes what the robot reports on `joint_states`.
 `delay_amplitude_s` makes the delay vary as a sine (the variable-delay scenario of Sec. VI-D).
+Commands are checked by the input gate (layout, finite, stamps) and clipped into the joint limits
+once, at the robot's input (`SimulatedRobot.command`), counted as `joint_commands.clipped`.
 
 For URDF viewers (RViz's RobotModel, Foxglove's 3D panel) it also publishes the URDF on
 `robot_description` (std_msgs/String, transient-local, as robot_state_publisher does) and
@@ -73,7 +75,8 @@ class NaoSimNode(PipelineNode):
         except RobotError as exc:
             raise ParameterError(str(exc)) from None
         self.t0: float | None = None  # node-clock time of robot time 0: the first tick (under sim time, /clock)
-        self.gate = self.arm_gate("joint_commands")
+        # no limit rule at the gate: the robot's input clips every command, once (SimulatedRobot.command)
+        self.gate = self.arm_gate("joint_commands", limit_margin=None)
         self.state_pub = self.create_publisher(messages.JointState, conventions.TOPIC_ROBOT_STATE, stream_qos())
         self.publish_robot_description()
         self.create_subscription(messages.JointState, conventions.TOPIC_COMMAND, self.on_command, stream_qos())
@@ -114,7 +117,8 @@ class NaoSimNode(PipelineNode):
         if accepted is None:
             return
         self.advance()
-        self.robot.command(accepted[1])
+        if self.robot.command(accepted[1]):
+            self.counters.count("joint_commands.clipped")
         self.counters.count("commands.accepted")
 
     def on_tick(self) -> None:

@@ -236,10 +236,10 @@ class PipelineNode(Node):
             self.create_subscription(messages.DiagnosticArray, conventions.DIAGNOSTICS_TOPIC,
                                      self._check_duplicate, status_qos())
 
-    def arm_gate(self, input_name: str, check_stamps: bool = True) -> ArmAnglesGate:
+    def arm_gate(self, input_name: str, check_stamps: bool = True, limit_margin: float | None = 0.2) -> ArmAnglesGate:
         """The gate of one JointState input, its stamps checked against this node's clock."""
-        return ArmAnglesGate(self.counters, input_name, check_stamps=check_stamps, clock=self.now_s,
-                             max_ahead_s=self.params["max_stamp_ahead_s"])
+        return ArmAnglesGate(self.counters, input_name, limit_margin=limit_margin, check_stamps=check_stamps,
+                             clock=self.now_s, max_ahead_s=self.params["max_stamp_ahead_s"])
 
     def stamp_check(self) -> stamps.StampCheck:
         """The stamp rule (gwr_predictor.pipeline.stamps) of one more input stream of this node."""

@@ -3,7 +3,6 @@
 import numpy as np
 import pytest
 
-from gwr_predictor.robot import nao
 from gwr_predictor.robot.compensator import (
     NO_PREDICTIONS,
     NO_ROBOT_STATE,
@@ -109,11 +108,14 @@ def test_predictions_a_frame_older_than_the_observation_shift_the_step():
     assert out.step_used == 4  # aims at 10.1 + 0.3 = P(10.0 + 4 frames)
 
 
-def test_output_is_clipped_to_joint_limits():
+def test_output_is_the_chosen_pose_unclipped_and_a_copy():
+    """The robot's input clips commands (test_robot); the compensator hands on what it chose."""
     wild = np.full((6, 8), 5.0)
     out = DelayCompensator("fixed", 0.3).command(0.0, REST, wild, 0.0)
-    np.testing.assert_allclose(out.angles, nao.clip_to_limits(np.full(8, 5.0)))
     assert out.step_used == 3
+    np.testing.assert_array_equal(out.angles, wild[2])
+    out.angles[:] = 0.0
+    assert np.all(wild == 5.0)  # not a view of the caller's predictions
 
 
 def feed_history(comp: DelayCompensator, frames: int) -> None:

@@ -393,7 +393,7 @@ def test_fast_rollout_matches_a_plain_chain_of_searches(options):
     run(model, frames[:-1])
     pred = model.step(frames[-1])
     p, g1, g2, pg = model.params, model.gwr1, model.gwr2, model.pgwr
-    w1, w2 = model._win1.copy(), model._win2.copy()
+    w1, w2 = model._window1.rows.copy(), model._window2.rows.copy()
     y = pred[0] * p.input_scale
     for k in range(1, H):  # the roll-out of the docs, written out naively
         w1 = np.vstack([g1.weights[g1.bmu(y)[0]], w1[:-1]])

@@ -125,3 +125,15 @@ def test_arm_angles_gate_rejects_huge_and_non_finite_angles_without_numeric_warn
         warnings.simplefilter("error")
         assert gate.accept(1.0, ARM_JOINTS, angles) is None
     assert counters.get("rejected.arm_angles.non_finite") == 1
+
+
+def test_arm_angles_gate_without_a_limit_rule_passes_commands_on_unclipped():
+    """nao_sim's commands: the robot's input clips them (once), so the gate neither rejects nor clips."""
+    counters = RejectionCounter(_Log())
+    gate = ArmAnglesGate(counters, "joint_commands", limit_margin=None, check_stamps=False)
+    wild = np.full(len(ARM_JOINTS), 5.0)
+    _, angles = gate.accept(1.0, ARM_JOINTS, wild)
+    np.testing.assert_array_equal(angles, wild)
+    assert counters.snapshot() == {}
+    assert gate.accept(2.0, ARM_JOINTS, np.full(len(ARM_JOINTS), np.nan)) is None  # the other rules stay
+    assert counters.get("rejected.joint_commands.non_finite") == 1

@@ -69,10 +69,10 @@ def test_step_carries_the_remainder_so_time_follows_requests():
         assert steps == 240
 
 
-def test_command_by_name_moves_only_that_joint_and_clips_to_limits():
+def test_command_by_name_moves_only_that_joint_and_stops_at_its_limit():
     with NaoSimulator() as sim:
         sim.reset(REST)
-        sim.command({"LElbowRoll": 0.5})  # outside [-1.54, -0.035]: clipped to the upper limit
+        sim.command({"LElbowRoll": 0.5})  # outside [-1.54, -0.035]: the URDF's joint limit stops it
         sim.step(0.5)
         got = sim.joint_positions()
     expected = REST.copy()

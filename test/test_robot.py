@@ -83,12 +83,16 @@ def test_first_order_motor_slows_down_near_the_target():
     np.testing.assert_allclose(ratios, 0.8, atol=1e-9)  # error shrinks by 1 - dt/tau per step
 
 
-def test_motor_targets_are_clipped_to_joint_limits():
-    motor = MotorModel(MotorParams(latency_s=0.0), initial=REST)
-    motor.command(np.full(8, 3.0))
-    for _ in range(100):
-        motor.step(0.01)
-    np.testing.assert_allclose(motor.position, nao.clip_to_limits(np.full(8, 3.0)))
+@pytest.mark.parametrize("backend", ["kinematic", "pybullet"])
+def test_the_robot_input_clips_commands_to_joint_limits_and_says_so(backend):
+    wild = np.full(8, 3.0)  # beyond the upper limit of every joint
+    with SimulatedRobot(delay_s=0.0, latency_s=0.0, dt=0.01, backend=backend, initial=REST) as robot:
+        assert robot.command(wild) is True
+        robot.advance(1.0)
+        np.testing.assert_allclose(robot.joint_positions(), nao.clip_to_limits(wild), atol=2e-3)
+        assert robot.command(REST) is False  # within the limits: sent as it is
+        robot.advance(1.0)
+        np.testing.assert_allclose(robot.joint_positions(), REST, atol=2e-3)
 
 
 def step_response(robot: SimulatedRobot, seconds: float) -> tuple[np.ndarray, np.ndarray]:

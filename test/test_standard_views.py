@@ -120,6 +120,10 @@ def test_prediction_trajectory_points_are_at_t_plus_k_periods():
     np.testing.assert_array_equal(traj.positions, preds)
     one = command_trajectory(preds[0], 0.25)
     assert one.times_from_start.tolist() == [0.25] and one.positions.shape == (1, 8)
+    # a real robot's input: the pose is clipped into the joint limits there, once
+    np.testing.assert_array_equal(one.positions[0], nao.clip_to_limits(preds[0]))
+    inside = np.mean(nao.limits_array(), axis=0)
+    np.testing.assert_array_equal(command_trajectory(inside, 0.1).positions[0], inside)
     with pytest.raises(ValueError, match="frame period"):
         prediction_trajectory(preds, 0.0)
 

@@ -1,18 +1,19 @@
-"""The online learner: GWR1 -> GWR2 -> P-GWR (Sec. III-C/D), one frame at a time.
+"""The online learner: GWR1 -> GWR2 -> P-GWR (Sec. III-B..D), one frame at a time.
 
-At step t, with frame x(t) observed:
+`step` at time t, with frame x(t) observed (scaled by `input_scale` inside), in four named steps:
 
-1. GWR1 learns the scaled frame; its representative neuron (the inserted one, else the BMU, after
-   the update) enters window 1 (newest first, Eq. 5). With tau1 entries, their concatenation is
-   GWR2's input; GWR2's representative enters window 2; with tau2 entries, window 2 is the P-GWR
-   regressor r(t) (72 values with the defaults).
-2. Predictions made earlier for frame t are scored: C.P.E. against x(t), P.E. against its GWR1
+1. `_encode`: GWR1 learns x(t) (Eqs. 1-4); its representative neuron (the inserted one, else the
+   BMU after the update) enters window 1, newest first; once window 1 holds tau1 entries, their
+   concatenation o1(t) (Eq. 5) is GWR2's input; GWR2's representative enters window 2, whose
+   concatenation o2(t) (Eq. 5) is the P-GWR regressor x_in(t) (Eq. 7; 72 values by default).
+2. score: the predictions made earlier for frame t: C.P.E. against x(t), P.E. against its GWR1
    representative (the target "as represented by the hierarchy").
-3. The P-GWR learns only pairs whose target has now been observed: (r(t-1), x(t)) in recursive
-   mode, (r(t-h), x(t-h+1) ... x(t)) in vector mode. It never sees a frame before its step.
-4. r(t) gives the prediction of t+1..t+h: the BMU's output weights (vector mode), or recursively
-   predicted frame -> GWR1 BMU -> shifted copies of the windows -> GWR2 BMU -> P-GWR BMU (no
-   learning on predictions).
+3. `_learn_pgwr` (Eqs. 8-9): only a pair whose target has now been observed (Eq. 7):
+   (x_in(t-1), x(t)) in recursive mode, (x_in(t-h), x(t-h+1) + ... + x(t)) in vector mode. The
+   P-GWR never sees a frame before its step.
+4. `_predict` (Eq. 10): the output weights of x_in(t)'s BMU are x(t+1) (vector mode: x(t+1..t+h));
+   in recursive mode each predicted frame is fed back: GWR1 BMU -> window 1 -> GWR2 BMU ->
+   window 2 -> P-GWR BMU (no learning on predictions).
 
 A missing sample (None or non-finite values) is a gap: windows and the queue of regressors are
 cleared (a concatenation never bridges unrelated frames) and the gap is counted; predictions made
@@ -125,6 +126,30 @@ class ErrorTracker:
         self.q_count = {k: int(v) for k, v in header["q_count"].items()}
 
 
+class _Window:
+    """Eq. 5's window in time: the last `tau` rows, newest first; `flat` (a view) is their
+    concatenation o(t) = w_b(t) + w_b(t-1) + ... + w_b(t-tau+1) once `full`."""
+
+    __slots__ = ("fill", "flat", "rows")
+
+    def __init__(self, tau: int, dim: int) -> None:
+        self.rows = np.zeros((tau, dim))
+        self.flat = self.rows.reshape(-1)
+        self.fill = 0
+
+    def push(self, row: np.ndarray) -> bool:
+        """Shift `row` in as the newest entry; True when the window holds `tau` entries."""
+        rows = self.rows
+        rows[1:] = rows[:-1]
+        rows[0] = row
+        self.fill = min(self.fill + 1, len(rows))
+        return self.fill == len(rows)
+
+    def restore(self, rows: np.ndarray, fill: int, name: str) -> None:
+        _copy_into(self.rows, rows, name)
+        self.fill = int(fill)
+
+
 class _OnlinePredictor:
     """Shared online loop of `Hierarchy` and `FlatPredictor`: gaps, delayed targets, predictions,
     bookkeeping, persistence. Subclasses encode frames into regressors."""
@@ -163,7 +188,7 @@ class _OnlinePredictor:
         raise NotImplementedError
 
     def _encode(self, xs: np.ndarray, learn: bool) -> tuple[np.ndarray, np.ndarray | None]:
-        """Feed one scaled frame; returns (its representation, scaled; the regressor or None)."""
+        """Feed one scaled frame; returns (its representation, scaled; the regressor x_in(t) or None)."""
         raise NotImplementedError
 
     def _rollout(self, first: np.ndarray, out: np.ndarray) -> None:
@@ -178,22 +203,20 @@ class _OnlinePredictor:
         self._t += 1
         frame = self._as_frame(x)
         if frame is None:
-            self._missing += 1
-            self._errors.score(t, None, None)
-            self._clear_sequence()
+            self._gap(t)
             return None
         self._frames += 1
-        xs = frame * self._scale
-        rep, reg = self._encode(xs, learn)
-        self._errors.score(t, frame, rep / self._scale)
-        self._push_frame(xs)
+        xs = frame * self._scale  # x(t) in the model's units
+        represented, x_in = self._encode(xs, learn)  # 1. x(t) -> GWR1 -> GWR2 -> x_in(t) (Eqs. 1-5, 7)
+        self._errors.score(t, frame, represented / self._scale)  # 2. P.E., C.P.E. of the predictions for t
+        self._observe(xs)  # x(t) completes the target of an earlier regressor
         if learn and "pgwr" not in self._frozen:
-            self._train_pgwr()
-        self._regs.append(reg)
-        self._last_reg = reg
-        if reg is None:
-            return None
-        prediction = self._forecast(reg, record=True)
+            self._learn_pgwr()  # 3. (x_in(t-k), x(t-k+1..t)) (Eqs. 7-9)
+        self._regs.append(x_in)
+        self._last_reg = x_in
+        if x_in is None:
+            return None  # the windows are not full yet
+        prediction = self._predict(x_in, record=True)  # 4. x(t+1..t+h) (Eq. 10)
         self._errors.expect(t, prediction)
         self._predictions += 1
         return prediction
@@ -201,7 +224,14 @@ class _OnlinePredictor:
     def predict(self) -> np.ndarray | None:
         """The predictions from the current windows (as the last `step` returned, with the current
         networks); no learning, no state change."""
-        return None if self._last_reg is None else self._forecast(self._last_reg, record=False)
+        return None if self._last_reg is None else self._predict(self._last_reg, record=False)
+
+    def _gap(self, t: int) -> None:
+        """A missing frame: the predictions for t are dropped unscored and the windows restart,
+        so that no concatenation bridges the gap."""
+        self._missing += 1
+        self._errors.score(t, None, None)
+        self._clear_sequence()
 
     def _as_frame(self, x: np.ndarray | None) -> np.ndarray | None:
         if x is None:
@@ -211,7 +241,7 @@ class _OnlinePredictor:
             raise InputError(f"a frame must have shape ({self.params.n_joints},), got {frame.shape}")
         return frame if math.isfinite(frame.sum()) else None
 
-    def _push_frame(self, xs: np.ndarray) -> None:
+    def _observe(self, xs: np.ndarray) -> None:
         """Keep the last `_target_steps` + 1 scaled frames, oldest first: the targets of the pair
         learned now and, for delta targets, the frame they are measured from."""
         buf = self._xbuf
@@ -219,31 +249,36 @@ class _OnlinePredictor:
         buf[-1] = xs
         self._xfill = min(self._xfill + 1, len(buf))
 
-    def _train_pgwr(self) -> None:
-        """Learn the newest pair whose target is fully observed (delayed targets, no peeking)."""
+    def _learn_pgwr(self) -> None:
+        """Eqs. 8-9 on the newest pair whose output is fully observed (Eq. 7, no peeking): x_in(t-k)
+        with x_out = x(t-k+1) + ... + x(t), k = 1 (recursive) or h (vector); with delta targets
+        x_out holds each frame's displacement from x(t-k)."""
         k = self._target_steps
         if len(self._regs) < k or self._xfill < k + self._delta:
             return
-        reg = self._regs[-k]
-        if reg is None:
+        x_in = self._regs[-k]
+        if x_in is None:
             return
-        buf = self._xbuf
-        # in recursive mode the P-GWR has not changed since `_forecast` searched this very regressor
-        # last frame: the affinity it kept is reused (`GWR.search_keep`)
-        if self._delta:  # displacement of each target frame from the regressor's newest frame
-            target = self._target.reshape(k, -1)
-            np.subtract(buf[1:], buf[0], out=target)
-            self.pgwr.learn_unchecked(reg, self._target)
+        frames = self._xbuf  # x(t-k) .. x(t)
+        if self._delta:
+            x_out = self._target
+            np.subtract(frames[1:], frames[0], out=x_out.reshape(k, -1))
         else:
-            self.pgwr.learn_unchecked(reg, buf[1:].reshape(-1))
+            x_out = frames[1:].reshape(-1)
+        # in recursive mode the P-GWR has not changed since `_predict` searched this very regressor
+        # last frame: the affinity it kept is reused (`GWR.search_keep`)
+        self.pgwr.learn_unchecked(x_in, x_out)
 
-    def _forecast(self, reg: np.ndarray, record: bool) -> np.ndarray:
+    def _predict(self, x_in: np.ndarray, record: bool) -> np.ndarray:
+        """x(t+1..t+h) in radians from the regressor x_in(t): the output weights of its BMU (Eqs. 8,
+        10; or the blend of its `readout_k` nearest), all h frames at once in vector mode, else the
+        first frame, the rest fed back (`_rollout`). Delta targets add offsets to x(t)."""
         p = self.params
         pg = self.pgwr
         # recursive mode: the affinity is kept for the P-GWR's next learning step, which is on this
-        # very regressor (see `_train_pgwr`); vector mode learns an older one
-        aff = pg.search_keep(reg) if self._target_steps == 1 else None
-        y = pg.blended_output(reg, self._readout_k, record, affinity=aff)
+        # very regressor (see `_learn_pgwr`); vector mode learns an older one
+        aff = pg.search_keep(x_in) if self._target_steps == 1 else None
+        y = pg.blended_output(x_in, self._readout_k, record, affinity=aff)
         if record:
             self._errors.quantization("pgwr", pg.last_distance / self._scale)
         out = np.empty((p.horizon, p.n_joints))
@@ -271,7 +306,8 @@ class _OnlinePredictor:
             out[:] = y
 
     def _match(self, net: GWR, name: str, x: np.ndarray, learn: bool) -> int:
-        """Learn (or only match, if frozen / not learning); returns the representative neuron."""
+        """One GWR step on x (Eqs. 1-4), or only its BMU if frozen / not learning; returns the
+        representative neuron: the one inserted, else the BMU."""
         if learn and name not in self._frozen:
             b = net.learn_unchecked(x)
             idx = net.last_inserted if net.last_inserted >= 0 else b
@@ -482,9 +518,8 @@ class Hierarchy(_OnlinePredictor):
 
     def _clear_windows(self) -> None:
         p = self.params
-        self._win1 = np.zeros((p.tau1, p.n_joints))  # newest first
-        self._win2 = np.zeros((p.tau2, p.gwr2_dim))
-        self._fill1 = self._fill2 = 0
+        self._window1 = _Window(p.tau1, p.n_joints)  # of GWR1's representatives: GWR2's input o1(t)
+        self._window2 = _Window(p.tau2, p.gwr2_dim)  # of GWR2's representatives: x_in(t) = o2(t)
         self._roll1 = np.empty((p.horizon - 1 + p.tau1, p.n_joints))  # roll-out scratch (see _rollout)
         self._roll2 = np.empty((p.horizon - 1 + p.tau2, p.gwr2_dim))
         # per start row s: the row written there and the window starting there (flattened), made once
@@ -496,24 +531,17 @@ class Hierarchy(_OnlinePredictor):
                             list(self._roll2), [f2[s * d2:s * d2 + n2] for s in starts])
 
     def _encode(self, xs: np.ndarray, learn: bool) -> tuple[np.ndarray, np.ndarray | None]:
-        p = self.params
-        g1, g2 = self.gwr1, self.gwr2
-        w1 = self._win1
-        i1 = self._match(g1, "gwr1", xs, learn)
-        w1[1:] = w1[:-1]
-        w1[0] = g1.weight_row(i1)
-        rep = w1[0].copy()
-        self._fill1 = min(self._fill1 + 1, p.tau1)
-        if self._fill1 < p.tau1:
-            return rep, None
-        w2 = self._win2
-        i2 = self._match(g2, "gwr2", w1.reshape(-1), learn)
-        w2[1:] = w2[:-1]
-        w2[0] = g2.weight_row(i2)
-        self._fill2 = min(self._fill2 + 1, p.tau2)
-        if self._fill2 < p.tau2:
-            return rep, None
-        return rep, w2.reshape(-1).copy()
+        """x(t) -> GWR1 -> window 1 -> GWR2 -> window 2: (x(t) as GWR1 represents it, x_in(t) or None)."""
+        g1, g2, w1, w2 = self.gwr1, self.gwr2, self._window1, self._window2
+        b1 = self._match(g1, "gwr1", xs, learn)  # GWR1 on x(t) (Eqs. 1-4)
+        full = w1.push(g1.weight_row(b1))  # its representative enters window 1
+        represented = w1.rows[0].copy()
+        if not full:
+            return represented, None
+        b2 = self._match(g2, "gwr2", w1.flat, learn)  # GWR2 on o1(t), window 1's concatenation (Eq. 5)
+        if not w2.push(g2.weight_row(b2)):  # its representative enters window 2
+            return represented, None
+        return represented, w2.flat.copy()  # x_in(t) = o2(t), window 2's concatenation (Eqs. 5, 7)
 
     def _rollout(self, first: np.ndarray, out: np.ndarray) -> None:
         """Each roll-out step is a chain of three BMU searches. The windows slide over two buffers
@@ -524,8 +552,8 @@ class Hierarchy(_OnlinePredictor):
         h = len(out)
         s = h - 1
         rows1, wins1, rows2, wins2 = self._roll_views
-        self._roll1[s:] = self._win1
-        self._roll2[s:] = self._win2
+        self._roll1[s:] = self._window1.rows
+        self._roll2[s:] = self._window2.rows
         # the two lower searches inlined (nothing learns during a roll-out): one product + argmax each
         a1, x1, o1, w1 = self.gwr1.search_views()
         a2, x2, o2, w2 = self.gwr2.search_views()
@@ -538,13 +566,13 @@ class Hierarchy(_OnlinePredictor):
         for k in range(1, h):  # predicted frame -> GWR1 BMU -> GWR2 BMU -> P-GWR read-out
             s -= 1
             q1[...] = prev
-            rows1[s][...] = w1[dot(a1, x1, out=o1).argmax()]
-            q2[...] = wins1[s]
-            rows2[s][...] = w2[dot(a2, x2, out=o2).argmax()]
+            rows1[s][...] = w1[dot(a1, x1, out=o1).argmax()]  # GWR1's BMU of x(t+k) enters window 1
+            q2[...] = wins1[s]  # o1(t+k) (Eq. 5)
+            rows2[s][...] = w2[dot(a2, x2, out=o2).argmax()]  # GWR2's BMU of o1(t+k) enters window 2
             cur = out[k]
             if bmu_readout:
-                q3[...] = wins2[s]
-                cur[...] = wo[dot(a3, x3, out=o3).argmax()]
+                q3[...] = wins2[s]  # x_in(t+k) (Eq. 7)
+                cur[...] = wo[dot(a3, x3, out=o3).argmax()]  # w_out of its BMU: x(t+k+1) (Eqs. 8, 10)
                 if delta:
                     cur += prev
             else:
@@ -552,12 +580,13 @@ class Hierarchy(_OnlinePredictor):
             prev = cur
 
     def _window_arrays(self) -> dict[str, np.ndarray]:
-        return {"win1": self._win1, "win2": self._win2, "fill": np.array([self._fill1, self._fill2])}
+        w1, w2 = self._window1, self._window2
+        return {"win1": w1.rows, "win2": w2.rows, "fill": np.array([w1.fill, w2.fill])}
 
     def _restore_windows(self, header: dict[str, Any], arrays: dict[str, np.ndarray]) -> None:
-        _copy_into(self._win1, arrays["win1"], "win1")
-        _copy_into(self._win2, arrays["win2"], "win2")
-        self._fill1, self._fill2 = (int(v) for v in arrays["fill"])
+        fill1, fill2 = arrays["fill"]
+        self._window1.restore(arrays["win1"], fill1, "win1")
+        self._window2.restore(arrays["win2"], fill2, "win2")
 
 
 class FlatPredictor(_OnlinePredictor):
@@ -580,18 +609,14 @@ class FlatPredictor(_OnlinePredictor):
         return _new_pgwr(p, self.scaling, self._rng, self.order, p.n_joints * self.order)
 
     def _clear_windows(self) -> None:
-        self._win = np.zeros((self.order, self.params.n_joints))
-        self._fill = 0
+        self._window = _Window(self.order, self.params.n_joints)  # of raw frames: x_in(t) (Eq. 7)
 
     def _encode(self, xs: np.ndarray, learn: bool) -> tuple[np.ndarray, np.ndarray | None]:
-        w = self._win
-        w[1:] = w[:-1]
-        w[0] = xs
-        self._fill = min(self._fill + 1, self.order)
-        return xs, (w.reshape(-1).copy() if self._fill == self.order else None)
+        """x(t) enters the window of raw frames; x_in(t) once it holds `order` frames."""
+        return xs, (self._window.flat.copy() if self._window.push(xs) else None)
 
     def _rollout(self, first: np.ndarray, out: np.ndarray) -> None:
-        w = self._win.copy()
+        w = self._window.rows.copy()
         flat = w.reshape(-1)
         for k in range(1, len(out)):
             w[1:] = w[:-1]
@@ -605,11 +630,10 @@ class FlatPredictor(_OnlinePredictor):
         self.order = int(header["order"])
 
     def _window_arrays(self) -> dict[str, np.ndarray]:
-        return {"win": self._win, "fill": np.array([self._fill])}
+        return {"win": self._window.rows, "fill": np.array([self._window.fill])}
 
     def _restore_windows(self, header: dict[str, Any], arrays: dict[str, np.ndarray]) -> None:
-        _copy_into(self._win, arrays["win"], "win")
-        self._fill = int(arrays["fill"][0])
+        self._window.restore(arrays["win"], arrays["fill"][0], "win")
 
 
 def _new_pgwr(p: HierarchyParams, sc: InputScaling, rng: np.random.Generator, frames: int,

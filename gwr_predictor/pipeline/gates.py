@@ -107,11 +107,16 @@ class ArmAnglesGate:
       back-jumps starts a new sequence (`<input>.stamp_restarts`), see `check_stamp`;
     - angles beyond the joint limits by more than `limit_margin` rad: `out_of_limits`; closer
       ones are clipped to the limits and counted as `<input>.clipped` (a repair, not a rejection).
+      This is the clip of observed angles (arm_angles, joint_states). With `limit_margin=None`
+      the gate applies no limit rule and returns the angles unclipped: nao_sim's robot commands,
+      which the robot's input (`SimulatedRobot.command`) clips, once, whatever their source; they
+      are the predictor's poses, which may overshoot a limit by any amount and must reach the
+      robot as the offline closed loop's do.
     """
 
     def __init__(self, counters: RejectionCounter, input_name: str, names: tuple[str, ...] = ARM_JOINTS,
-                 limit_margin: float = 0.2, check_stamps: bool = True, clock: Callable[[], float] | None = None,
-                 max_ahead_s: float = stamps.MAX_STAMP_AHEAD_S) -> None:
+                 limit_margin: float | None = 0.2, check_stamps: bool = True,
+                 clock: Callable[[], float] | None = None, max_ahead_s: float = stamps.MAX_STAMP_AHEAD_S) -> None:
         self._counters = counters
         self._clock = clock
         self._stamps = stamps.StampCheck(max_ahead_s)
@@ -137,13 +142,16 @@ class ArmAnglesGate:
         if not np.all(np.isfinite(angles)):
             self._reject("non_finite", f"non-finite angles {np.array2string(angles, precision=3, separator=', ')}")
             return None
-        if np.any(angles < self._lo - self._margin) or np.any(angles > self._hi + self._margin):
+        limited = self._margin is not None
+        if limited and (np.any(angles < self._lo - self._margin) or np.any(angles > self._hi + self._margin)):
             self._reject("out_of_limits", f"angles beyond the joint limits by more than {self._margin} rad")
             return None
         if self._check_stamps:  # last: the rule remembers the stamps it accepts
             now = self._clock() if self._clock is not None else None
             if not check_stamp(self._counters, self._stamps, self._input, stamp, now):
                 return None
+        if not limited:
+            return stamp, angles
         clipped = np.clip(angles, self._lo, self._hi)
         if np.any(clipped != angles):
             self._counters.count(f"{self._input}.clipped")

@@ -8,6 +8,9 @@ Pure numpy; `gwr_predictor.nodes.standard_messages.joint_trajectory` builds the
 - the compensator's command to a real robot: one point, the pose to reach, `time_from_start`
   after "now" (stamp 0 = start on arrival, the controller's convention), so the controller moves
   there smoothly within one command period and the next command replaces the rest of the motion.
+  This is the real robot's input as far as this package reaches, so the pose is clipped into the
+  Nao's joint limits here, the one clip of that path (the simulated robot clips at
+  `SimulatedRobot.command`).
 """
 
 from __future__ import annotations
@@ -15,6 +18,8 @@ from __future__ import annotations
 from typing import NamedTuple
 
 import numpy as np
+
+from gwr_predictor.robot.nao import ARM_JOINTS, clip_to_limits
 
 
 class Trajectory(NamedTuple):
@@ -35,9 +40,11 @@ def prediction_trajectory(predictions: np.ndarray, frame_period_s: float) -> Tra
     return Trajectory(times, predictions)
 
 
-def command_trajectory(angles: np.ndarray, time_from_start_s: float) -> Trajectory:
-    """One commanded pose -> a one-point trajectory reaching it `time_from_start_s` after its start."""
+def command_trajectory(angles: np.ndarray, time_from_start_s: float,
+                       names: tuple[str, ...] = ARM_JOINTS) -> Trajectory:
+    """One commanded pose of the joints `names` -> a one-point trajectory reaching it, clipped into
+    the joint limits, `time_from_start_s` after its start."""
     angles = np.asarray(angles, dtype=np.float64).ravel()
     if not time_from_start_s > 0.0:
         raise ValueError(f"time_from_start must be > 0 s, got {time_from_start_s}")
-    return Trajectory(np.array([float(time_from_start_s)]), angles[None, :])
+    return Trajectory(np.array([float(time_from_start_s)]), clip_to_limits(angles, names)[None, :])

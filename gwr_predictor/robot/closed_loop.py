@@ -34,6 +34,7 @@ class ClosedLoopResult:
     `executed[k]` is the robot's mean pose over frame k's interval [t_k, t_k + frame_period).
     The fine traces (every control period) hold the person as the pose last shown (zero-order
     hold of the 10 fps frames) and the robot's pose, for sub-frame lag estimates.
+    `commands[k]` is the compensator's pose as sent, unclipped (the robot's input clips it).
     `observed[k]` / `commands[k]` are NaN for frames that had not reached the loop before the end.
     """
 

@@ -32,6 +32,10 @@ state of the hardware is followed; the paper leaves the estimation of xi out of 
 
 Without usable predictions (none yet, not finite, or older than `stale_after_s`) every mode
 falls back to the newest observation and says why.
+
+The command is the chosen pose as it is, not clipped into the joint limits: the robot's input
+clips every command once (`SimulatedRobot.command`; `trajectory.command_trajectory` for a real
+robot's controller), whichever source it comes from.
 """
 
 from __future__ import annotations
@@ -46,7 +50,7 @@ import numpy as np
 from gwr_predictor.errors import GwrPredictorError
 from gwr_predictor.parameter_spec import ParamSpec, check_fields
 from gwr_predictor.pending import PendingPredictions
-from gwr_predictor.robot.nao import ARM_JOINTS, clip_to_limits
+from gwr_predictor.robot.nao import ARM_JOINTS
 
 MODES = ("none", "guarded", "fixed", "variable")
 Mode = Literal["none", "guarded", "fixed", "variable"]
@@ -154,7 +158,8 @@ def robot_lag(now: float, robot_state: np.ndarray, times: np.ndarray, poses: np.
 
 
 class DelayCompensator:
-    """Stateful wrapper: validation, staleness, fallback counters, the delay estimate, clipping."""
+    """Stateful wrapper: validation, staleness, fallback counters, the delay estimate (the
+    commands it returns are not clipped: the robot's input does that)."""
 
     def __init__(self, mode: Mode = "guarded", delay_s: float = 0.6, frame_period: float = 0.1,
                  stale_after_s: float = 0.5, *, joint_names: tuple[str, ...] = ARM_JOINTS,
@@ -213,7 +218,7 @@ class DelayCompensator:
         state = None if robot_state is None else self._vector(robot_state, "robot_state")
         self.commands += 1
         if p.mode == "none":
-            return CompensatorOutput(self._clip(obs), 0, None)
+            return CompensatorOutput(self._output(obs), 0, None)
         stamp = obs_stamp if obs_stamp is not None else (pred_stamp if pred_stamp is not None else now)
         if self._history and stamp < self._history[-1][0]:
             self._history.clear()  # stamps went back: a new sequence (a replay, a restarted source)
@@ -224,7 +229,7 @@ class DelayCompensator:
         reason = self._unusable(now if obs_stamp is None else obs_stamp, predictions, pred_stamp)
         if reason is not None:
             self.fallbacks[reason] += 1
-            return CompensatorOutput(self._clip(obs), 0, reason)
+            return CompensatorOutput(self._output(obs), 0, reason)
         preds = np.asarray(predictions, dtype=float)
         assert pred_stamp is not None
         if p.mode == "variable":
@@ -240,7 +245,7 @@ class DelayCompensator:
             if base is not None:
                 self._guard.expect(pred_stamp, preds, base)
             step = self._guard.allowed(step)
-        return CompensatorOutput(self._clip(obs if step == 0 else preds[step - 1]), step, reason)
+        return CompensatorOutput(self._output(obs if step == 0 else preds[step - 1]), step, reason)
 
     def _pose_at(self, t: float, obs: np.ndarray, obs_t: float) -> np.ndarray | None:
         """The observed pose stamped t (the P(t+0) of predictions made at t), if still known."""
@@ -290,8 +295,10 @@ class DelayCompensator:
             raise CompensatorError(f"{name} must have {len(self.joint_names)} joint angles, got shape {arr.shape}")
         return arr
 
-    def _clip(self, angles: np.ndarray) -> np.ndarray:
-        return clip_to_limits(np.asarray(angles, dtype=float), self.joint_names)
+    @staticmethod
+    def _output(angles: np.ndarray) -> np.ndarray:
+        """A copy of the chosen pose (the caller's arrays are not handed back), unclipped."""
+        return np.array(angles, dtype=float)
 
 
 class _Guard:

@@ -7,6 +7,10 @@ to be the same whether the arm is this kinematic model or the PyBullet simulator
 
 `SimulatedRobot` steps at a fixed `dt`; with ``backend="pybullet"`` the last stage is a
 `NaoSimulator` driven by position control instead of the kinematic rate limiter.
+
+`SimulatedRobot.command` is the robot's input: every command, whoever sends it (the closed loop's
+compensator, the nao_sim node for the compensator node, a bag or a user), is clipped into the joint
+limits there and nowhere else; the stages behind it receive in-limit targets.
 """
 
 from __future__ import annotations
@@ -154,9 +158,13 @@ class MotorModel:
         return self._inputs.get(self.t)
 
     def command(self, target: np.ndarray) -> None:
-        """Give a new target at the motor's current time."""
-        target = _as_angles(target, len(self.params.joint_names), "MotorModel.command")
-        self._inputs.push(self.t, clip_to_limits(target, self.params.joint_names))
+        """Give a new target at the motor's current time.
+
+        The target must lie within the joint limits: it is not clipped again here, because
+        `SimulatedRobot.command` clipped it at the robot's input (a target beyond a limit would be
+        followed beyond it).
+        """
+        self._inputs.push(self.t, _as_angles(target, len(self.params.joint_names), "MotorModel.command"))
 
     def step(self, dt: float) -> np.ndarray:
         """Advance by `dt` seconds and return the new joint positions."""
@@ -262,9 +270,16 @@ class SimulatedRobot:
         """Change the transport delay for commands sent from now on (a variable-delay robot)."""
         self._transport.delay_s = value
 
-    def command(self, angles: np.ndarray) -> None:
-        """Send target angles (ARM_JOINTS order) now; they reach the motors `delay_s` later."""
-        self._transport.push(self.t, clip_to_limits(_as_angles(angles, len(ARM_JOINTS), "SimulatedRobot.command")))
+    def command(self, angles: np.ndarray) -> bool:
+        """Send target angles (ARM_JOINTS order) now; they reach the motors `delay_s` later.
+
+        The robot's input, the one place a command is clipped into the joint limits (the callers
+        send what they chose, unclipped). Returns True when the command had to be clipped.
+        """
+        target = _as_angles(angles, len(ARM_JOINTS), "SimulatedRobot.command")
+        clipped = clip_to_limits(target)
+        self._transport.push(self.t, clipped)
+        return bool(np.any(clipped != target))
 
     def joint_positions(self) -> np.ndarray:
         """The true current joint angles (no reporting delay)."""

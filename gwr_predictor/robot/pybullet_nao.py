@@ -137,12 +137,15 @@ class NaoSimulator:
                                      f"(ROBOT_ARM_JOINTS) angles, got shape {arr.shape}")
         if not np.all(np.isfinite(full)):
             raise SimulatorError(f"joint targets must be finite, got {full}")
-        return clip_to_limits(full, ROBOT_ARM_JOINTS)
+        return full
 
     def command(self, positions: Mapping[str, float] | np.ndarray | Sequence[float]) -> None:
         """Position targets (by name, or an array in ARM_JOINTS / ROBOT_ARM_JOINTS order).
 
         Each motor tracks its target with the URDF's effort limit and at most its Nao velocity.
+        Targets are not clipped here: `SimulatedRobot.command`, the robot's input, clipped them
+        already; a target beyond a limit sent directly stops at the URDF's joint limit, which
+        PyBullet enforces like the arm's mechanical stop.
         """
         c = self._require()
         self._targets = self._full_targets(positions)
@@ -176,9 +179,10 @@ class NaoSimulator:
         return np.array([s[1] for s in self._p.getJointStates(self.robot, ids, physicsClientId=c)])
 
     def reset(self, angles: Mapping[str, float] | np.ndarray | Sequence[float]) -> None:
-        """Teleport the joints to `angles` at rest and hold them there (targets = angles)."""
+        """Teleport the joints to `angles` (clipped into the limits: a pose is placed, not driven
+        there, so no joint stop would hold it) at rest and hold them there (targets = angles)."""
         c = self._require()
-        self._targets = self._full_targets(angles)
+        self._targets = clip_to_limits(self._full_targets(angles), ROBOT_ARM_JOINTS)
         for j, a in zip(self._all_ids, self._targets, strict=True):
             self._p.resetJointState(self.robot, j, float(a), 0.0, physicsClientId=c)
         self.command(self._targets)
