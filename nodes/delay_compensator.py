@@ -37,6 +37,8 @@ PARAMS = (
     ParamSpec("frame_period_s", 0.1, "spacing of the predicted frames (s)", 0.001, 10.0),
     compensator.PARAM_SPECS["stale_after_s"],
     compensator.PARAM_SPECS["guard_decay"],
+    compensator.PARAM_SPECS["guard_margin"],
+    compensator.PARAM_SPECS["guard_min_frames"],
     ParamSpec("robot_state_timeout_s", 0.5, "a robot state older than this is ignored (variable mode)", 0.0, 3600.0),
     ParamSpec("output", "joint_state", "joint_state: JointState on joint_commands (nao_sim); joint_trajectory: "
               "JointTrajectory on joint_trajectory_controller/joint_trajectory (ros2_control); both",
@@ -82,7 +84,8 @@ class DelayCompensatorNode(PipelineNode):
         """The library compensator for `mode` and `delay_s` (CompensatorError if they do not fit)."""
         p = self.params
         return compensator.DelayCompensator(params=compensator.CompensatorParams(
-            mode, delay_s, p["frame_period_s"], p["stale_after_s"], guard_decay=p["guard_decay"]))
+            mode, delay_s, p["frame_period_s"], p["stale_after_s"], guard_decay=p["guard_decay"],
+            guard_margin=p["guard_margin"], guard_min_frames=p["guard_min_frames"]))
 
     def check_live(self, name: str, value: Any) -> None:
         if name in ("mode", "delay_s"):

@@ -212,3 +212,86 @@ def test_variable_mode_leaves_its_estimate_alone_while_the_person_is_still():
     comp.command(1.0, REST, noisy, 1.0, robot_state=noisy[5])  # the robot happens to match P(t+6)
     assert np.isnan(comp.last_robot_lag_s)
     assert comp.delay_estimate_s == 0.3
+
+
+def _guarded_run(stamps, poses, preds, comp=None):
+    """Feed (stamp, pose, P(t+1..t+h)) commands to a guarded compensator; return it."""
+    comp = comp or DelayCompensator("guarded", delay_s=0.3)
+    for t, x, p in zip(stamps, poses, preds, strict=True):
+        comp.command(t, x, p, t, obs_stamp=t)
+    return comp
+
+
+def _walk(n, start=0, h=6):
+    """Poses REST + i d for frames start..start+n-1 and the exact predictions of each."""
+    poses = [REST + DIRECTION * k for k in range(start, start + n)]
+    return [0.1 * k for k in range(start, start + n)], poses, [predictions_from(x, h) for x in poses]
+
+
+def test_guard_scores_each_prediction_set_once_per_target_frame():
+    stamps, poses, preds = _walk(12)
+    comp = _guarded_run(stamps, poses, preds)
+    model, hold = comp.guard_mse
+    assert np.all(model < 1e-20) and np.all(hold > 1e-3)  # exact predictions, scored at every step
+    # a second observation inside the last frame (stamp 1.14 rounds to frame 11) is not scored again
+    comp.command(1.14, poses[-1] + 0.5, preds[-1], 1.14, obs_stamp=1.14)
+    again, _ = comp.guard_mse
+    np.testing.assert_array_equal(again, model)
+
+
+def test_guard_drops_what_targets_a_missing_frame_and_keeps_the_rest():
+    stamps, poses, preds = _walk(12)
+    wrong = [p.copy() for p in preds]
+    wrong[3][1] += 1.0  # frame 3's row for frame 5, which never arrives
+    keep = [k for k in range(12) if k != 5]
+    comp = _guarded_run([stamps[k] for k in keep], [poses[k] for k in keep], [wrong[k] for k in keep])
+    model, hold = comp.guard_mse
+    assert np.all(model < 1e-20) and np.all(np.isfinite(hold))  # frame 3's other rows were still scored
+
+
+def test_guard_starts_over_when_stamps_go_back():
+    stamps, poses, preds = _walk(10)
+    comp = _guarded_run(stamps, poses, preds)
+    # a new sequence from stamp 0 on another path: predictions of the old one must not be scored on it
+    other = [REST - DIRECTION * k for k in range(10)]
+    comp = _guarded_run(stamps, other, [x - DIRECTION * np.arange(1, 7)[:, None] for x in other], comp)
+    model, _ = comp.guard_mse
+    assert np.all(model < 1e-20)
+
+
+def test_guard_survives_a_jump_longer_than_its_horizon():
+    stamps, poses, preds = _walk(10)
+    for k, p in enumerate(preds):
+        p[k + 1 + np.arange(6) >= 10] += 1.0  # wrong only for the frames 10.. that never arrive
+    comp = _guarded_run(stamps, poses, preds)
+    later = _walk(10, start=1000)  # frame 1000 shares its slot mod 6 with frame 10's pending rows
+    comp = _guarded_run(*later, comp)
+    model, hold = comp.guard_mse
+    assert np.all(model < 1e-20) and np.all(hold > 1e-3)
+    x = later[1][-1] + DIRECTION
+    assert comp.command(100.9, x, predictions_from(x), 100.9).step_used == 3
+
+
+def _scored_run(comp, poses, noisy_preds):
+    out = None
+    for t, (x, p) in enumerate(zip(poses, noisy_preds, strict=True)):
+        out = comp.command(0.1 * t, x, p, 0.1 * t, obs_stamp=0.1 * t)
+    return out
+
+
+@pytest.mark.parametrize(("shrink", "margin", "step"), [(0.98, 0.93, 0), (0.98, 1.0, 3), (0.95, 0.93, 3)])
+def test_guard_needs_a_lead_to_beat_holding_by_its_margin(shrink, margin, step):
+    """A lead whose MSE is `shrink`^2 x holding still's is used only if that is below `guard_margin`."""
+    _, poses, _ = _walk(40)
+    # P(t+i) = pose + (1 - shrink) i d: its error at every step is shrink x holding still's (i d)
+    partial = [x + (1 - shrink) * DIRECTION * np.arange(1, 7)[:, None] for x in poses]
+    comp = DelayCompensator(params=CompensatorParams("guarded", 0.3, guard_margin=margin))
+    assert _scored_run(comp, poses, partial).step_used == step
+
+
+def test_guard_waits_for_its_evidence():
+    _, poses, preds = _walk(30)
+    comp = DelayCompensator(params=CompensatorParams("guarded", 0.3, guard_min_frames=5))
+    steps = [comp.command(0.1 * t, x, p, 0.1 * t).step_used for t, (x, p) in enumerate(zip(poses, preds, strict=True))]
+    # step 3 is first scored at frame 3 (on the set of frame 0), and used once scored 5 times (frame 7)
+    assert steps[:8] == [0] * 7 + [3] and set(steps[8:]) == {3}

@@ -87,8 +87,6 @@ def test_missing_samples_are_given_as_none_and_never_scored_as_targets():
     assert rec.seen[4] is None
     # horizon 1: targets 1..9 minus the missing frame 4 -> 8 frames
     np.testing.assert_array_equal(res.stats.n, [8 * 8, 7 * 8])
-    full = evaluate_online(Recorder(2), [data], targets=[_ramp(10)], horizon=2, progress=False)
-    np.testing.assert_array_equal(full.stats.n, [9 * 8, 8 * 8])
 
 
 class Late(HoldLast):
@@ -115,11 +113,6 @@ def test_methods_are_scored_on_the_same_frames():
     assert res["late"].scored_frames == 40 - 5
     assert res["late"].coverage == pytest.approx(35 / 40)
     assert res["cv"].coverage == 1.0
-    own = compare_online({"late": Late(3, 5), "cv": ConstantVelocity(3)}, seqs, horizon=3,
-                         common_frames=False, progress=False)
-    assert own["cv"].scored_frames == 40
-    warm = evaluate_online(ConstantVelocity(3), seqs, horizon=3, warmup=7, progress=False)
-    assert warm.scored_frames == 33
 
 
 def test_trace_has_one_row_per_fed_frame():
@@ -137,8 +130,6 @@ def test_trace_has_one_row_per_fed_frame():
 def test_bad_inputs_raise_evaluation_errors():
     with pytest.raises(EvaluationError, match="at least"):
         evaluate_online(HoldLast(2), [_ramp(5)], horizon=3, progress=False)
-    with pytest.raises(EvaluationError, match="targets"):
-        evaluate_online(HoldLast(2), [_ramp(5)], targets=[_ramp(4)], horizon=2, progress=False)
     with pytest.raises(EvaluationError):
         evaluate_online(HoldLast(2), [np.zeros(5)], horizon=2, progress=False)
 

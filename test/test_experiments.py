@@ -139,13 +139,34 @@ def test_experiment_threshold(tmp_path):
     assert pts[-1]["neurons"][2] > pts[0]["neurons"][2]  # a higher a_T grows a larger P-GWR
 
 
-def test_experiment_delay(tmp_path):
+def test_experiment_delay(tmp_path, monkeypatch):
+    """The demonstrator's closed loop, and the real clips' (from a written recording cache): on every
+    clip and delay the guarded robot tracks the person about as well as the uncompensated one or
+    better. Tolerance 1 %: the written climb_0 is 5 s long, learned from scratch, and one lead of 1-3
+    frames that beat holding on the frames before costs 0.7 % of its 3-s scored window (the guard
+    without margin and evidence: +3.7 % / +2.7 % at 200 / 600 ms); kneel gains ~30 %."""
+    from mocap_files import fake_recording_cache
+
+    from gwr_predictor.data import real_motion
+
+    monkeypatch.setenv("GWR_REAL_DATA", str(fake_recording_cache(tmp_path / "cache")))
+    monkeypatch.setattr(real_motion.subprocess, "run", lambda *a, **k: pytest.fail("pip must not run"))
     r, cfg = _run("delay", tmp_path)
     runs = r["runs"]
     assert len(runs) == len(cfg["delays"]) * len(cfg["rules"]) * len(cfg["predictors"])
     for x in runs:
         if x["rule"] == "none":  # uncompensated: the robot lags by the delay plus its motor latency
             assert x["lag_s"] == pytest.approx(x["delay_s"] + 0.035, abs=0.06)
+    none = {x["delay_s"]: x["mae"] for x in runs if x["rule"] == "none"}
+    for x in r["oracle"]:  # a perfect predictor leaves only the motors' lag: far below uncompensated
+        assert x["mae"] < 0.5 * none[x["delay_s"]] and x["lag_s"] < 0.1
+    real = r["real"]
+    assert real["clips"] == list(cfg["real_clips"]) and real["predictor"] == "gated_llm_gwr"
+    assert len(real["runs"]) == len(real["clips"]) * len(cfg["delays"]) * len(cfg["real_rules"])
+    for clip in real["clips"]:
+        for delay in cfg["delays"]:
+            mae = {x["rule"]: x["mae"] for x in real["runs"] if x["clip"] == clip and x["delay_s"] == delay}
+            assert mae["guarded_true"] <= 1.01 * mae["none"]
 
 
 def test_experiment_scale(tmp_path):

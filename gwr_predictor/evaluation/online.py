@@ -4,8 +4,8 @@ on the same predictions.
 At frame t a predictor is given only x(t) (None for a missing sample) and returns its predictions for
 t+1..t+h. The loop keeps the truth to itself and scores those predictions against the true frames
 t+1..t+h of the same sequence; a target that is missing (NaN) or past the end is not scored. With
-several predictors, a frame counts only where every one of them predicted (`common_frames`), so the
-numbers in one table always come from exactly the same (frame, horizon, joint) entries.
+several predictors, a frame counts only where every one of them predicted, so the numbers in one
+table always come from exactly the same (frame, horizon, joint) entries.
 """
 
 from __future__ import annotations
@@ -90,28 +90,23 @@ def run_sequence(predictor: Predictor, inputs: np.ndarray, horizon: int, learn: 
     return preds, time.perf_counter() - start
 
 
-def compare_online(predictors: Mapping[str, Predictor], sequences: Sequence[Any], *,
-                   targets: Sequence[Any] | None = None, learn: bool = True, horizon: int = DEFAULT_HORIZON,
-                   passes: int = 1, warmup: int = 0, common_frames: bool = True, trace: bool = False,
-                   progress: bool = True, desc: str = "evaluate") -> dict[str, OnlineResult]:
+def compare_online(predictors: Mapping[str, Predictor], sequences: Sequence[Any], *, learn: bool = True,
+                   horizon: int = DEFAULT_HORIZON, passes: int = 1, trace: bool = False, progress: bool = True,
+                   desc: str = "evaluate") -> dict[str, OnlineResult]:
     """Run every predictor over `sequences` (`passes` times, in order) and score them side by side.
 
-    `sequences` are the inputs (NaN rows = missing samples); `targets` the truth to score against
-    (default: the inputs, so a missing sample is also never a target). Each sequence starts with
-    `reset_sequence()`; the first `warmup` frames of a sequence are not scored.
+    `sequences` are the inputs and the truth (NaN rows = missing samples, so a missing sample is
+    never a target). Each sequence starts with `reset_sequence()`.
     """
     if not predictors:
         raise EvaluationError("no predictors to evaluate")
-    if horizon < 1 or passes < 1 or warmup < 0:
-        raise EvaluationError(f"need horizon >= 1, passes >= 1, warmup >= 0; got {horizon}, {passes}, {warmup}")
+    if horizon < 1 or passes < 1:
+        raise EvaluationError(f"need horizon >= 1, passes >= 1; got {horizon}, {passes}")
     inputs = [as_angles(s) for s in sequences]
-    truths = inputs if targets is None else [as_angles(s) for s in targets]
-    if len(truths) != len(inputs) or any(a.shape != b.shape for a, b in zip(inputs, truths, strict=True)):
-        raise EvaluationError("targets must match the sequences one to one, with the same shapes")
     joints = inputs[0].shape[1]
     if any(a.shape[1] != joints for a in inputs):
         raise EvaluationError("all sequences must have the same number of joints")
-    futures = [future_windows(a, horizon) for a in truths]
+    futures = [future_windows(a, horizon) for a in inputs]
     results = {name: OnlineResult(horizon, HorizonStats.empty(horizon, joints), []) for name in predictors}
     traces: dict[str, list[np.ndarray]] = {name: [] for name in predictors}
     total = passes * sum(a.shape[0] for a in inputs) * len(predictors)
@@ -126,17 +121,15 @@ def compare_online(predictors: Mapping[str, Predictor], sequences: Sequence[Any]
                     bar.update(seq.shape[0])
                 present = {name: np.isfinite(pr).all(axis=(1, 2)) for name, pr in preds.items()}
                 common = np.logical_and.reduce(list(present.values()))
-                common[:warmup] = False
                 for name, pr in preds.items():
-                    mask = common if common_frames else present[name] & (np.arange(len(pr)) >= warmup)
                     res = results[name]
                     res.frames += seq.shape[0]
                     res.predicted_frames += int(present[name].sum())
-                    res.scored_frames += int(mask.sum())
-                    pass_stats[name] = pass_stats[name].merge(horizon_stats(pr[mask], future[mask]))
+                    res.scored_frames += int(common.sum())
+                    pass_stats[name] = pass_stats[name].merge(horizon_stats(pr[common], future[common]))
                     if trace:
                         err = np.linalg.norm(pr - future, axis=2)
-                        err[~mask] = np.nan
+                        err[~common] = np.nan
                         traces[name].append(err)
             for name, res in results.items():
                 res.pass_stats.append(pass_stats[name])

@@ -379,9 +379,6 @@ class _OnlinePredictor:
         }
 
     # --- persistence ----------------------------------------------------------------------------
-    def _extra_header(self) -> dict[str, Any]:
-        return {}
-
     def _window_arrays(self) -> dict[str, np.ndarray]:
         raise NotImplementedError
 
@@ -409,7 +406,6 @@ class _OnlinePredictor:
             "reg_present": [r is not None for r in regs],
             "last_reg": self._last_reg is not None,
             "errors": self._errors.header(),
-            **self._extra_header(),
         }
         arrays: dict[str, np.ndarray] = {"xbuf": self._xbuf, "regs": reg_arr, **self._errors.arrays(),
                                          **self._window_arrays()}
@@ -450,7 +446,6 @@ class _OnlinePredictor:
     def _from_saved(cls, header: dict[str, Any], arrays: dict[str, np.ndarray]) -> Any:
         model = cls.__new__(cls)
         model.params = HierarchyParams.from_flat(header["params"])
-        model._restore_extra(header)
         model._rng = np.random.default_rng(0)  # only for the layer templates; replaced below
         model._configure()
         layers = header.get("layers", {})
@@ -485,9 +480,6 @@ class _OnlinePredictor:
         model._rng = np.random.default_rng()
         model._rng.bit_generator.state = header["rng"]
         return model
-
-    def _restore_extra(self, header: dict[str, Any]) -> None:
-        """Hook for subclass constructor arguments stored in the header."""
 
 
 def _copy_into(dest: np.ndarray, src: np.ndarray, name: str) -> None:
@@ -590,19 +582,15 @@ class Hierarchy(_OnlinePredictor):
 
 
 class FlatPredictor(_OnlinePredictor):
-    """The P-GWR alone on raw frames (ablation): regressor = last `order` scaled frames, newest
-    first; `order` defaults to the span of the hierarchy's regressor (tau1 + tau2 - 1 frames)."""
+    """The P-GWR alone on raw frames (ablation): regressor = the last `order` scaled frames, newest
+    first, the span of the hierarchy's regressor (tau1 + tau2 - 1 frames)."""
 
     kind = "FlatPredictor"
     layer_names = ("pgwr",)
 
-    def __init__(self, params: HierarchyParams | None = None, seed: int | None = 0,
-                 order: int | None = None) -> None:
-        p = HierarchyParams() if params is None else params
-        self.order = p.span if order is None else int(order)
-        if not 1 <= self.order <= 64:
-            raise ValueError(f"FlatPredictor order must be in [1, 64], got {order!r}")
-        super().__init__(p, seed)
+    @property
+    def order(self) -> int:
+        return self.params.span
 
     def _new_layer(self, name: str) -> GWR:
         p = self.params
@@ -622,12 +610,6 @@ class FlatPredictor(_OnlinePredictor):
             w[1:] = w[:-1]
             w[0] = out[k - 1]
             self._readout(flat, out[k - 1], out[k])
-
-    def _extra_header(self) -> dict[str, Any]:
-        return {"order": self.order}
-
-    def _restore_extra(self, header: dict[str, Any]) -> None:
-        self.order = int(header["order"])
 
     def _window_arrays(self) -> dict[str, np.ndarray]:
         return {"win": self._window.rows, "fill": np.array([self._window.fill])}

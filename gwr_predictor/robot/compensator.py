@@ -6,11 +6,15 @@ P(t+0). Every rule executes P(t+k) for one step k in [0, h]:
 - ``none``: k = 0, the newest observation (the uncompensated baseline);
 - ``fixed``: k = round(delay_s / frame_period), the configured delay (clamped to [0, h]);
 - ``guarded`` (the default): as ``fixed``, but per command the largest step k' <= k whose pose
-  has recently been closer than holding still (k' = 0) to where the person was k frames later:
-  the compensator scores every prediction set it was given against the observations that later
-  arrive for its target frames (running MSE with `guard_decay` per scored frame, for every
-  candidate P(t+j), j = 0..h); k' = 0 until the lead has been scored. So a predictor that is
-  failing right now costs nothing;
+  has recently been clearly closer than holding still (k' = 0) to where the person was k frames
+  later: the compensator scores every prediction set it was given against the observations that
+  later arrive for its target frames (running MSE with `guard_decay` per scored frame, for every
+  candidate P(t+j), j = 0..h), and a candidate must have an MSE below `guard_margin` times holding
+  still's; k' = 0 until the lead has been scored on `guard_min_frames` frames. So a predictor that
+  is failing right now costs nothing. Why the margin and the evidence: in the closed loop a lead
+  that is only a little better than holding on the scored frames, or better on a handful of them,
+  is not better on the robot (with neither, the robot was up to 8 % worse than uncompensated on
+  real motion; docs/robot.md);
 - ``variable``: k = round(xi / frame_period) for a delay estimate xi that the robot's own joint
   state keeps up to date through the paper's Eq. 11, P* = argmin_i ||J_xi(t) - P(t+i)||.
 
@@ -45,6 +49,7 @@ import numpy as np
 
 from gwr_predictor.errors import GwrPredictorError
 from gwr_predictor.parameter_spec import ParamSpec, check_fields
+from gwr_predictor.pending import PendingPredictions
 from gwr_predictor.robot.nao import ARM_JOINTS
 
 MODES = ("none", "guarded", "fixed", "variable")
@@ -74,6 +79,9 @@ PARAM_SPECS: dict[str, ParamSpec] = {s.name: s for s in (
     ParamSpec("history_frames", 20, "variable: observations searched for the robot's pose", 1, 10_000),
     ParamSpec("min_motion", 0.03, "variable: rad per frame below which the arm counts as still", 0.0, 10.0),
     ParamSpec("guard_decay", 0.98, "guarded: forgetting of the running errors per scored frame", 0.5, 1.0),
+    ParamSpec("guard_margin", 0.93, "guarded: a lead is used only if its recent MSE is below this share of "
+              "holding still's", 0.0, 1.0, lo_open=True),
+    ParamSpec("guard_min_frames", 10, "guarded: frames a lead must have been scored on before it is used", 1, 100_000),
 )}
 
 
@@ -84,7 +92,8 @@ class CompensatorParams:
     `tracking_gain`, `deadband` (in frames), `history_frames` (observations searched for the
     robot's pose) and `min_motion` (rad per frame below which the arm counts as still and the
     estimate is left alone) matter to ``variable`` only; `guard_decay` (forgetting of the running
-    errors per scored frame) to ``guarded`` only.
+    errors per scored frame), `guard_margin` (the share of holding still's MSE a lead must stay
+    below) and `guard_min_frames` (the evidence it needs first) to ``guarded`` only.
     """
 
     mode: Mode = PARAM_SPECS["mode"].default
@@ -96,6 +105,8 @@ class CompensatorParams:
     history_frames: int = PARAM_SPECS["history_frames"].default
     min_motion: float = PARAM_SPECS["min_motion"].default
     guard_decay: float = PARAM_SPECS["guard_decay"].default
+    guard_margin: float = PARAM_SPECS["guard_margin"].default
+    guard_min_frames: int = PARAM_SPECS["guard_min_frames"].default
 
     def __post_init__(self) -> None:
         check_fields(self, PARAM_SPECS.values(), CompensatorError)
@@ -163,7 +174,11 @@ class DelayCompensator:
         #: The last residual lag measured from the robot's state (``variable``), NaN before any.
         self.last_robot_lag_s = math.nan
         self._history: deque[tuple[float, np.ndarray]] = deque(maxlen=self.params.history_frames)
-        self._guard = _Guard(self.params.guard_decay, self.params.frame_period)
+        self._guard = self._new_guard()
+
+    def _new_guard(self) -> _Guard:
+        p = self.params
+        return _Guard(p.guard_decay, p.frame_period, p.guard_margin, p.guard_min_frames)
 
     @property
     def fallback_count(self) -> int:
@@ -176,7 +191,7 @@ class DelayCompensator:
         self.delay_estimate_s = self.params.delay_s
         self.last_robot_lag_s = math.nan
         self._history.clear()
-        self._guard = _Guard(self.params.guard_decay, self.params.frame_period)
+        self._guard = self._new_guard()
 
     @property
     def guard_mse(self) -> tuple[np.ndarray, np.ndarray]:
@@ -289,46 +304,69 @@ class DelayCompensator:
 class _Guard:
     """Running MSE of executing P(t+j) (j = 0: the pose held since t) when the person is at t + k.
 
-    A prediction set made at t is kept until its targets t + k * frame_period (k = 1..h) have been
-    observed; each observed target frame scores every candidate j = 0..h against it (mean over
-    joints), so `allowed(k)` can pick the candidate that has recently been closest to where the
-    person was k frames later. Only observations that arrive count (no peeking); each prediction
-    set is scored once per target.
+    A prediction set made at t waits in `pending.PendingPredictions` (the one scorer of pending
+    predictions), its step clock the frame index round(t / frame_period), until its targets
+    t + k * frame_period (k = 1..h) are observed; each observed target frame scores every candidate
+    j = 0..h against it (mean over joints), so `allowed(k)` can pick the candidate that has recently
+    been closest to where the person was k frames later. Only observations that arrive count (no
+    peeking); each prediction set is filed once per frame and scored once per target; a frame that
+    is never observed drops what targets it; stamps that go back (a new sequence) drop everything
+    pending, as does a change of horizon (which also restarts the statistics).
     """
 
-    def __init__(self, decay: float, frame_period: float) -> None:
-        self.decay, self.period = decay, frame_period
-        self._pending: dict[int, np.ndarray] = {}  # frame index -> candidates (h + 1, J): [base, P(t+1..t+h)]
+    def __init__(self, decay: float, frame_period: float, margin: float = 1.0, min_frames: int = 1) -> None:
+        self.decay, self.period, self.margin, self.min_frames = decay, frame_period, margin, min_frames
+        self._pending: PendingPredictions | None = None  # candidates [base, P(t+1..t+h)] lead, allocated on use
+        self._filed = np.zeros(0, dtype=np.int64)  # by frame % h: the frame whose set was filed there
+        self._clock: int | None = None  # the last frame taken from the pending predictions
         self._sse = np.zeros((0, 1))  # (target step k - 1, candidate j)
         self._weight = np.zeros(0)
+        self._scored = np.zeros(0, dtype=np.int64)  # frames scored per target step, not decayed
 
     def _index(self, t: float) -> int:
         return math.floor(t / self.period + 0.5)
 
     def expect(self, t: float, preds: np.ndarray, base: np.ndarray) -> None:
-        i = self._index(t)
-        if i not in self._pending:
-            self._pending[i] = np.vstack([base[None, :], preds])
-        h = preds.shape[0]
-        if self._sse.shape[0] < h:
-            self._sse = np.zeros((h, h + 1))
-            self._weight = np.zeros(h)
+        """File the candidates of the prediction set made at t (the first one given for its frame)."""
+        i, (h, joints) = self._index(t), preds.shape
+        if self._pending is None or self._pending.horizon != h:
+            self._pending = PendingPredictions(h, joints, lead=(h + 1,))
+            self._filed = np.full(h, np.iinfo(np.int64).min)
+            self._sse, self._weight, self._scored = np.zeros((h, h + 1)), np.zeros(h), np.zeros(h, dtype=np.int64)
+        if self._clock is None:
+            self._clock = i
+        if self._filed[i % h] == i or i + h <= self._clock:
+            return  # filed already, or every target has passed
+        self._filed[i % h] = i
+        cands = np.vstack([base[None, :], preds])  # (h + 1, J)
+        ahead = i + 1 + np.arange(h) > self._clock  # rows whose target is still to come
+        self._pending.file(i, np.broadcast_to(cands[:, None, :], (h + 1, h, joints)),
+                           np.broadcast_to(ahead, (h + 1, h)))
 
     def observe(self, t: float, obs: np.ndarray) -> None:
+        """Score the candidates of every pending set that targets the frame stamped t."""
         j = self._index(t)
-        for i in list(self._pending):
-            cands = self._pending[i]
-            h = cands.shape[0] - 1
-            k = j - i
-            if k < 1 or k > min(h, self._weight.shape[0]):
-                if k > h:
-                    del self._pending[i]
-                continue
-            err = np.mean((cands - obs) ** 2, axis=1)
-            self._sse[k - 1] = self.decay * self._sse[k - 1] + err
-            self._weight[k - 1] = self.decay * self._weight[k - 1] + 1.0
-            if k == h:
-                del self._pending[i]
+        if self._pending is None or self._clock is None or j < self._clock:
+            if self._pending is not None:  # stamps went back: a new sequence
+                self._pending.drop()
+                self._filed[:] = np.iinfo(np.int64).min
+            self._clock = j
+            return
+        if j == self._clock:
+            return  # this frame was scored already
+        if j - self._clock > self._pending.horizon:
+            self._pending.drop()  # a gap longer than the horizon: every target in between is lost
+        else:
+            for missing in range(self._clock + 1, j):
+                self._pending.take(missing)  # frames never observed drop what targets them
+        self._clock = j
+        due, valid = self._pending.take(j)  # (h + 1, h, J): candidate, row k made k + 1 frames ago
+        rows = valid[0]
+        if rows.any():
+            err = np.mean((due[:, rows] - obs) ** 2, axis=-1).T  # (scored rows, candidate)
+            self._sse[rows] = self.decay * self._sse[rows] + err
+            self._weight[rows] = self.decay * self._weight[rows] + 1.0
+            self._scored[rows] += 1
 
     def mse(self) -> tuple[np.ndarray, np.ndarray]:
         """(MSE of P(t+k) at step k, MSE of holding still at step k), k = 1..h; NaN before any score."""
@@ -338,10 +376,10 @@ class _Guard:
         return m[k, k + 1], m[:, 0]
 
     def allowed(self, step: int) -> int:
-        """The largest j <= step whose recent error at target step `step` beats holding still (j = 0);
-        0 (the observation) until that step has been scored."""
-        if step < 1 or step > self._weight.shape[0] or self._weight[step - 1] <= 0:
+        """The largest j <= step whose recent error at target step `step` is below `margin` times
+        holding still's (j = 0); 0 (the observation) until that step has been scored `min_frames` times."""
+        if step < 1 or step > self._weight.shape[0] or self._scored[step - 1] < self.min_frames:
             return 0
         row = self._sse[step - 1, :step + 1]
-        better = (row[1:] < row[0]).nonzero()[0]
+        better = (row[1:] < self.margin * row[0]).nonzero()[0]
         return int(better[-1]) + 1 if better.size else 0
