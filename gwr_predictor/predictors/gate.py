@@ -12,13 +12,13 @@ against their observed targets y, decayed per scored frame, the gate keeps S_xy 
 least-squares shrinkage a = S_xy / (S_xx + prior) is 0 (hold-last) until the model has shown
 anything and 1 where it is reliably right. Two rules make it safe on motion that does not repeat:
 
-- a lower confidence bound: alpha = a - z se(a), se(a)^2 = RSS / ((n - 1)(S_xx + prior)), so a step
-  that beat hold-last by chance over a few frames is not trusted (`confidence` = z);
-- two memories: alpha is also capped by a short memory (`fast_decay`, `fast_confidence`) at the
-  largest shrinkage that would still have beaten hold-last over the last few frames (2 S_xy / S_xx,
-  where 2 a S_xy - a^2 S_xx, the squared error saved against hold-last, falls back to 0; at its
-  lower bound), so a model that was right on earlier motion but fails on this one is shrunk within
-  a few frames instead of the ~100 the long memory needs.
+- a lower confidence bound: shrinking by alpha saves 2 alpha S_xy - alpha^2 S_xx of squared error
+  against hold-last, which stays >= 0 up to alpha = 2 a; alpha is capped at 2 (a - z se(a)), with
+  se(a)^2 = RSS / ((n - 1)(S_xx + prior)), so a step that beat hold-last by chance over a few
+  frames is not trusted (`confidence` = z), while a reliably good model keeps alpha = a;
+- two memories: the same cap from a short memory (`fast_decay`, `fast_confidence`), so a model that
+  was right on earlier motion but fails on this one is shrunk within a few frames instead of the
+  ~100 the long memory needs.
 
 Measured (`gwr-predictor experiment real`, `experiment gate`): without these two rules the default
 is up to 1.10x hold-last on a clip of real motion learned from scratch and 1.23x on a climbing take
@@ -182,16 +182,22 @@ class GatedPredictor:
         self._scored[rows] += 1
 
     def alpha(self) -> np.ndarray:
-        """(horizon, joints) shrinkage factors in [0, 1] (0 = hold-last, 1 = the model as it is); a new array."""
+        """(horizon, joints) shrinkage factors in [0, 1] (0 = hold-last, 1 = the model as it is); a new array.
+
+        min(a, 2 lcb_long, 2 lcb_short): the long memory's least-squares estimate, capped by each
+        memory at the largest shrinkage that still saves squared error against hold-last at the lower
+        bound (2 alpha S_xy - alpha^2 S_xx >= 0 for alpha <= 2 a)."""
         p = self.params
         s = self._stats
         sxx = s[:, _XX] + (p.prior if p.per_joint else p.prior * p.joints)
         a = s[:, _XY] / sxx
+        cap = a.copy()
         if self._z.any():
             rss = np.maximum(s[:, _YY] - 2.0 * a * s[:, _XY] + a * a * s[:, _XX], 0.0)
-            a -= self._z * np.sqrt(rss / (np.maximum(s[:, _N] - 1.0, 1.0) * sxx))
-        a[1:] *= 2.0  # the short memory caps alpha where it would stop beating hold-last: 2 S_xy / S_xx
-        return np.clip(a.min(axis=0), 0.0, 1.0)
+            cap -= self._z * np.sqrt(rss / (np.maximum(s[:, _N] - 1.0, 1.0) * sxx))
+        cap *= 2.0
+        out = np.minimum(a[0], cap.min(axis=0))
+        return np.clip(out, 0.0, 1.0, out=out)
 
     # --- introspection ------------------------------------------------------------------------------
     @property
