@@ -46,7 +46,7 @@ RULES: dict[str, tuple[str, float | None]] = {
 class Config:
     delays: tuple[float, ...] = (0.1, 0.2, 0.3, 0.4, 0.5, 0.6)
     rules: tuple[str, ...] = tuple(RULES)
-    predictors: tuple[str, ...] = (common.HIERARCHY, "rls_ar", common.DEFAULT)
+    predictors: tuple[str, ...] = (common.HIERARCHY, "rls_ar", common.LLM, common.DEFAULT)
     patterns: tuple[str, ...] | None = None
     subjects: int = 3
     repetitions: int = 10
