@@ -236,6 +236,11 @@ class PipelineNode(Node):
             self.create_subscription(messages.DiagnosticArray, conventions.DIAGNOSTICS_TOPIC,
                                      self._check_duplicate, status_qos())
 
+    def drain_progress(self) -> int | None:
+        """A count that grows while the node still takes in messages it must not lose on a stop (the
+        recorder's received messages); None (the default): nothing to drain, stop at once."""
+        return None
+
     def arm_gate(self, input_name: str, check_stamps: bool = True, limit_margin: float | None = 0.2) -> ArmAnglesGate:
         """The gate of one JointState input, its stamps checked against this node's clock."""
         return ArmAnglesGate(self.counters, input_name, limit_margin=limit_margin, check_stamps=check_stamps,
@@ -364,6 +369,23 @@ class _StopSignals:
         self.received = signum
 
 
+DRAIN_LIMIT_S = 2.0
+
+
+def _drain(executor: SingleThreadedExecutor, node: PipelineNode) -> None:
+    """Take what has already arrived before the final hook (a recorder stopped by SIGTERM would
+    otherwise lose the messages still queued in its subscriptions): spin while the node's
+    `drain_progress` grows, for at most DRAIN_LIMIT_S."""
+    if node.drain_progress() is None:
+        return
+    deadline = time.monotonic() + DRAIN_LIMIT_S
+    idle = 0  # spins in a row that took nothing in: two end the drain
+    while idle < 2 and time.monotonic() < deadline and rclpy.ok():
+        before = node.drain_progress()
+        executor.spin_once(timeout_sec=0.05)
+        idle = idle + 1 if node.drain_progress() == before else 0
+
+
 def run_node(node_cls: type[PipelineNode], args: list[str] | None = None) -> int:
     """init, build, spin until done / Ctrl-C / SIGTERM, final hook, destroy, shutdown; returns the exit code."""
     logger = rclpy.logging.get_logger(getattr(node_cls, "NODE_NAME", node_cls.__name__))
@@ -390,6 +412,7 @@ def run_node(node_cls: type[PipelineNode], args: list[str] | None = None) -> int
             executor.spin_once(timeout_sec=0.1)
         if stop.received is not None:
             logger.info(f"{signal.Signals(stop.received).name} received: shutting down")
+            _drain(executor, node)
         elif node.done.done():
             code = int(node.done.result())
     except ParameterError as exc:

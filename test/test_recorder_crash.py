@@ -12,7 +12,7 @@ from ros_harness import allocate_domain_id
 
 from gwr_predictor.nodes import messages
 from gwr_predictor.nodes.messages import JointState
-from gwr_predictor.nodes.node_base import NodeFatalError
+from gwr_predictor.nodes.node_base import NodeFatalError, stream_qos
 from gwr_predictor.pipeline import bags
 from gwr_predictor.robot.nao import ARM_JOINTS
 
@@ -80,6 +80,21 @@ def test_ctrl_c_and_sigterm_close_the_bag_whole(ros, tmp_path, sig):
     assert "bag closed" in recorder.output() and "(25 messages)" in recorder.output()
     assert bags.bag_info(path).message_count == 25  # metadata written: no recovery needed
     assert recorded_frames(path) == list(range(25))
+
+
+@pytest.mark.ros
+def test_sigterm_right_after_a_burst_still_records_the_whole_burst(ros, tmp_path):
+    """What was published before the stop is in the bag: the recorder takes the messages still queued
+    in its subscription before it closes the bag (`node_base._drain`), instead of dropping them."""
+    path = tmp_path / "bag"
+    recorder, diagnostics, _ = start_recorder(ros, path)
+    pub = ros.probe.publisher("/arm_angles", JointState, stream_qos(1000))  # deep enough to lose nothing
+    ros.probe.wait_for_subscribers(pub)
+    for k in range(400):
+        pub.publish(frame(k))
+    code, killed = recorder.stop(signal.SIGTERM)  # at once: most of the burst is still queued
+    assert code == 0 and not killed, recorder.output()
+    assert recorded_frames(path) == list(range(400))
 
 
 def test_a_full_disk_stops_the_recorder_and_the_bag_is_reported_incomplete(tmp_path):
