@@ -87,7 +87,7 @@ def test_sigterm_right_after_a_burst_still_records_the_whole_burst(ros, tmp_path
     """What was published before the stop is in the bag: the recorder takes the messages still queued
     in its subscription before it closes the bag (`node_base._drain`), instead of dropping them."""
     path = tmp_path / "bag"
-    recorder, diagnostics, _ = start_recorder(ros, path)
+    recorder, _, _ = start_recorder(ros, path)
     pub = ros.probe.publisher("/arm_angles", JointState, stream_qos(1000))  # deep enough to lose nothing
     ros.probe.wait_for_subscribers(pub)
     for k in range(400):
