@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 from gwr_predictor.evaluation.experiments import common
+from gwr_predictor.evaluation.experiments.delay import Oracle
 from gwr_predictor.evaluation.experiments.splits import make_splits
 from gwr_predictor.evaluation.online import compare_online
 from gwr_predictor.learning.checkpoint import CheckpointError
@@ -159,22 +160,16 @@ def test_a_checkpoint_of_the_plain_gate_loads_as_the_plain_gate():
         np.testing.assert_array_equal(model.step(f), again.step(f))
 
 
-class _Oracle:
+class _Oracle(Oracle):
     """Knows the sequence: predicts the true future until `fails_at`, then the opposite movement."""
 
     def __init__(self, x: np.ndarray, fails_at: int, h: int = 6) -> None:
-        self.x, self.fails_at, self.h, self.t = x, fails_at, h, -1
+        super().__init__(x, h)
+        self.fails_at = fails_at
 
     def step(self, obs, learn=True):
-        self.t += 1
-        future = self.x[self.t + 1:self.t + 1 + self.h]
-        if len(future) < self.h:
-            return None
-        now = self.x[self.t]
-        return future if self.t < self.fails_at else 2 * now - future
-
-    def reset_sequence(self):
-        self.t = -1
+        future = super().step(obs, learn)
+        return future if self.t < self.fails_at else 2 * self.angles[self.t] - future
 
 
 def _alphas(gate: GatedPredictor, x: np.ndarray) -> np.ndarray:
@@ -269,19 +264,7 @@ def test_guarded_compensation_cannot_hurt():
 def test_guarded_uses_the_full_lead_of_a_good_predictor():
     person = _periodic(300)
 
-    class Oracle:
-        def __init__(self) -> None:
-            self.t = -1
-
-        def step(self, x, learn=True):
-            self.t += 1
-            idx = np.minimum(self.t + np.arange(1, 7), len(person) - 1)
-            return person[idx]
-
-        def reset_sequence(self) -> None:
-            self.t = -1
-
-    res = run_closed_loop(person, Oracle(), delay_s=0.6, compensation="guarded")
+    res = run_closed_loop(person, Oracle(person, 6), delay_s=0.6, compensation="guarded")
     assert np.median(res.steps_used[50:]) == 6
     comp = DelayCompensator("guarded")
     model, hold = comp.guard_mse

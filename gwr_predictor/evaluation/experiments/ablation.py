@@ -15,8 +15,6 @@ from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
 from gwr_predictor.evaluation.experiments import common, compare
 from gwr_predictor.evaluation.experiments.output import ExperimentOutput, markdown_table
 
@@ -45,8 +43,8 @@ def run(config: Config, out: Path, seed: int = 0, progress: bool = True) -> Expe
         cells: list[Any] = [common.label(m)]
         worst[m] = {}
         for c in SPLITS:
-            v, hold = r["conditions"][c][m], r["conditions"][c]["hold"]
-            ratio = float(np.max(np.array(v["mae"]) / np.array(hold["mae"])))
+            v = r["conditions"][c][m]
+            ratio = common.worst_ratio_to_hold(r["conditions"][c], m)
             worst[m][c] = ratio
             cells += [v["mae"][-1], v["mse"][-1], ratio]
         rows.append(cells)

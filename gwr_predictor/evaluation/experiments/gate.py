@@ -106,11 +106,8 @@ def _conditions(config: Config, seed: int) -> dict[str, tuple[list[Any], list[An
         clips = real.load_clips(real.Config(clips=config.clips))
         for c in clips:
             out[f"real, one pass/{c['name']}"] = ([], [c["angles"]])
-        climbs = [c for c in clips if c["group"]]
-        for held in climbs:
-            others = [c["angles"] for c in climbs if c is not held and c["group"] == held["group"]]
-            if others:
-                out[f"real, left out/{held['name']}"] = (others, [held["angles"]])
+        for held, others in real.left_out_takes(clips):
+            out[f"real, left out/{held['name']}"] = (others, [held["angles"]])
     data = common.demo_data(config.patterns, config.subjects, config.repetitions, seed)
     for pattern, seqs in common.by_pattern(data).items():
         out[f"demonstrator, from scratch/{pattern}"] = ([], list(seqs))

@@ -103,22 +103,25 @@ def leave_one_out(clips: list[dict[str, Any]], methods: tuple[str, ...], params:
     per_take: dict[str, dict[str, Any]] = {}
     names = (*methods, KNN)
     pooled = {m: HorizonStats.empty(params.horizon, params.n_joints) for m in names}
+    for held, others in left_out_takes(clips):
+        models: dict[str, Any] = common.make_models(methods, params, seed)
+        for m, model in models.items():
+            train_online(model, others, passes=config.train_passes, progress=progress,
+                         desc=f"{NAME} train {m} without {held['name']}")
+        models[KNN] = KnnPredictor(others, k=config.knn_k, span=params.span, horizon=params.horizon)
+        _score_clip(models, held, params, progress, f"{NAME} held out {held['name']}", per_take, pooled)
+    return per_take, pooled
+
+
+def left_out_takes(clips: list[dict[str, Any]]) -> list[tuple[dict[str, Any], list[np.ndarray]]]:
+    """(held-out take, the angles of the other takes of its group) for every take of each group of at
+    least two clips (the clips that repeat one task), group by group."""
     groups: dict[str, list[dict[str, Any]]] = {}
     for clip in clips:
         if clip["group"]:
             groups.setdefault(clip["group"], []).append(clip)
-    for takes in groups.values():
-        if len(takes) < 2:
-            continue
-        for held in takes:
-            others = [c["angles"] for c in takes if c is not held]
-            models: dict[str, Any] = common.make_models(methods, params, seed)
-            for m, model in models.items():
-                train_online(model, others, passes=config.train_passes, progress=progress,
-                             desc=f"{NAME} train {m} without {held['name']}")
-            models[KNN] = KnnPredictor(others, k=config.knn_k, span=params.span, horizon=params.horizon)
-            _score_clip(models, held, params, progress, f"{NAME} held out {held['name']}", per_take, pooled)
-    return per_take, pooled
+    return [(held, [c["angles"] for c in takes if c is not held])
+            for takes in groups.values() if len(takes) >= 2 for held in takes]
 
 
 def run(config: Config, out: Path, seed: int = 0, progress: bool = True) -> ExperimentOutput:
