@@ -77,7 +77,6 @@ class BagRecorderNode(PipelineNode):
             raise ParameterError("parameter 'topics' is empty: nothing to record")
         self.writer = bags.BagWriter(path, topics, offered_qos=self.offered_qos)
         self.on_disk = 0  # messages written as of the last flush: what survives a SIGKILL
-        self.received = 0  # messages taken from the subscriptions (drain_progress)
         self.failure: str | None = None
         try:
             self.writer.open()
@@ -105,7 +104,6 @@ class BagRecorderNode(PipelineNode):
         held and stamped with the first clock value, so that the bag's time line is the simulated one.
         """
         stamp = self.get_clock().now().nanoseconds
-        self.received += 1
         self.counters.count(f"recorded.{topic}")
         if stamp == 0:
             self.before_clock.append((topic, bytes(raw)))
@@ -118,9 +116,10 @@ class BagRecorderNode(PipelineNode):
             self.stop_recording(exc)
 
     def drain_progress(self) -> int:
-        """Messages received so far: on SIGINT/SIGTERM the node keeps taking queued messages while
-        this grows, so what was published before the stop is in the bag."""
-        return self.received
+        """Messages received so far (written, or held until the first /clock): on SIGINT/SIGTERM the
+        node keeps taking queued messages while this grows, so what was published before the stop is
+        in the bag."""
+        return self.writer.total_written + len(self.before_clock)
 
     def write_held(self, stamp: int) -> None:
         """Write the messages held back until the clock started, at `stamp`."""
