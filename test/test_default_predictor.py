@@ -193,6 +193,39 @@ def test_the_short_memory_shuts_a_failing_model_out_within_a_few_frames():
     assert np.all(np.array(res["gated"].stats.mae) <= 1.02 * np.array(res["hold"].stats.mae))
 
 
+def test_the_short_memory_judges_by_the_freshest_record():
+    """A model wrong for 4 frames (a change of movement it did not foresee), right before and after:
+    judged by its 1-step predictions, the short memory shrinks during the failure and trusts the model
+    again right after it; judged step by step, it learns of the failure up to 6 frames late and
+    shrinks the good predictions that follow."""
+
+    class Blip(Oracle):
+        def step(self, obs, learn=True):
+            future = super().step(obs, learn)
+            return 2 * self.angles[self.t] - future if 300 <= self.t < 304 else future
+
+    x = _periodic(400)
+    fresh = _alphas(GatedPredictor(Blip(x, 6)), x)
+    per_step = _alphas(GatedPredictor(Blip(x, 6), GateParams(fast_step=0)), x)
+    assert fresh[302:306].mean() < per_step[302:306].mean() - 0.2
+    assert fresh[308:313].mean() > per_step[308:313].mean() + 0.05
+    with pytest.raises(GateError, match="fast_step"):
+        GateParams(fast_step=7)
+
+
+def test_a_checkpoint_from_before_fast_step_keeps_its_per_step_short_memory():
+    model = make_gated_llm(gate=GateParams(fast_decay=0.8, fast_step=0))
+    x = _periodic(300)
+    for f in x[:200]:
+        model.step(f)
+    header, arrays = model.state()
+    del header["gate"]["fast_step"]
+    again = GatedPredictor.from_state(header, arrays)
+    assert again.params == model.params
+    for f in x[200:]:
+        np.testing.assert_array_equal(model.step(f), again.step(f))
+
+
 def test_the_confidence_bound_ignores_luck():
     """A model whose steps are noise unrelated to the motion: the plain least-squares gate lets
     chance correlations through; the lower confidence bound keeps alpha at 0 nearly always."""

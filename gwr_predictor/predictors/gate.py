@@ -18,7 +18,10 @@ anything and 1 where it is reliably right. Two rules make it safe on motion that
   frames is not trusted (`confidence` = z), while a reliably good model keeps alpha = a;
 - two memories: the same cap from a short memory (`fast_decay`, `fast_confidence`), so a model that
   was right on earlier motion but fails on this one is shrunk within a few frames instead of the
-  ~100 the long memory needs.
+  ~100 the long memory needs. The short memory judges every step by the model's 1-step predictions
+  (`fast_step` = 1): they are scored one frame after they are made, so they tell whether the model
+  follows the motion now, while a k-step error arrives k frames late, after the motion that caused
+  it may be over (a memory of those shrinks the good predictions of the next movement).
 
 Measured (`gwr-predictor experiment real`, `experiment gate`): without these two rules the default
 is up to 1.10x hold-last on a clip of real motion learned from scratch and 1.23x on a climbing take
@@ -54,14 +57,17 @@ _GATE_SPECS = {spec.name: spec for spec in (
     ParamSpec("decay", 0.99, "forgetting per scored frame of the long memory", 0.0, 1.0, lo_open=True),
     ParamSpec("prior", 0.01, "rad^2 per joint added to S_xx", 0.0, lo_open=True),
     ParamSpec("confidence", 2.0, "z of the lower confidence bound on alpha (0: the estimate itself)", 0.0, 10.0),
-    ParamSpec("fast_decay", 0.8, "forgetting of the short memory (0: no short memory)", 0.0, 1.0, hi_open=True),
+    ParamSpec("fast_decay", 0.9, "forgetting of the short memory (0: no short memory)", 0.0, 1.0, hi_open=True),
     ParamSpec("fast_confidence", 0.5, "z of the short memory's bound", 0.0, 10.0),
+    ParamSpec("fast_step", 1, "step whose record the short memory caps every step with (0: each its own)", 0),
     ParamSpec("per_joint", False, "one alpha per (step, joint) instead of per step"),
     ParamSpec("horizon", DEFAULT_HORIZON, "steps gated", 1),
     ParamSpec("joints", N_JOINTS, "joints per frame", 1),
 )}
 # what a checkpoint written before `confidence` and `fast_decay` existed ran with
 _PLAIN = {"confidence": 0.0, "fast_decay": 0.0, "fast_confidence": 0.0}
+# what a checkpoint written before `fast_step` existed ran with (each step judged by its own record)
+_OWN_STEP = {"fast_step": 0}
 _XY, _XX, _YY, _N = range(4)  # the running sums, per memory
 
 
@@ -70,7 +76,9 @@ class GateParams:
     """`decay`: forgetting per scored frame (0.99 ~ the last 100 frames). `prior` (rad^2 per joint):
     added to S_xx, so alpha stays near 0 until the model's steps have some weight of evidence.
     `confidence`: how many standard errors alpha is lowered by. `fast_decay`/`fast_confidence`: the
-    short memory whose bound also caps alpha (0.8 ~ the last 5 frames). `per_joint`: one alpha per
+    short memory whose bound also caps alpha (0.9 ~ the last 10 frames). `fast_step`: the horizon step
+    whose record the short memory's cap is taken from for every step (1: the freshest evidence; 0:
+    each step its own, the gate before `fast_step` existed). `per_joint`: one alpha per
     (step, joint) instead of per step (more to estimate: less safe on short clips)."""
 
     decay: float = _GATE_SPECS["decay"].default
@@ -78,12 +86,15 @@ class GateParams:
     confidence: float = _GATE_SPECS["confidence"].default
     fast_decay: float = _GATE_SPECS["fast_decay"].default
     fast_confidence: float = _GATE_SPECS["fast_confidence"].default
+    fast_step: int = _GATE_SPECS["fast_step"].default
     per_joint: bool = _GATE_SPECS["per_joint"].default
     horizon: int = _GATE_SPECS["horizon"].default
     joints: int = _GATE_SPECS["joints"].default
 
     def __post_init__(self) -> None:
         check_fields(self, _GATE_SPECS.values(), GateError)
+        if self.fast_step > self.horizon:
+            raise GateError(f"GateParams.fast_step {self.fast_step} exceeds the horizon {self.horizon}")
 
     @property
     def memories(self) -> tuple[tuple[float, float], ...]:
@@ -196,6 +207,8 @@ class GatedPredictor:
             rss = np.maximum(s[:, _YY] - 2.0 * a * s[:, _XY] + a * a * s[:, _XX], 0.0)
             cap -= self._z * np.sqrt(rss / (np.maximum(s[:, _N] - 1.0, 1.0) * sxx))
         cap *= 2.0
+        if p.fast_step and cap.shape[0] > 1:  # the short memory: every step capped by one step's record
+            cap[1] = cap[1, p.fast_step - 1]
         out = np.minimum(a[0], cap.min(axis=0))
         return np.clip(out, 0.0, 1.0, out=out)
 
@@ -243,6 +256,8 @@ class GatedPredictor:
             settings = header["gate"]
             if "confidence" not in settings:  # written by the plain least-squares gate: it stays one
                 settings = {**settings, **_PLAIN}
+            if "fast_step" not in settings:  # written before fast_step: each step kept its own record
+                settings = {**settings, **_OWN_STEP}
             gate = cls(model_cls.from_state(header["model"], sub, f"{source} (gated model)"),
                        GateParams(**settings))
             targets = {"scored": gate._scored}

@@ -7,7 +7,8 @@ a grid of gates costs little more than one run. Conditions:
 * real people (`real.load_clips`): every clip one pass from scratch, and each climbing take held out
   after the other takes were learned (the two protocols of `experiment real`);
 * the demonstrator: each pattern one pass from scratch, and the held-out repetitions and person
-  after `epochs` passes over the training split (still learning while scored).
+  after `epochs` passes over the training split (still learning while scored), and `experiment
+  delay`'s person (the held-out subject doing every pattern once, back to back, open loop).
 The figures: the worst MAE ratio to hold-last over the horizons on any clip / take / pattern (the
 "never worse than holding still" band), and the 600 ms MAE and MSE ratios where motion repeats.
 """
@@ -21,6 +22,7 @@ from typing import Any
 import numpy as np
 
 from gwr_predictor.evaluation.experiments import common
+from gwr_predictor.evaluation.experiments.delay import person_sequence
 from gwr_predictor.evaluation.experiments.output import ExperimentOutput, markdown_table
 from gwr_predictor.evaluation.experiments.splits import make_splits
 from gwr_predictor.evaluation.metrics import HorizonStats
@@ -30,15 +32,19 @@ NAME = "gate"
 
 #: name -> GateParams changes; "default" is `GateParams()`, "plain" the least-squares gate before the bound.
 VARIANTS: dict[str, dict[str, Any]] = {
-    "plain, per joint (before)": {"confidence": 0.0, "fast_decay": 0.0, "per_joint": True},
+    "plain, per joint (stop 17)": {"confidence": 0.0, "fast_decay": 0.0, "per_joint": True},
     "plain, pooled": {"confidence": 0.0, "fast_decay": 0.0},
     "bound z=2 only": {"fast_decay": 0.0},
     "short memory only": {"confidence": 0.0},
-    "bound z=1 + short memory": {"confidence": 1.0},
-    "default (bound z=2 + short memory)": {},
-    "bound z=3 + short memory": {"confidence": 3.0},
-    "default, short memory 0.9": {"fast_decay": 0.9},
-    "default, short memory 0.7": {"fast_decay": 0.7},
+    "short memory per step, 0.8 (stop 18)": {"fast_decay": 0.8, "fast_step": 0},
+    "short memory per step, 0.9": {"fast_step": 0},
+    "default (bound z=2 + short memory of step 1, 0.9)": {},
+    "default, bound z=1": {"confidence": 1.0},
+    "default, bound z=3": {"confidence": 3.0},
+    "default, short memory 0.95": {"fast_decay": 0.95},
+    "default, short memory 0.85": {"fast_decay": 0.85},
+    "default, short memory z=0": {"fast_confidence": 0.0},
+    "default, short memory of step 2": {"fast_step": 2},
     "default, per joint": {"per_joint": True},
     "ungated model": None,
 }
@@ -55,9 +61,9 @@ class Config:
     variants: tuple[str, ...] = tuple(VARIANTS)
 
 
-DEFAULT = "default (bound z=2 + short memory)"
+DEFAULT = "default (bound z=2 + short memory of step 1, 0.9)"
 QUICK = Config(clips=(), patterns=("wave_one", "raise_front_both"), subjects=2, repetitions=3,
-               heldout_repetitions=1, epochs=1, variants=("plain, per joint (before)", DEFAULT, "ungated model"))
+               heldout_repetitions=1, epochs=1, variants=("plain, per joint (stop 17)", DEFAULT, "ungated model"))
 FULL = Config()
 
 
@@ -116,6 +122,7 @@ def _conditions(config: Config, seed: int) -> dict[str, tuple[list[Any], list[An
     train = [s for _ in range(config.epochs) for s in common.shuffled(splits.train, rng)]
     out["demonstrator, trained/new repetitions"] = (train, list(splits.heldout_repetitions))
     out["demonstrator, trained/new person"] = (train, list(splits.heldout_subjects))
+    out["demonstrator, trained/closed-loop person"] = (train, [person_sequence(splits.heldout_subjects)])
     return out
 
 
@@ -165,7 +172,8 @@ def _summary(r: dict[str, dict[str, Any]]) -> dict[str, Any]:
         worst = max(v["mae"])
         if worst > out.get(f"worst: {group}", (-np.inf, ""))[0]:
             out[f"worst: {group}"] = (worst, name.split("/")[1])
-    for name in ("demonstrator, trained/new repetitions", "demonstrator, trained/new person"):
+    for name in ("demonstrator, trained/new repetitions", "demonstrator, trained/new person",
+                 "demonstrator, trained/closed-loop person"):
         if name in r:
             out[f"600 ms: {name.split('/')[1]}"] = (r[name]["mae"][-1], r[name]["mse"][-1])
     return out
