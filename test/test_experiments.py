@@ -225,7 +225,9 @@ def test_experiment_gate(tmp_path):
     and the default gate stays within the band on every pattern learned from scratch."""
     r, cfg = _run("gate", tmp_path, figures=False)
     assert set(r["ratio_to_hold"]) == set(cfg["variants"])
-    default = r["ratio_to_hold"]["default (bound z=2 + short memory)"]
+    from gwr_predictor.evaluation.experiments.gate import DEFAULT
+
+    default = r["ratio_to_hold"][DEFAULT]
     assert all(max(v["mae"]) <= 1.02 for name, v in default.items() if "from scratch" in name)
     ungated = r["ratio_to_hold"]["ungated model"]
     assert ungated.keys() == default.keys() and any(ungated[n] != default[n] for n in ungated)

@@ -2,7 +2,8 @@
 
 The person is a held-out subject doing one repetition of every pattern in a row; the robot is the
 simulated Nao behind a sensorimotor delay of 100..600 ms (plus its motor latency). Predictors are
-pre-trained on the training split and keep learning in the loop. Compensation rules
+pre-trained on the training split, performed like the person (`session` sequences back to
+back), and keep learning in the loop. Compensation rules
 (`compensator.py`): none (execute the newest observation), fixed 600 ms (always the 6-step
 prediction, the paper's setting), fixed at the true delay (an oracle that knows it), and variable
 (Eq. 11 tracking the delay from the robot's own state, starting from 600 ms).
@@ -52,6 +53,7 @@ class Config:
     repetitions: int = 10
     heldout_repetitions: int = 2
     pretrain_epochs: int = 3
+    session: int = 10  # training sequences performed back to back per pretraining sequence (1: each alone)
     skip_s: float = 2.0  # warm-up excluded from lag and error
     overrides: tuple[tuple[str, object], ...] = ()
     real: bool = True  # the closed loop on every real clip too
@@ -74,6 +76,14 @@ def person_sequence(heldout: tuple[Any, ...]) -> np.ndarray:
     return np.concatenate([np.asarray(s.angles) for s in first.values()])
 
 
+def sessions(sequences: list[Any], per_session: int) -> list[np.ndarray]:
+    """`per_session` sequences at a time back to back, as the closed-loop person performs: the model
+    also learns what follows the end of a movement (more rest, then a new one), which separate
+    recordings never show it (their last frames have no targets)."""
+    angles = [np.asarray(getattr(s, "angles", s)) for s in sequences]
+    return [np.concatenate(angles[i:i + per_session]) for i in range(0, len(angles), per_session)]
+
+
 def measure(config: Config, seed: int, progress: bool) -> dict[str, Any]:
     params = common.make_params(config.overrides)
     data = common.demo_data(config.patterns, config.subjects, config.repetitions, seed)
@@ -84,7 +94,7 @@ def measure(config: Config, seed: int, progress: bool) -> dict[str, Any]:
     for name in config.predictors:
         model = common.make_model(name, params, seed)
         for epoch in range(config.pretrain_epochs):
-            train_online(model, common.shuffled(splits.train, rng), progress=progress,
+            train_online(model, sessions(common.shuffled(splits.train, rng), config.session), progress=progress,
                          desc=f"{NAME} pretrain {name} {epoch + 1}")
         trained[name] = model
     rows = []
