@@ -10,6 +10,7 @@ import pytest
 
 from gwr_predictor.commands.cli import main
 from gwr_predictor.evaluation.experiments import EXPERIMENTS, UnknownExperiment, load
+from gwr_predictor.evaluation.experiments.gate import DEFAULT as GATE_DEFAULT
 from gwr_predictor.evaluation.experiments.output import ExperimentOutputError, markdown_table, to_jsonable
 from gwr_predictor.evaluation.experiments.splits import SplitError, key, make_splits
 
@@ -225,9 +226,7 @@ def test_experiment_gate(tmp_path):
     and the default gate stays within the band on every pattern learned from scratch."""
     r, cfg = _run("gate", tmp_path, figures=False)
     assert set(r["ratio_to_hold"]) == set(cfg["variants"])
-    from gwr_predictor.evaluation.experiments.gate import DEFAULT
-
-    default = r["ratio_to_hold"][DEFAULT]
+    default = r["ratio_to_hold"][GATE_DEFAULT]
     assert all(max(v["mae"]) <= 1.02 for name, v in default.items() if "from scratch" in name)
     ungated = r["ratio_to_hold"]["ungated model"]
     assert ungated.keys() == default.keys() and any(ungated[n] != default[n] for n in ungated)

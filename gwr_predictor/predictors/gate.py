@@ -64,10 +64,11 @@ _GATE_SPECS = {spec.name: spec for spec in (
     ParamSpec("horizon", DEFAULT_HORIZON, "steps gated", 1),
     ParamSpec("joints", N_JOINTS, "joints per frame", 1),
 )}
-# what a checkpoint written before `confidence` and `fast_decay` existed ran with
-_PLAIN = {"confidence": 0.0, "fast_decay": 0.0, "fast_confidence": 0.0}
-# what a checkpoint written before `fast_step` existed ran with (each step judged by its own record)
-_OWN_STEP = {"fast_step": 0}
+# per setting added after the first gate, in order: what a checkpoint written before it ran with
+_BEFORE = (
+    ("confidence", {"confidence": 0.0, "fast_decay": 0.0, "fast_confidence": 0.0}),  # the plain gate
+    ("fast_step", {"fast_step": 0}),  # each step's short memory judged by its own record
+)
 _XY, _XX, _YY, _N = range(4)  # the running sums, per memory
 
 
@@ -254,10 +255,9 @@ class GatedPredictor:
                                       f"restores {', '.join(_model_classes())}")
             sub = {k[len("model:"):]: v for k, v in arrays.items() if k.startswith("model:")}
             settings = header["gate"]
-            if "confidence" not in settings:  # written by the plain least-squares gate: it stays one
-                settings = {**settings, **_PLAIN}
-            if "fast_step" not in settings:  # written before fast_step: each step kept its own record
-                settings = {**settings, **_OWN_STEP}
+            for added, before in _BEFORE:  # an older checkpoint keeps the gate it was written with
+                if added not in settings:
+                    settings = {**settings, **before}
             gate = cls(model_cls.from_state(header["model"], sub, f"{source} (gated model)"),
                        GateParams(**settings))
             targets = {"scored": gate._scored}

@@ -172,10 +172,9 @@ def _summary(r: dict[str, dict[str, Any]]) -> dict[str, Any]:
         worst = max(v["mae"])
         if worst > out.get(f"worst: {group}", (-np.inf, ""))[0]:
             out[f"worst: {group}"] = (worst, name.split("/")[1])
-    for name in ("demonstrator, trained/new repetitions", "demonstrator, trained/new person",
-                 "demonstrator, trained/closed-loop person"):
-        if name in r:
-            out[f"600 ms: {name.split('/')[1]}"] = (r[name]["mae"][-1], r[name]["mse"][-1])
+    for name, v in r.items():
+        if name.startswith("demonstrator, trained/"):
+            out[f"600 ms: {name.split('/')[1]}"] = (v["mae"][-1], v["mse"][-1])
     return out
 
 
