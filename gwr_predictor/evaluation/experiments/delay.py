@@ -89,9 +89,9 @@ def measure(config: Config, seed: int, progress: bool) -> dict[str, Any]:
     data = common.demo_data(config.patterns, config.subjects, config.repetitions, seed)
     splits = make_splits(data, 1, config.heldout_repetitions)
     person = person_sequence(splits.heldout_subjects)
-    rng = np.random.default_rng(seed)
     trained = {}
-    for name in config.predictors:
+    for name in config.predictors:  # every predictor pretrained on the same sessions in the same order
+        rng = np.random.default_rng(seed)
         model = common.make_model(name, params, seed)
         for epoch in range(config.pretrain_epochs):
             train_online(model, sessions(common.shuffled(splits.train, rng), config.session), progress=progress,
