@@ -119,6 +119,8 @@ class GatedPredictor:
             raise GateError(f"the gate's horizon {p.horizon} exceeds the model's {horizon}")
         # per memory: [S_xy, S_xx, S_yy, n], each (horizon, joints) (pooled: equal across joints)
         self._stats = np.zeros((len(p.memories), 4, p.horizon, p.joints))
+        self._new = np.ones((4, p.horizon, p.joints))  # scratch of `_score` (row _N stays 1)
+        self._filed = np.empty((2, p.horizon, p.joints))  # scratch of `step`: newest pose, model's step
         self._decays = np.array([d for d, _ in p.memories])[:, None, None]
         self._z = np.array([z for _, z in p.memories])[:, None, None]
         self._scored = np.zeros(p.horizon, dtype=np.int64)
@@ -155,7 +157,10 @@ class GatedPredictor:
             if not np.isfinite(diff.sum()):
                 diff = None
         if diff is not None:  # a prediction implies a newest pose
-            self._pending.file(self._t, np.stack([np.broadcast_to(self._last, diff.shape), diff]))
+            filed = self._filed
+            filed[0] = self._last
+            filed[1] = diff
+            self._pending.file(self._t, filed)
         self._t += 1
         self._out_diff = diff
         return self._gated(diff)
@@ -181,9 +186,15 @@ class GatedPredictor:
             return
         diff = due[1]  # (h, J)
         resid = obs - due[0]  # y - newest pose at prediction time
-        new = np.stack([resid * diff, diff * diff, resid * resid, np.ones_like(diff)])  # (4, h, J)
-        if not self.params.per_joint:
-            new[:3] = new[:3].sum(axis=2, keepdims=True)
+        new = self._new  # (4, h, J): the products, pooled over joints unless per_joint
+        if self.params.per_joint:
+            np.multiply(resid, diff, out=new[_XY])
+            np.multiply(diff, diff, out=new[_XX])
+            np.multiply(resid, resid, out=new[_YY])
+        else:
+            new[_XY] = (resid * diff).sum(axis=1, keepdims=True)
+            new[_XX] = (diff * diff).sum(axis=1, keepdims=True)
+            new[_YY] = (resid * resid).sum(axis=1, keepdims=True)
         if ok.all():  # the common case: every step has a scored prediction
             self._stats *= self._decays[..., None]
             self._stats += new
