@@ -155,14 +155,14 @@ _LOCAL_LINEAR_SPECS = {spec.name: spec for spec in (
     ParamSpec("order", 4, "frames in the regressor", 1, 32),
     ParamSpec("horizon", DEFAULT_HORIZON, "frames predicted", 1, 64),
     ParamSpec("n_joints", 8, "joints per frame", 1),
-    ParamSpec("insertion_scale", 1.5, "insertion distance in units of the motion scale", 0.0, 1e3,
+    ParamSpec("insertion_scale", 1.0, "insertion distance in units of the motion scale", 0.0, 1e3,
               lo_open=True, hi_open=True),
     ParamSpec("noise_floor", 0.01, "lower bound of the motion scale (rad)", 0.0, 10.0, lo_open=True, hi_open=True),
     ParamSpec("motion_decay", 0.999, "forgetting of the motion estimate per frame", 0.0, 1.0,
               lo_open=True, hi_open=True),
     ParamSpec("rate", 0.1, "NLMS rate of the local models", 0.0, 1.5),
     ParamSpec("readout_k", 3, "neurons blended in the read-out", 1, 64),
-    ParamSpec("neighbour_rate", 0.02, "NLMS rate of the BMU's neighbours", 0.0, 1.5),
+    ParamSpec("neighbour_rate", 0.05, "NLMS rate of the BMU's neighbours", 0.0, 1.5),
 )}
 
 

@@ -3,8 +3,13 @@
 Why: a ranking against an untuned baseline says little. Both the local-linear P-GWR behind the
 gate (`gated_llm_gwr`) and RLS-AR get a grid of the same size; every point is trained online for
 `epochs` passes over the training split (random order, same seed) and scored frozen on the
-held-out repetitions at the last horizon step; the point with the lowest MAE there wins. The held-out
-subject never takes part in the choice (it is reported, not used). The chosen settings are the
+held-out repetitions at the last horizon step; the point with the lowest MAE there wins, except that
+for the default predictor, among the points within `tie` (0.5 %) of that MAE, the finest insertion
+threshold (smallest `insertion_scale`) wins: more neurons share less of the regressor space between
+movements, so a newly learned movement rewrites less of the old ones (the default forgets about half
+as much at insertion_scale 1.0 as at 1.5, `experiment incremental`), and a 0.5 % difference on one
+split is within what the seed changes. The held-out subject never takes part in the choice (it is
+reported, not used). The chosen settings are the
 library defaults (`LocalLinearParams()`, `baselines.TUNED_RLS`); this experiment checks that they
 still are the winners.
 """
@@ -33,10 +38,12 @@ class Config:
     repetitions: int = 10
     heldout_repetitions: int = 2
     epochs: int = 5
-    # the default predictor's grid: rate x insertion_scale x readout_k (18 points)
+    # the default predictor's grid: rate x insertion_scale x neighbour_rate (18 points; readout_k 3,
+    # which beat 1 at every point of the earlier rate x insertion_scale x readout_k grid)
     rates: tuple[float, ...] = (0.05, 0.1, 0.2)
-    insertion_scales: tuple[float, ...] = (1.5, 2.0, 3.0)
-    readout_ks: tuple[int, ...] = (1, 3)
+    insertion_scales: tuple[float, ...] = (1.0, 1.5, 2.0)
+    neighbour_rates: tuple[float, ...] = (0.02, 0.05)
+    tie: float = 0.005  # default predictor: within this share of the best MAE, the finest insertion wins
     # RLS-AR's grid: order x forgetting (18 points)
     orders: tuple[int, ...] = (3, 5, 8, 10, 12, 15)
     forgettings: tuple[float, ...] = (0.995, 0.999, 1.0)
@@ -44,7 +51,7 @@ class Config:
 
 
 QUICK = Config(patterns=("wave_one", "raise_front_both"), subjects=2, repetitions=3, heldout_repetitions=1,
-               epochs=1, rates=(0.1,), insertion_scales=(2.0,), readout_ks=(1, 3), orders=(5, 10),
+               epochs=1, rates=(0.1,), insertion_scales=(2.0,), neighbour_rates=(0.02, 0.05), orders=(5, 10),
                forgettings=(1.0,))
 FULL = Config()
 
@@ -58,11 +65,24 @@ def _candidates(config: Config, horizon: int) -> dict[str, list[tuple[dict[str, 
         lp = LocalLinearParams(horizon=horizon).replace(**s)
         return GatedPredictor(LocalLinearPredictor(lp), GateParams(horizon=horizon))
 
-    llm = [{"rate": r, "insertion_scale": i, "readout_k": k}
-           for r, i, k in itertools.product(config.rates, config.insertion_scales, config.readout_ks)]
+    llm = [{"rate": r, "insertion_scale": i, "neighbour_rate": n}
+           for r, i, n in itertools.product(config.rates, config.insertion_scales, config.neighbour_rates)]
     rls = [{"order": o, "forgetting": f} for o, f in itertools.product(config.orders, config.forgettings)]
     return {common.GATED: [(s, lambda s=s: gated(**s)) for s in llm],
             "rls_ar": [(s, lambda s=s: RLSAutoregressive(RLSParams(**s), horizon)) for s in rls]}
+
+
+def choose(rows: list[dict[str, Any]], tie: float) -> dict[str, Any]:
+    """The lowest held-out-repetitions MAE; with `tie` > 0, among the rows within that share of it,
+    the smallest insertion_scale (then the lowest MAE)."""
+    def mae(r: dict[str, Any]) -> float:
+        return r["heldout_repetitions"]["mae"]
+
+    best = min(rows, key=mae)
+    if tie <= 0:
+        return best
+    close = [r for r in rows if mae(r) <= mae(best) * (1.0 + tie)]
+    return min(close, key=lambda r: (r["settings"]["insertion_scale"], mae(r)))
 
 
 def measure(config: Config, seed: int, progress: bool) -> dict[str, Any]:
@@ -86,7 +106,7 @@ def measure(config: Config, seed: int, progress: bool) -> dict[str, Any]:
             rows.append(row)
             if progress:
                 print(f"{method} {settings}: {row['heldout_repetitions']}", flush=True)
-        best = min(rows, key=lambda r: r["heldout_repetitions"]["mae"])
+        best = choose(rows, config.tie if method == common.GATED else 0.0)
         out[method] = {"grid": rows, "chosen": best["settings"], "chosen_scores": best}
     return {"params": params.to_flat(), "splits": splits.sizes(), "methods": out}
 
