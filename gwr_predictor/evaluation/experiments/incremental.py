@@ -17,7 +17,6 @@ way; what the sequential model loses beyond that reference is forgetting.
 
 from __future__ import annotations
 
-import copy
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
@@ -86,16 +85,15 @@ def one_order(config: Config, order: list[str], by_pattern: dict[str, list[Any]]
            "evaluated_at": evaluated_at, "layers": [LAYER_LABELS.get(n, n) for n in learner.layer_names],
            "per_pattern_mse": per_pattern}
     if config.together:
-        run["together"] = trained_together(config, order, by_pattern, learned, seed, progress)
+        run["together"] = trained_together(config, params, order, by_pattern, learned, seed, progress)
     return run
 
 
-def trained_together(config: Config, order: list[str], by_pattern: dict[str, list[Any]], scored: list[Any],
-                     seed: int, progress: bool) -> dict[str, Any]:
+def trained_together(config: Config, params: Any, order: list[str], by_pattern: dict[str, list[Any]],
+                     scored: list[Any], seed: int, progress: bool) -> dict[str, Any]:
     """A fresh model trained on every pattern at once, as many presentations as the sequential run
     (epochs_per_pattern epochs of all demonstrations, shuffled together): each pattern's own MSE and
     the C.P.E. on everything, scored frozen like the sequential model."""
-    params = common.make_params(config.overrides)
     model = common.make_model(config.method, params, seed)
     rng = np.random.default_rng([seed, 2])
     everything = [s for p in order for s in by_pattern[p]]
@@ -108,7 +106,7 @@ def trained_together(config: Config, order: list[str], by_pattern: dict[str, lis
 
 
 def _frozen_mse(model: Any, sequences: list[Any], horizon: int) -> float:
-    ev = compare_online({"h": copy.deepcopy(model)}, sequences, learn=False, horizon=horizon, progress=False)["h"]
+    ev = compare_online(common.clone({"h": model}), sequences, learn=False, horizon=horizon, progress=False)["h"]
     return float(ev.stats.mse[-1])
 
 
