@@ -84,6 +84,51 @@ def test_the_insertion_threshold_follows_the_data_scale():
     assert abs(a.neuron_counts[0] - b.neuron_counts[0]) <= max(3, 0.2 * a.neuron_counts[0])
 
 
+def _oscillation(n: int = 300, seed: int = 1) -> np.ndarray:
+    """Lightly damped oscillations of every joint, driven by a little noise: a linear system, seen once."""
+    rng = np.random.default_rng(seed)
+    x = np.zeros((n, 8))
+    x[0] = x[1] = rng.uniform(-1, 1, 8)
+    for t in range(2, n):
+        x[t] = x[t - 1] + 0.995 * (x[t - 1] - x[t - 2]) - 0.05 * x[t - 1] + rng.normal(scale=0.005, size=8)
+    return x
+
+
+def test_the_global_read_out_carries_what_the_network_has_barely_seen():
+    """One pass over a short linear motion: a few dozen neurons with a handful of pairs each, while the
+    global read-out fits every pair; mixed by least squares, the prediction beats the local read-outs
+    alone, and the mix leans on the global one."""
+    x = _oscillation()
+    both, local = LocalLinearPredictor(), LocalLinearPredictor(LocalLinearParams(global_order=0))
+    res = compare_online({"both": both, "local": local}, [x], progress=False)
+    assert res["both"].stats.mse[-1] < 0.8 * res["local"].stats.mse[-1]
+    weights = both.mix_weights()
+    assert weights.shape == (6, 2) and np.all(weights[:, 1] > weights[:, 0])
+    assert local.mix_weights() is None and "mix_weights" not in local.errors()
+    assert set(both.errors()["mix_weights"]) == {"local", "global"}
+
+
+def test_a_checkpoint_from_before_the_global_read_out_keeps_the_local_read_outs_only():
+    model = make_gated_llm(params=LocalLinearParams(global_order=0))
+    x = _periodic(300)
+    for f in x[:200]:
+        model.step(f)
+    header, arrays = model.state()
+    for name in ("global_order", "global_delta", "mix_decay", "mix_ridge"):
+        del header["model"]["params"][name]
+    again = GatedPredictor.from_state(header, arrays)
+    assert again.model.params.global_order == 0 and again.model.linear is None
+    for f in x[200:]:
+        np.testing.assert_array_equal(model.step(f), again.step(f))
+
+
+def test_global_read_out_settings_are_checked():
+    with pytest.raises(LocalLinearError, match="global_order 5 exceeds"):
+        LocalLinearParams(global_order=5)
+    with pytest.raises(LocalLinearError, match="mix_ridge"):
+        LocalLinearParams(mix_ridge=0.0)
+
+
 def test_no_peeking():
     x = _periodic(200)
     y = x.copy()
@@ -205,8 +250,9 @@ def test_the_short_memory_judges_by_the_freshest_record():
             return 2 * self.angles[self.t] - future if 300 <= self.t < 304 else future
 
     x = _periodic(400)
-    fresh = _alphas(GatedPredictor(Blip(x, 6)), x)
-    per_step = _alphas(GatedPredictor(Blip(x, 6), GateParams(fast_step=0)), x)
+    sure = {"fast_confidence": 0.5}  # a bound on the short memory too, so both react as fast as they can
+    fresh = _alphas(GatedPredictor(Blip(x, 6), GateParams(**sure)), x)
+    per_step = _alphas(GatedPredictor(Blip(x, 6), GateParams(fast_step=0, **sure)), x)
     assert fresh[302:306].mean() < per_step[302:306].mean() - 0.2
     assert fresh[308:313].mean() > per_step[308:313].mean() + 0.05
     with pytest.raises(GateError, match="fast_step"):

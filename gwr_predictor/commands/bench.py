@@ -87,11 +87,11 @@ def measure_throughput(h: Hierarchy, stream: np.ndarray, chunk: int = 1000) -> t
 
 
 def measure_default(stream: np.ndarray, frames: int, chunk: int) -> tuple[float, float, int]:
-    """(median, best) frames/s of the default predictor (gate + local-linear P-GWR) and its neurons,
+    """(median, best) frames/s of the node's default predictor (the registry's) and its neurons,
     after learning the rest of `stream` first (it grows to the size the data asks for)."""
-    from gwr_predictor.predictors.gate import make_gated_llm
+    from gwr_predictor.predictors.registry import DEFAULT_PREDICTOR, make_predictor
 
-    model = make_gated_llm()
+    model = make_predictor(DEFAULT_PREDICTOR)
     for x in stream[frames:]:
         model.step(x)
     fps, best = measure_throughput(model, stream[:frames], chunk)  # type: ignore[arg-type]

@@ -24,6 +24,18 @@ so the output varies continuously between prototypes. Here, in addition:
 Everything else (counters, edges, ageing, removal, unbounded growth) is the GWR of `gwr.py`; the
 matrices move with their neurons in the same vectorised steps. `LocalLinearPredictor` is the
 online predictor around it (`step` / `reset_sequence` / checkpoints like the other predictors).
+
+A global read-out beside the local ones (`global_order` > 0, the default): where a person has shown
+little, most neurons have seen a handful of pairs and their local models are noise, while one linear
+map fitted exactly to every pair (recursive least squares, `learning/rls.py`, on the newest pose and
+its latest changes) already predicts well. Per horizon step the predictor mixes the two read-outs,
+
+    y(r) = w_local,k y_local(r) + w_global,k y_global(r)
+
+with the weights the least-squares fit of the observed displacements on what each read-out predicted
+for them (decayed, ridge towards 0 = hold-last), scored when a learned pair's targets are complete:
+on motion the network knows, the weights go to the local read-out; on a few minutes of a new person,
+the global one carries the prediction until the network has learned the movements.
 """
 
 from __future__ import annotations
@@ -43,6 +55,7 @@ from gwr_predictor.learning.gwr import InputError
 from gwr_predictor.learning.hierarchy import ErrorTracker
 from gwr_predictor.learning.params import GWRParams
 from gwr_predictor.learning.predictive_gwr import PredictiveGWR
+from gwr_predictor.learning.rls import RecursiveLeastSquares, window_features
 from gwr_predictor.learning.scaling import InputScaling
 from gwr_predictor.parameter_spec import ParamSpec, check_fields
 from gwr_predictor.pipeline.conventions import DEFAULT_HORIZON
@@ -163,7 +176,16 @@ _LOCAL_LINEAR_SPECS = {spec.name: spec for spec in (
     ParamSpec("rate", 0.1, "NLMS rate of the local models", 0.0, 1.5),
     ParamSpec("readout_k", 3, "neurons blended in the read-out", 1, 64),
     ParamSpec("neighbour_rate", 0.05, "NLMS rate of the BMU's neighbours", 0.0, 1.5),
+    ParamSpec("global_order", 2, "frames the global linear read-out's features span (0: local read-outs only)", 0, 32),
+    ParamSpec("global_delta", 100.0, "prior variance of the global read-out's weights (RLS P(0) = delta I)", 0.0,
+              lo_open=True),
+    ParamSpec("mix_decay", 0.995, "forgetting of the read-outs' mixing statistics per learned pair", 0.0, 1.0,
+              lo_open=True),
+    ParamSpec("mix_ridge", 0.01, "rad^2 per joint added to the mixing equations (pulls towards hold-last)", 0.0,
+              lo_open=True),
 )}
+# per setting added after the first local-linear checkpoints: what a checkpoint written before it ran with
+_BEFORE = {"global_order": 0}
 
 
 @dataclass(frozen=True)
@@ -174,8 +196,12 @@ class LocalLinearParams:
     insert when the per-frame RMS distance to the BMU exceeds this x the running RMS frame-to-frame
     motion. `noise_floor` (rad): lower bound of that motion scale (tracker jitter). `motion_decay`:
     forgetting factor of the motion estimate per frame. `rate`: NLMS rate mu of the local models
-    (0 = plain VQTAM read-out, the ablation). `gwr`: the GWR step's parameters (its a_T only fixes
-    the constant -ln a_T the scaled distance is compared with).
+    (0 = plain VQTAM read-out, the ablation). `global_order`: frames the global linear read-out's
+    features span (0: none, the predictor before it existed); `global_delta`: the prior variance of its
+    weights (large: a weak prior, so it follows the data within a few dozen pairs; the mix below and
+    the gate keep an immature fit from doing harm); `mix_decay`, `mix_ridge`: forgetting and ridge of
+    the per-step least-squares mix of the local and global read-outs. `gwr`: the GWR step's
+    parameters (its a_T only fixes the constant -ln a_T the scaled distance is compared with).
     """
 
     order: int = _LOCAL_LINEAR_SPECS["order"].default
@@ -187,12 +213,19 @@ class LocalLinearParams:
     rate: float = _LOCAL_LINEAR_SPECS["rate"].default
     readout_k: int = _LOCAL_LINEAR_SPECS["readout_k"].default
     neighbour_rate: float = _LOCAL_LINEAR_SPECS["neighbour_rate"].default
+    global_order: int = _LOCAL_LINEAR_SPECS["global_order"].default
+    global_delta: float = _LOCAL_LINEAR_SPECS["global_delta"].default
+    mix_decay: float = _LOCAL_LINEAR_SPECS["mix_decay"].default
+    mix_ridge: float = _LOCAL_LINEAR_SPECS["mix_ridge"].default
     gwr: GWRParams = field(default_factory=_default_gwr)
 
     def __post_init__(self) -> None:
         check_fields(self, _LOCAL_LINEAR_SPECS.values(), LocalLinearError)
         if not isinstance(self.gwr, GWRParams):
             raise LocalLinearError(f"LocalLinearParams.gwr must be GWRParams, got {type(self.gwr).__name__}")
+        if self.global_order > self.order:
+            raise LocalLinearError(f"LocalLinearParams.global_order {self.global_order} exceeds the regressor's "
+                                   f"{self.order} frames")
 
     def replace(self, **changes: Any) -> LocalLinearParams:
         return dataclasses.replace(self, **changes)
@@ -202,7 +235,8 @@ class LocalLinearParams:
 
     @classmethod
     def from_dict(cls, d: dict[str, Any]) -> LocalLinearParams:
-        d = dict(d)
+        """The parameters of `to_dict()`; settings a saved dict predates keep the value it ran with."""
+        d = {**_BEFORE, **d}
         return cls(**{**d, "gwr": GWRParams(**d["gwr"])}) if "gwr" in d else cls(**d)
 
 
@@ -227,7 +261,19 @@ class LocalLinearPredictor:
         self._motion_ms = p.noise_floor ** 2  # running mean of ||x(t) - x(t-1)||^2
         self._t = self._frames = self._missing = self._predictions = self._sequences = 0
         self._errors = ErrorTracker(p.horizon, p.n_joints, self.layer_names)
+        self._init_global()
         self._clear_sequence()
+
+    def _init_global(self) -> None:
+        """The global read-out and the statistics that mix it with the local one (None without one)."""
+        p = self.params
+        self.linear = None
+        if p.global_order:
+            self.linear = RecursiveLeastSquares(p.global_order * p.n_joints + 1, p.horizon * p.n_joints,
+                                                delta=p.global_delta)
+        self._mix_sxx = np.zeros((p.horizon, 2, 2))  # per step: sum of [local, global] read-out products
+        self._mix_sxy = np.zeros((p.horizon, 2))  # per step: sum of read-out x observed displacement
+        self._mix = np.zeros((p.horizon, 2))  # the weights they give (0, 0 = hold-last until scored)
 
     # --- the online step --------------------------------------------------------------------------
     def step(self, x: np.ndarray | None, learn: bool = True) -> np.ndarray | None:
@@ -257,9 +303,10 @@ class LocalLinearPredictor:
         self._regs.append(reg)
         self._last_reg = reg
         if reg is None:
+            self._outs.append(None)
             return None
         self._predictions += 1
-        prediction = self._forecast(reg)
+        prediction = self._forecast(reg, record=True)
         self._errors.expect(t, prediction)
         return prediction
 
@@ -271,15 +318,58 @@ class LocalLinearPredictor:
         p = self.params
         frames = np.asarray(hist)  # (horizon + 1, J): x(t-h) ... x(t)
         target = (frames[1:] - frames[0]).reshape(-1)
+        if self.linear is not None:
+            self._learn_global(reg, target, self._outs[0])
         scale = max(math.sqrt(self._motion_ms), p.noise_floor) * p.insertion_scale * math.sqrt(p.order)
         self.pgwr.distance_factor = self._ln_at / scale
         self.pgwr.learn_local(reg, target, p.neighbour_rate)
 
-    def _forecast(self, reg: np.ndarray) -> np.ndarray:
+    def _learn_global(self, reg: np.ndarray, target: np.ndarray, outs: np.ndarray | None) -> None:
+        """Score the two read-outs made for this regressor against its now complete targets (the
+        mixing statistics), then one RLS step of the global read-out."""
         p = self.params
-        out = self.pgwr.predict_local(reg, p.readout_k).reshape(p.horizon, p.n_joints)
-        out += reg[:p.n_joints]
-        return out
+        if outs is not None:
+            by_step = outs.transpose(1, 0, 2)  # (horizon, 2, J)
+            self._mix_sxx *= p.mix_decay
+            self._mix_sxx += by_step @ by_step.transpose(0, 2, 1)
+            self._mix_sxy *= p.mix_decay
+            self._mix_sxy += (by_step @ target.reshape(p.horizon, p.n_joints, 1))[..., 0]
+            self._mix = self._mix_weights()
+        self.linear.update(window_features(reg.reshape(p.order, p.n_joints), p.global_order), target)
+
+    def _mix_weights(self) -> np.ndarray:
+        """(horizon, 2) least-squares weights of the [local, global] read-outs per step: the 2 x 2 ridge
+        normal equations of every step, solved in closed form (a new array)."""
+        ridge = self.params.mix_ridge * self.params.n_joints
+        sxx, sxy = self._mix_sxx, self._mix_sxy
+        a = sxx[:, 0, 0] + ridge
+        d = sxx[:, 1, 1] + ridge
+        b = sxx[:, 0, 1]
+        det = a * d  # > 0 once b * b is taken off: a ridge-regularised Gram matrix is positive definite
+        det -= b * b
+        w = np.empty_like(sxy)
+        np.multiply(d, sxy[:, 0], out=w[:, 0])
+        w[:, 0] -= b * sxy[:, 1]
+        np.multiply(a, sxy[:, 1], out=w[:, 1])
+        w[:, 1] -= b * sxy[:, 0]
+        w /= det[:, None]
+        return w
+
+    def _forecast(self, reg: np.ndarray, record: bool = False) -> np.ndarray:
+        """The prediction for regressor `reg`; `record` files both read-outs to be scored later."""
+        p = self.params
+        local = self.pgwr.predict_local(reg, p.readout_k).reshape(p.horizon, p.n_joints)
+        if self.linear is not None:
+            phi = window_features(reg.reshape(p.order, p.n_joints), p.global_order)
+            outs = np.empty((2, p.horizon, p.n_joints))
+            outs[0] = local
+            outs[1] = self.linear.predict(phi).reshape(p.horizon, p.n_joints)
+            if record:
+                self._outs.append(outs)
+            local = outs[0] * self._mix[:, :1]
+            local += outs[1] * self._mix[:, 1:]
+        local += reg[:p.n_joints]
+        return local
 
     def _as_frame(self, x: np.ndarray | None) -> np.ndarray | None:
         if x is None:
@@ -295,6 +385,7 @@ class LocalLinearPredictor:
         self._fill = 0
         self._hist: deque[np.ndarray] = deque(maxlen=p.horizon + 1)
         self._regs: deque[np.ndarray | None] = deque(maxlen=p.horizon)
+        self._outs: deque[np.ndarray | None] = deque(maxlen=p.horizon)  # read-outs [local, global] per regressor
         self._last_reg: np.ndarray | None = None
 
     def reset_sequence(self) -> None:
@@ -323,16 +414,24 @@ class LocalLinearPredictor:
         """Running RMS frame-to-frame motion (rad, over all joints) the insertion threshold follows."""
         return math.sqrt(self._motion_ms)
 
+    def mix_weights(self) -> np.ndarray | None:
+        """(horizon, 2) weights of the [local, global] read-outs per step (None without a global one)."""
+        return None if self.linear is None else self._mix.copy()
+
     def errors(self) -> dict[str, Any]:
-        """Counts, neurons, the motion scale, and C.P.E. (= P.E.) per step as the hierarchy reports it."""
-        return {"steps": self._t, "frames": self._frames, "missing": self._missing,
-                "sequences": self._sequences, "predictions": self._predictions,
-                "neurons": {"pgwr": self.pgwr.n_neurons},
-                "motion_rms_rad": self.motion_rms, **self._errors.summary()}
+        """Counts, neurons, the motion scale, the read-outs' mixing weights, and C.P.E. (= P.E.) per
+        step as the hierarchy reports it."""
+        out = {"steps": self._t, "frames": self._frames, "missing": self._missing,
+               "sequences": self._sequences, "predictions": self._predictions,
+               "neurons": {"pgwr": self.pgwr.n_neurons}, "motion_rms_rad": self.motion_rms}
+        if self.linear is not None:
+            out["mix_weights"] = {"local": self._mix[:, 0].tolist(), "global": self._mix[:, 1].tolist()}
+        return {**out, **self._errors.summary()}
 
     # --- persistence --------------------------------------------------------------------------------
     ARRAYS: ClassVar[tuple[str, ...]] = ("weights", "matrices", "counters", "edges", "win", "hist", "regs",
                                          *ErrorTracker.ARRAYS)
+    GLOBAL_ARRAYS: ClassVar[tuple[str, ...]] = ("global:weights", "global:p", "mix_sxx", "mix_sxy", "outs")
 
     def state(self) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
         """(JSON-able header, arrays) of the whole state; `from_state` continues bit for bit."""
@@ -348,6 +447,14 @@ class LocalLinearPredictor:
         arrays = {"weights": g.weights, "matrices": g.matrices.copy(), "counters": g.counters.copy(),
                   "edges": g.edge_array(), "win": self._win.copy(), "hist": hist, "regs": reg_arr,
                   **{k: v.copy() for k, v in self._errors.arrays().items()}}
+        if self.linear is not None:
+            outs = list(self._outs)
+            shape = (2, self.params.horizon, self.params.n_joints)
+            rls_header, rls_arrays = self.linear.state()
+            header["global"] = {"rls": rls_header, "outs_present": [o is not None for o in outs]}
+            arrays.update({f"global:{k}": v for k, v in rls_arrays.items()})
+            arrays.update(mix_sxx=self._mix_sxx.copy(), mix_sxy=self._mix_sxy.copy(),
+                          outs=np.array([np.zeros(shape) if o is None else o for o in outs]).reshape(len(outs), *shape))
         return header, arrays
 
     @classmethod
@@ -388,12 +495,33 @@ class LocalLinearPredictor:
             for flag, reg in zip(present, regs, strict=True):
                 model._regs.append(reg.copy() if flag else None)
             model._last_reg = model._regs[-1] if header["last_reg"] else None
+            model._init_global()
+            if model.linear is not None:
+                model._restore_global(header["global"], arrays)
         except CheckpointError:
             raise
         except (KeyError, ValueError, TypeError, IndexError) as exc:
             raise CheckpointError(f"{source}: inconsistent local-linear checkpoint: "
                                   f"{type(exc).__name__}: {exc}") from exc
         return model
+
+    def _restore_global(self, header: dict[str, Any], arrays: dict[str, np.ndarray]) -> None:
+        missing = sorted(set(self.GLOBAL_ARRAYS) - arrays.keys())
+        if missing:
+            raise ValueError(f"missing arrays {missing} of the global read-out")
+        prefix = "global:"
+        self.linear.restore(header["rls"], {k[len(prefix):]: v for k, v in arrays.items() if k.startswith(prefix)})
+        for name, dest in (("mix_sxx", self._mix_sxx), ("mix_sxy", self._mix_sxy)):
+            if np.shape(arrays[name]) != dest.shape:
+                raise ValueError(f"array {name!r} has shape {np.shape(arrays[name])}, expected {dest.shape}")
+            dest[...] = arrays[name]
+        self._mix = self._mix_weights()
+        present, outs = header["outs_present"], np.asarray(arrays["outs"], dtype=float)
+        shape = (len(self._regs), 2, self.params.horizon, self.params.n_joints)
+        if len(present) != len(outs) or outs.shape != shape:
+            raise ValueError(f"read-out queue of shape {outs.shape} does not fit the regressor queue {shape}")
+        for flag, o in zip(present, outs, strict=True):
+            self._outs.append(o.copy() if flag else None)
 
     def save(self, path: str | os.PathLike[str]) -> None:
         header, arrays = self.state()

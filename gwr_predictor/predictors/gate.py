@@ -58,7 +58,7 @@ _GATE_SPECS = {spec.name: spec for spec in (
     ParamSpec("prior", 0.01, "rad^2 per joint added to S_xx", 0.0, lo_open=True),
     ParamSpec("confidence", 2.0, "z of the lower confidence bound on alpha (0: the estimate itself)", 0.0, 10.0),
     ParamSpec("fast_decay", 0.9, "forgetting of the short memory (0: no short memory)", 0.0, 1.0, hi_open=True),
-    ParamSpec("fast_confidence", 0.5, "z of the short memory's bound", 0.0, 10.0),
+    ParamSpec("fast_confidence", 0.0, "z of the short memory's bound (0: its least-squares estimate)", 0.0, 10.0),
     ParamSpec("fast_step", 1, "step whose record the short memory caps every step with (0: each its own)", 0),
     ParamSpec("per_joint", False, "one alpha per (step, joint) instead of per step"),
     ParamSpec("horizon", DEFAULT_HORIZON, "steps gated", 1),
@@ -123,6 +123,7 @@ class GatedPredictor:
         self._filed = np.empty((2, p.horizon, p.joints))  # scratch of `step`: newest pose, model's step
         self._decays = np.array([d for d, _ in p.memories])[:, None, None]
         self._z = np.array([z for _, z in p.memories])[:, None, None]
+        self._bounded = bool(self._z.any())
         self._scored = np.zeros(p.horizon, dtype=np.int64)
         # per prediction: [newest pose at prediction time, model step k - that pose], filed by target step
         self._pending = PendingPredictions(p.horizon, p.joints, lead=(2,))
@@ -215,14 +216,15 @@ class GatedPredictor:
         sxx = s[:, _XX] + (p.prior if p.per_joint else p.prior * p.joints)
         a = s[:, _XY] / sxx
         cap = a.copy()
-        if self._z.any():
+        if self._bounded:
             rss = np.maximum(s[:, _YY] - 2.0 * a * s[:, _XY] + a * a * s[:, _XX], 0.0)
             cap -= self._z * np.sqrt(rss / (np.maximum(s[:, _N] - 1.0, 1.0) * sxx))
         cap *= 2.0
         if p.fast_step and cap.shape[0] > 1:  # the short memory: every step capped by one step's record
             cap[1] = cap[1, p.fast_step - 1]
         out = np.minimum(a[0], cap.min(axis=0))
-        return np.clip(out, 0.0, 1.0, out=out)
+        np.minimum(out, 1.0, out=out)
+        return np.maximum(out, 0.0, out=out)
 
     # --- introspection ------------------------------------------------------------------------------
     @property

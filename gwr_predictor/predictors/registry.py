@@ -6,9 +6,10 @@ experiments' method lists, and the reports' rows. A name maps to a factory `(par
 predictor` (the `Predictor` protocol), a label for tables and, for the predictors that can be saved,
 a checkpoint loader; those are the `learner_names()` the node and `pretrain` accept.
 
-Built in: the baselines `hold`, `const_velocity`, `rls_ar`; the paper's `hierarchy`
-(GWR1 -> GWR2 -> P-GWR); its ablation `pgwr_flat` (the P-GWR alone on raw frames); the per-step
-blends `blend_hierarchy_rls` and `blend_flat_rls` (beyond the paper). `register` adds one.
+Built in: the baselines `hold`, `const_velocity`, `rls_ar`, `linear` (direct multi-step linear
+model); the paper's `hierarchy` (GWR1 -> GWR2 -> P-GWR); its ablation `pgwr_flat` (the P-GWR alone
+on raw frames); the per-step blends `blend_hierarchy_rls` and `blend_flat_rls` (beyond the paper);
+the default `gated_llm_gwr` and its ablation variants. `register` adds one.
 """
 
 from __future__ import annotations
@@ -151,6 +152,15 @@ def _blend(name: str) -> tuple[Factory, Loader]:
 register("hold", _baseline("hold"), "hold last")
 register("const_velocity", _baseline("const_velocity"), "constant velocity")
 register("rls_ar", _baseline("rls_ar"), "RLS-AR")
+
+
+def _linear(params: Any, seed: int) -> Predictor:
+    from gwr_predictor.predictors.direct_linear import TUNED_LINEAR, DirectLinear
+
+    return DirectLinear(TUNED_LINEAR.replace(horizon=params.horizon, joints=params.n_joints))
+
+
+register("linear", _linear, "direct linear (RLS)")
 register("pgwr_flat", _flat, "P-GWR alone")
 register("hierarchy", _hierarchy, "GWR hierarchy", _load_hierarchy)
 for _name, _label in (("blend_hierarchy_rls", "blend hierarchy + RLS-AR"),
@@ -188,8 +198,22 @@ def _llm(params: Any, seed: int) -> Predictor:
 def _gated_vqtam(params: Any, seed: int) -> Predictor:
     from gwr_predictor.learning.local_linear import LocalLinearPredictor
 
-    lp = _local_linear_params(params, rate=0.0, neighbour_rate=0.0, readout_k=1)
+    lp = _local_linear_params(params, rate=0.0, neighbour_rate=0.0, readout_k=1, global_order=0)
     return _gated(LocalLinearPredictor(lp, seed=seed), params)
+
+
+def _gated_llm_local(params: Any, seed: int) -> Predictor:
+    from gwr_predictor.learning.local_linear import LocalLinearPredictor
+
+    return _gated(LocalLinearPredictor(_local_linear_params(params, global_order=0), seed=seed), params)
+
+
+def _gated_linear(params: Any, seed: int) -> Predictor:
+    from gwr_predictor.predictors.direct_linear import DirectLinear, DirectLinearParams
+
+    lp = _local_linear_params(params)  # the default's own global read-out, alone
+    return _gated(DirectLinear(DirectLinearParams(order=lp.global_order, horizon=lp.horizon, joints=lp.n_joints)),
+                  params)
 
 
 def _gated_hierarchy(params: Any, seed: int) -> Predictor:
@@ -222,3 +246,5 @@ register("llm_gwr", _llm, "local-linear P-GWR (ungated)", _load_llm)
 register(DEFAULT_PREDICTOR, _gated_llm, "gated local-linear P-GWR (default)", _gate_loader("LocalLinearPredictor"))
 register("gated_hierarchy", _gated_hierarchy, "gate around the GWR hierarchy", _gate_loader("Hierarchy"))
 register("gated_vqtam", _gated_vqtam, "gated P-GWR, displacements, no local models")
+register("gated_llm_local", _gated_llm_local, "gated local-linear P-GWR, local read-outs only")
+register("gated_linear", _gated_linear, "gated global linear read-out alone")

@@ -2,8 +2,10 @@
 
 From the paper's P-GWR to the default: the P-GWR alone on raw frames (VQTAM read-out, absolute
 targets, recursive roll-out), the same network predicting displacements from the newest frame behind
-the confidence gate but without local models (`gated_vqtam`), the local-linear P-GWR without the gate
-(`llm_gwr`) and with it (`gated_llm_gwr`, the default); and the gate around the paper's hierarchy
+the confidence gate but without local models (`gated_vqtam`), the default's two read-outs alone behind
+the gate (the global linear one, `gated_linear`; the neurons' local models, `gated_llm_local`), the
+local-linear P-GWR with both without the gate (`llm_gwr`) and with it (`gated_llm_gwr`, the default);
+and the gate around the paper's hierarchy
 (`gated_hierarchy`), so the gate's share is also measured on the paper's model. Reported: MAE and
 MSE at 600 ms on the held-out repetitions (frozen) and the held-out subject (learning online), and
 the worst ratio to hold-last's MAE over the horizon steps 1..h on each split.
@@ -19,8 +21,8 @@ from gwr_predictor.evaluation.experiments import common, compare
 from gwr_predictor.evaluation.experiments.output import ExperimentOutput, markdown_table
 
 NAME = "ablation"
-METHODS = ("hold", common.FLAT, common.HIERARCHY, common.GATED_HIERARCHY, common.GATED_VQTAM, common.LLM,
-           common.GATED)
+METHODS = ("hold", common.FLAT, common.HIERARCHY, common.GATED_HIERARCHY, common.GATED_VQTAM, common.GATED_LINEAR,
+           common.GATED_LOCAL, common.LLM, common.GATED)
 SPLITS = ("heldout_repetitions/frozen", "heldout_subjects/online")
 
 

@@ -22,7 +22,8 @@ from gwr_predictor.protocol import Predictor
 
 HIERARCHY = "hierarchy"
 FLAT = "pgwr_flat"
-BASELINES = ("hold", "const_velocity", "rls_ar")
+BASELINES = ("hold", "const_velocity", "rls_ar", "linear")
+LINEAR = "linear"
 BLEND = "blend_hierarchy_rls"
 BLEND_FLAT = "blend_flat_rls"
 LLM = "llm_gwr"
@@ -30,10 +31,13 @@ GATED = "gated_llm_gwr"
 #: The predictor the gwr_hierarchy node, demo.sh, pretrain and evaluate's `default_method` run by default.
 DEFAULT = registry.DEFAULT_PREDICTOR
 #: Ablation variants of the default (experiment ablation, not in `compare`): the gate around the
-#: paper's hierarchy, and the gate around the P-GWR with displacement targets but no local models.
+#: paper's hierarchy, and the gate around the P-GWR with displacement targets but no local models ...
 GATED_HIERARCHY = "gated_hierarchy"
 GATED_VQTAM = "gated_vqtam"
-ABLATIONS = (GATED_HIERARCHY, GATED_VQTAM)
+#: ... and the default's two read-outs alone: the local models only, the global linear read-out only.
+GATED_LOCAL = "gated_llm_local"
+GATED_LINEAR = "gated_linear"
+ABLATIONS = (GATED_HIERARCHY, GATED_VQTAM, GATED_LOCAL, GATED_LINEAR)
 
 
 def all_methods() -> tuple[str, ...]:

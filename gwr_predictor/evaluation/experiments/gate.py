@@ -36,14 +36,15 @@ VARIANTS: dict[str, dict[str, Any]] = {
     "plain, pooled": {"confidence": 0.0, "fast_decay": 0.0},
     "bound z=2 only": {"fast_decay": 0.0},
     "short memory only": {"confidence": 0.0},
-    "short memory per step, 0.8 (stop 18)": {"fast_decay": 0.8, "fast_step": 0},
+    "short memory per step, 0.8, z=0.5 (stop 18)": {"fast_decay": 0.8, "fast_step": 0, "fast_confidence": 0.5},
     "short memory per step, 0.9": {"fast_step": 0},
-    "default (bound z=2 + short memory of step 1, 0.9)": {},
+    "short memory z=0.5 (stops 19-20)": {"fast_confidence": 0.5},
+    "default (bound z=2 + short memory of step 1, 0.9, z=0)": {},
     "default, bound z=1": {"confidence": 1.0},
     "default, bound z=3": {"confidence": 3.0},
     "default, short memory 0.95": {"fast_decay": 0.95},
     "default, short memory 0.85": {"fast_decay": 0.85},
-    "default, short memory z=0": {"fast_confidence": 0.0},
+    "default, short memory z=1": {"fast_confidence": 1.0},
     "default, short memory of step 2": {"fast_step": 2},
     "default, per joint": {"per_joint": True},
     "ungated model": None,
@@ -61,7 +62,7 @@ class Config:
     variants: tuple[str, ...] = tuple(VARIANTS)
 
 
-DEFAULT = "default (bound z=2 + short memory of step 1, 0.9)"
+DEFAULT = "default (bound z=2 + short memory of step 1, 0.9, z=0)"
 QUICK = Config(clips=(), patterns=("wave_one", "raise_front_both"), subjects=2, repetitions=3,
                heldout_repetitions=1, epochs=1, variants=("plain, per joint (stop 17)", DEFAULT, "ungated model"))
 FULL = Config()

@@ -33,8 +33,9 @@ KNN_LABEL = "k-NN on windows (offline, other takes)"
 @dataclass(frozen=True)
 class Config:
     clips: tuple[str, ...] | None = None  # catalogue names (None = all)
-    methods: tuple[str, ...] = ("hold", "const_velocity", "rls_ar", common.FLAT, common.HIERARCHY, common.BLEND,
-                                common.BLEND_FLAT, common.LLM)  # + the node's default (gated_llm_gwr)
+    methods: tuple[str, ...] = ("hold", "const_velocity", "rls_ar", common.LINEAR, common.FLAT, common.HIERARCHY,
+                                common.BLEND, common.BLEND_FLAT, common.GATED_LINEAR, common.GATED_LOCAL, common.LLM)
+    # + the node's default (gated_llm_gwr)
     train_passes: int = 1  # leave-one-take-out: passes over the other takes before the held-out one
     knn_k: int = 5
     max_seconds: float = 0.0  # > 0: only the first seconds of each clip

@@ -1,18 +1,17 @@
-"""Settings of the default predictor and of RLS-AR chosen by one protocol (same split, same budget).
+"""Settings of the default predictor and of the linear baselines chosen by one protocol (same split, same budget).
 
-Why: a ranking against an untuned baseline says little. Both the local-linear P-GWR behind the
-gate (`gated_llm_gwr`) and RLS-AR get a grid of the same size; every point is trained online for
-`epochs` passes over the training split (random order, same seed) and scored frozen on the
-held-out repetitions at the last horizon step; the point with the lowest MAE there wins, except that
-for the default predictor, among the points within `tie` (0.5 %) of that MAE, the finest insertion
-threshold (smallest `insertion_scale`) wins: more neurons share less of the regressor space between
-movements, so a newly learned movement rewrites less of the old ones (the default forgets about half
-as much at insertion_scale 1.0 as at 1.5, `experiment incremental`), and a 0.5 % difference on one
-split is within what the seed changes. The held-out subject never takes part in the choice (it is
-reported, not used). The chosen settings are the
-library defaults (`LocalLinearParams()`, `baselines.TUNED_RLS`); this experiment checks that they
-still are the winners.
-"""
+Why: a ranking against an untuned baseline says little. The local-linear P-GWR behind the gate
+(`gated_llm_gwr`), RLS-AR and the direct linear model (`linear`) each get a grid of the same size;
+every point is trained online for `epochs` passes over the training split (random order, same seed)
+and scored frozen on the held-out repetitions at the last horizon step; the point with the lowest MAE
+there wins, except that for the default predictor, among the points within `tie` (0.5 %) of that MAE,
+the finest insertion threshold (smallest `insertion_scale`) wins: more neurons share less of the
+regressor space between movements, so a newly learned movement rewrites less of the old ones (the
+default forgets about half as much at insertion_scale 1.0 as at 1.5, `experiment incremental`), and a
+0.5 % difference on one split is within what the seed changes. The held-out subject never takes part
+in the choice (it is reported, not used). The chosen settings are the library defaults
+(`LocalLinearParams()`, `baselines.TUNED_RLS`, `direct_linear.TUNED_LINEAR`); this experiment checks
+that they still are the winners."""
 
 from __future__ import annotations
 
@@ -47,18 +46,22 @@ class Config:
     # RLS-AR's grid: order x forgetting (18 points)
     orders: tuple[int, ...] = (3, 5, 8, 10, 12, 15)
     forgettings: tuple[float, ...] = (0.995, 0.999, 1.0)
+    # the direct linear model's grid: order x forgetting (18 points)
+    linear_orders: tuple[int, ...] = (2, 3, 4, 6, 8, 12)
+    linear_forgettings: tuple[float, ...] = (0.995, 0.999, 1.0)
     overrides: tuple[tuple[str, object], ...] = ()
 
 
 QUICK = Config(patterns=("wave_one", "raise_front_both"), subjects=2, repetitions=3, heldout_repetitions=1,
                epochs=1, rates=(0.1,), insertion_scales=(2.0,), neighbour_rates=(0.02, 0.05), orders=(5, 10),
-               forgettings=(1.0,))
+               forgettings=(1.0,), linear_orders=(2, 12), linear_forgettings=(1.0,))
 FULL = Config()
 
 
 def _candidates(config: Config, horizon: int) -> dict[str, list[tuple[dict[str, Any], Any]]]:
     from gwr_predictor.learning.local_linear import LocalLinearParams, LocalLinearPredictor
     from gwr_predictor.predictors.baselines import RLSAutoregressive, RLSParams
+    from gwr_predictor.predictors.direct_linear import DirectLinear, DirectLinearParams
     from gwr_predictor.predictors.gate import GatedPredictor, GateParams
 
     def gated(**s: Any) -> Any:
@@ -68,8 +71,11 @@ def _candidates(config: Config, horizon: int) -> dict[str, list[tuple[dict[str, 
     llm = [{"rate": r, "insertion_scale": i, "neighbour_rate": n}
            for r, i, n in itertools.product(config.rates, config.insertion_scales, config.neighbour_rates)]
     rls = [{"order": o, "forgetting": f} for o, f in itertools.product(config.orders, config.forgettings)]
+    linear = [{"order": o, "forgetting": f}
+              for o, f in itertools.product(config.linear_orders, config.linear_forgettings)]
     return {common.GATED: [(s, lambda s=s: gated(**s)) for s in llm],
-            "rls_ar": [(s, lambda s=s: RLSAutoregressive(RLSParams(**s), horizon)) for s in rls]}
+            "rls_ar": [(s, lambda s=s: RLSAutoregressive(RLSParams(**s), horizon)) for s in rls],
+            common.LINEAR: [(s, lambda s=s: DirectLinear(DirectLinearParams(horizon=horizon, **s))) for s in linear]}
 
 
 def choose(rows: list[dict[str, Any]], tie: float) -> dict[str, Any]:
@@ -116,7 +122,7 @@ def run(config: Config, out: Path, seed: int = 0, progress: bool = True) -> Expe
     horizon = int(r["params"]["horizon"])
     md = [f"Every grid point trained {config.epochs} epochs online on the training split ({r['splits']}), "
           f"scored frozen on the held-out repetitions at {100 * horizon} ms (the choice) and, learning online, "
-          "on the held-out subject (reported only). Same split, same grid size for both methods."]
+          "on the held-out subject (reported only). Same split, same grid size for every method."]
     for method, res in r["methods"].items():
         keys = list(res["grid"][0]["settings"])
         rows = [[*[g["settings"][k] for k in keys], g["heldout_repetitions"]["mae"], g["heldout_repetitions"]["mse"],
@@ -124,5 +130,5 @@ def run(config: Config, out: Path, seed: int = 0, progress: bool = True) -> Expe
         md += ["", f"**{common.label(method)}**: chosen {res['chosen']}", "",
                markdown_table([*keys, "new reps MAE", "new reps MSE", "new person MAE", "new person MSE"], rows,
                               digits=4)]
-    return ExperimentOutput(NAME, "Settings of the default predictor and RLS-AR, one protocol", asdict(config), r, md,
-                            [])
+    return ExperimentOutput(NAME, "Settings of the default predictor and the linear baselines, one protocol",
+                            asdict(config), r, md, [])
