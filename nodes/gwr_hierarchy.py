@@ -10,8 +10,10 @@ Missing frames inside a sequence are fed as missing samples, a gap longer than `
 the sequence. The model is loaded from `checkpoint` at start and saved there atomically every
 `checkpoint_interval_s` and at shutdown; an unreadable checkpoint is moved aside, never overwritten.
 
-`predictor` picks the model: `gated_llm_gwr` (the default: a P-GWR with local linear models behind a
-confidence gate that falls back to holding the pose, see predictors/gate.py), `hierarchy` (the
+`predictor` picks the model: `gated_llm_gwr` (the default: a P-GWR with local linear models and a
+global linear read-out, mixed per horizon step, behind a confidence gate that falls back to holding
+the pose, see learning/local_linear.py and predictors/gate.py; its status carries the read-outs'
+mixing weights at the last step, `mix_weight_local_h6` / `mix_weight_global_h6`), `hierarchy` (the
 paper) or a per-step inverse-MSE blend of a GWR predictor with RLS-AR (`blend_hierarchy_rls`,
 `blend_flat_rls`; beyond the paper, see predictors/blend.py). The hierarchy parameters below apply
 to `hierarchy` and the blends; `gated_llm_gwr` takes only `horizon` from them.
@@ -48,10 +50,10 @@ from .node_base import (
 )
 
 PARAMS = (
-    ParamSpec("predictor", DEFAULT_PREDICTOR, "model: 'gated_llm_gwr' (local-linear P-GWR behind a confidence "
-              "gate, never worse than holding the pose; default), 'hierarchy' (GWR1 -> GWR2 -> P-GWR, the paper), "
-              "an online per-step inverse-MSE blend with RLS-AR ('blend_hierarchy_rls', 'blend_flat_rls') or "
-              "another saveable registry name", choices=learner_names()),
+    ParamSpec("predictor", DEFAULT_PREDICTOR, "model: 'gated_llm_gwr' (local-linear P-GWR with a global linear "
+              "read-out behind a confidence gate, never worse than holding the pose; default), 'hierarchy' (GWR1 -> "
+              "GWR2 -> P-GWR, the paper), an online per-step inverse-MSE blend with RLS-AR ('blend_hierarchy_rls', "
+              "'blend_flat_rls') or another saveable registry name", choices=learner_names()),
     ParamSpec("seed", 0, "seed of the networks' initial random neurons", 0, 2**31 - 1),
     ParamSpec("learn", True, "learn from every frame (false: predict with the networks as they are)", live=True),
     ParamSpec("frame_period_s", 1.0 / conventions.ANGLE_FPS, "spacing of the angle frames (s)", 0.001, 10.0),
@@ -210,6 +212,8 @@ class GwrHierarchyNode(PipelineNode):
         if isinstance(self.model, BlendedPredictor):  # blend weights at the last horizon step
             for name, w in self.model.weights().items():
                 values[f"blend_weight_{name}_h{self.horizon}"] = float(w[-1])
+        for name, w in errors.get("mix_weights", {}).items():  # the default's local / global read-outs
+            values[f"mix_weight_{name}_h{self.horizon}"] = float(w[-1])
         times = self.step_times or [0.0]
         values["step_ms_mean"] = 1e3 * float(np.mean(times))
         values["step_ms_max"] = 1e3 * self.step_max  # both since the last status

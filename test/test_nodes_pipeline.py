@@ -92,6 +92,9 @@ def test_pipeline_flows_learns_moves_the_robot_and_records(ros, tmp_path):
     assert len(counts) >= RUN_S
     assert sum(counts[-1].values()) > sum(counts[0].values())
     assert counts[-1]["pgwr"] > 10
+    last = next(iter(messages.read_diagnostics(got["learner_status"][-1]).values()))
+    assert {"mix_weight_local_h6", "mix_weight_global_h6"} <= set(last)  # the default's two read-outs
+    assert all(np.isfinite(float(last[k])) for k in ("mix_weight_local_h6", "mix_weight_global_h6"))
 
     # SIGTERM: clean exit, checkpoint written and loadable, with every learned frame
     learner = procs[3]

@@ -192,10 +192,10 @@ class GatedPredictor:
             np.multiply(resid, diff, out=new[_XY])
             np.multiply(diff, diff, out=new[_XX])
             np.multiply(resid, resid, out=new[_YY])
-        else:
-            new[_XY] = (resid * diff).sum(axis=1, keepdims=True)
-            new[_XX] = (diff * diff).sum(axis=1, keepdims=True)
-            new[_YY] = (resid * resid).sum(axis=1, keepdims=True)
+        else:  # one sum of products per step, the same in every joint's column
+            new[_XY] = np.vecdot(resid, diff)[:, None]
+            new[_XX] = np.vecdot(diff, diff)[:, None]
+            new[_YY] = np.vecdot(resid, resid)[:, None]
         if ok.all():  # the common case: every step has a scored prediction
             self._stats *= self._decays[..., None]
             self._stats += new
