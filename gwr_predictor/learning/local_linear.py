@@ -319,14 +319,14 @@ class LocalLinearPredictor:
         frames = np.asarray(hist)  # (horizon + 1, J): x(t-h) ... x(t)
         target = (frames[1:] - frames[0]).reshape(-1)
         if self.linear is not None:
-            self._learn_global(reg, target, self._outs[0])
+            self._learn_global(target, *self._outs[0])
         scale = max(math.sqrt(self._motion_ms), p.noise_floor) * p.insertion_scale * math.sqrt(p.order)
         self.pgwr.distance_factor = self._ln_at / scale
         self.pgwr.learn_local(reg, target, p.neighbour_rate)
 
-    def _learn_global(self, reg: np.ndarray, target: np.ndarray, outs: np.ndarray | None) -> None:
-        """Score the two read-outs made for this regressor against its now complete targets (the
-        mixing statistics), then one RLS step of the global read-out."""
+    def _learn_global(self, target: np.ndarray, outs: np.ndarray | None, phi: np.ndarray) -> None:
+        """Score the two read-outs made for a regressor (features `phi`) against its now complete
+        targets (the mixing statistics), then one RLS step of the global read-out."""
         p = self.params
         if outs is not None:
             by_step = outs.transpose(1, 0, 2)  # (horizon, 2, J)
@@ -335,7 +335,7 @@ class LocalLinearPredictor:
             self._mix_sxy *= p.mix_decay
             self._mix_sxy += (by_step @ target.reshape(p.horizon, p.n_joints, 1))[..., 0]
             self._mix = self._mix_weights()
-        self.linear.update(window_features(reg.reshape(p.order, p.n_joints), p.global_order), target)
+        self.linear.update(phi, target)
 
     def _mix_weights(self) -> np.ndarray:
         """(horizon, 2) least-squares weights of the [local, global] read-outs per step: the 2 x 2 ridge
@@ -365,7 +365,7 @@ class LocalLinearPredictor:
             outs[0] = local
             outs[1] = self.linear.predict(phi).reshape(p.horizon, p.n_joints)
             if record:
-                self._outs.append(outs)
+                self._outs.append((outs, phi))
             local = outs[0] * self._mix[:, :1]
             local += outs[1] * self._mix[:, 1:]
         local += reg[:p.n_joints]
@@ -385,7 +385,8 @@ class LocalLinearPredictor:
         self._fill = 0
         self._hist: deque[np.ndarray] = deque(maxlen=p.horizon + 1)
         self._regs: deque[np.ndarray | None] = deque(maxlen=p.horizon)
-        self._outs: deque[np.ndarray | None] = deque(maxlen=p.horizon)  # read-outs [local, global] per regressor
+        # per regressor: its read-outs [local, global] and global features, to be scored and learned
+        self._outs: deque[tuple[np.ndarray, np.ndarray] | None] = deque(maxlen=p.horizon)
         self._last_reg: np.ndarray | None = None
 
     def reset_sequence(self) -> None:
@@ -431,7 +432,8 @@ class LocalLinearPredictor:
     # --- persistence --------------------------------------------------------------------------------
     ARRAYS: ClassVar[tuple[str, ...]] = ("weights", "matrices", "counters", "edges", "win", "hist", "regs",
                                          *ErrorTracker.ARRAYS)
-    GLOBAL_ARRAYS: ClassVar[tuple[str, ...]] = ("global:weights", "global:p", "mix_sxx", "mix_sxy", "outs")
+    GLOBAL_ARRAYS: ClassVar[tuple[str, ...]] = ("global:weights", "global:p", "mix_sxx", "mix_sxy", "outs",
+                                                "out_features")
 
     def state(self) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
         """(JSON-able header, arrays) of the whole state; `from_state` continues bit for bit."""
@@ -448,13 +450,17 @@ class LocalLinearPredictor:
                   "edges": g.edge_array(), "win": self._win.copy(), "hist": hist, "regs": reg_arr,
                   **{k: v.copy() for k, v in self._errors.arrays().items()}}
         if self.linear is not None:
-            outs = list(self._outs)
+            queued = list(self._outs)
             shape = (2, self.params.horizon, self.params.n_joints)
+            features = self.linear.weights.shape[0]
             rls_header, rls_arrays = self.linear.state()
-            header["global"] = {"rls": rls_header, "outs_present": [o is not None for o in outs]}
+            header["global"] = {"rls": rls_header, "outs_present": [q is not None for q in queued]}
             arrays.update({f"global:{k}": v for k, v in rls_arrays.items()})
             arrays.update(mix_sxx=self._mix_sxx.copy(), mix_sxy=self._mix_sxy.copy(),
-                          outs=np.array([np.zeros(shape) if o is None else o for o in outs]).reshape(len(outs), *shape))
+                          outs=np.array([np.zeros(shape) if q is None else q[0] for q in queued]).reshape(
+                              len(queued), *shape),
+                          out_features=np.array([np.zeros(features) if q is None else q[1] for q in queued]).reshape(
+                              len(queued), features))
         return header, arrays
 
     @classmethod
@@ -517,11 +523,14 @@ class LocalLinearPredictor:
             dest[...] = arrays[name]
         self._mix = self._mix_weights()
         present, outs = header["outs_present"], np.asarray(arrays["outs"], dtype=float)
+        features = np.asarray(arrays["out_features"], dtype=float)
         shape = (len(self._regs), 2, self.params.horizon, self.params.n_joints)
-        if len(present) != len(outs) or outs.shape != shape:
-            raise ValueError(f"read-out queue of shape {outs.shape} does not fit the regressor queue {shape}")
-        for flag, o in zip(present, outs, strict=True):
-            self._outs.append(o.copy() if flag else None)
+        n_features = self.linear.weights.shape[0]
+        if len(present) != len(outs) or outs.shape != shape or features.shape != (len(outs), n_features):
+            raise ValueError(f"read-out queue of shapes {outs.shape}, {features.shape} does not fit the regressor "
+                             f"queue {shape}")
+        for flag, o, f in zip(present, outs, features, strict=True):
+            self._outs.append((o.copy(), f.copy()) if flag else None)
 
     def save(self, path: str | os.PathLike[str]) -> None:
         header, arrays = self.state()

@@ -123,7 +123,8 @@ class GatedPredictor:
         self._filed = np.empty((2, p.horizon, p.joints))  # scratch of `step`: newest pose, model's step
         self._decays = np.array([d for d, _ in p.memories])[:, None, None]
         self._z = np.array([z for _, z in p.memories])[:, None, None]
-        self._bounded = bool(self._z.any())
+        # the memories whose bound needs computing: up to the last one with z > 0 (0: none)
+        self._bounded = int(np.flatnonzero(self._z.ravel() > 0).max()) + 1 if self._z.any() else 0
         self._scored = np.zeros(p.horizon, dtype=np.int64)
         # per prediction: [newest pose at prediction time, model step k - that pose], filed by target step
         self._pending = PendingPredictions(p.horizon, p.joints, lead=(2,))
@@ -217,8 +218,9 @@ class GatedPredictor:
         a = s[:, _XY] / sxx
         cap = a.copy()
         if self._bounded:
-            rss = np.maximum(s[:, _YY] - 2.0 * a * s[:, _XY] + a * a * s[:, _XX], 0.0)
-            cap -= self._z * np.sqrt(rss / (np.maximum(s[:, _N] - 1.0, 1.0) * sxx))
+            b = self._bounded
+            rss = np.maximum(s[:b, _YY] - 2.0 * a[:b] * s[:b, _XY] + a[:b] * a[:b] * s[:b, _XX], 0.0)
+            cap[:b] -= self._z[:b] * np.sqrt(rss / (np.maximum(s[:b, _N] - 1.0, 1.0) * sxx[:b]))
         cap *= 2.0
         if p.fast_step and cap.shape[0] > 1:  # the short memory: every step capped by one step's record
             cap[1] = cap[1, p.fast_step - 1]
