@@ -120,8 +120,8 @@ class LocalLinearPGWR(PredictiveGWR):
         plus rate times the residual y - v - A^T (x - w), which changes it. Consolidation scales only
         the second by the plasticity p: step = rate (p (y - v) + (1 - p) A^T (x - w))."""
         step = super()._carried_step(block, xm, w, xc, wo, rate)
-        if self.consolidate_after <= 0:
-            return step
+        if self.consolidate_after <= 0 or self._visits[block].max() <= self.consolidate_after:
+            return step  # no neuron of the block consolidates yet
         p = self._plasticity(block)[:, None]
         kept = np.matmul((xm - w)[:, None, :], self._A[block])[:, 0]
         kept *= (1.0 - p) * rate
@@ -154,7 +154,7 @@ class LocalLinearPGWR(PredictiveGWR):
             rates[0] = self.rate
         else:
             block, rates = np.array([b]), np.array([self.rate])
-        if self.consolidate_after > 0:
+        if self.consolidate_after > 0 and self._visits[block].max() > self.consolidate_after:
             rates = rates * self._plasticity(block)
         d = x_in - self._w[block]  # (k, in)
         a = self._A[block]
@@ -229,7 +229,7 @@ _LOCAL_LINEAR_SPECS = {spec.name: spec for spec in (
     ParamSpec("rate", 0.1, "NLMS rate of the local models", 0.0, 1.5),
     ParamSpec("readout_k", 3, "neurons blended in the read-out", 1, 64),
     ParamSpec("neighbour_rate", 0.05, "NLMS rate of the BMU's neighbours", 0.0, 1.5),
-    ParamSpec("consolidate_after", 0, "visits after which a neuron's output rates fall as 1/visits (0 = never)",
+    ParamSpec("consolidate_after", 200, "visits after which a neuron's output rates fall as 1/visits (0 = never)",
               0, 10**9),
 )}
 # per setting added after the first local-linear P-GWR, in order: what a checkpoint written before it ran with
@@ -249,8 +249,11 @@ class LocalLinearParams:
     (0 = plain VQTAM read-out, the ablation). `consolidate_after`: visits (as BMU) after which a
     neuron's output rates fall as consolidate_after / visits (0 = constant rates): without it each
     new movement rewrote the outputs of the neurons it shares with earlier ones (`experiment
-    incremental`). `gwr`: the GWR step's parameters (its a_T only fixes the constant -ln a_T the
-    scaled distance is compared with).
+    incremental`). 200 is about the memory of Eq. 9's output step at the firing counter's floor,
+    1 / (eps_b (1 - 1/kappa)) = 210 visits: a neuron consolidates once it has had that many, and
+    from then on its output weight is about the running mean of its visits (rate ~ 1 / visits).
+    `gwr`: the GWR step's parameters (its a_T only fixes the constant -ln a_T the scaled distance is
+    compared with).
     """
 
     order: int = _LOCAL_LINEAR_SPECS["order"].default
