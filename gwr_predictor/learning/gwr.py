@@ -334,17 +334,15 @@ class GWR:
             rate = (self._eps_vec[:k] * h)[:, None]
             wa = self._wa.take(block, axis=0)
             w = wa[:, :m]
+            if m < self.dim:  # the carried part first: its step may depend on w before the move
+                wo = self._wo.take(block, axis=0)
+                wo += self._carried_step(block, xm, w, xc, wo, rate)
+                self._wo[block] = wo
             step = xm - w  # w += rate * (x - w), with one temporary fewer (same products)
             step *= rate
             w += step
             wa[:, m] = np.vecdot(w, w)
             self._wa[block] = wa
-            if m < self.dim:
-                wo = self._wo.take(block, axis=0)
-                step = xc - wo
-                step *= rate
-                wo += step
-                self._wo[block] = wo
         # ageing of b's edges and firing counters (Eq. 3), in both branches
         if k > 1:
             ages = age[b].take(nb) + 1
@@ -371,6 +369,15 @@ class GWR:
                 b, r = self._drop_edges(b, old, r)
         self.last_inserted = r
         return b
+
+    def _carried_step(self, block: np.ndarray, xm: np.ndarray, w: np.ndarray, xc: np.ndarray,
+                      wo: np.ndarray, rate: np.ndarray) -> np.ndarray:
+        """The step of the carried part of the block [b, neighbours...] (rows `wo`; `w` their matched
+        weights before this step moves them): rate * (x_carried - wo), Eq. 9. A subclass may change it
+        (`LocalLinearPGWR` consolidates its neurons' output functions)."""
+        step = xc - wo
+        step *= rate
+        return step
 
     # --- structure changes ----------------------------------------------------------------------
     def _append(self, xm: np.ndarray, xc: np.ndarray, b: int) -> int:

@@ -21,9 +21,16 @@ so the output varies continuously between prototypes. Here, in addition:
   the frame-to-frame motion (never below `noise_floor` rad), so a neuron covers about the same
   stretch of a movement whatever the speed, units or noise of the data.
 
+- consolidation (`consolidate_after` visits): a neuron's output function learns at full rate for
+  its first visits as BMU, then its rates fall as 1/visits, so that it keeps the average over
+  everything it has seen instead of the fit to its most recent visits. Why: where movements share
+  the regressor space (above all the onsets from the common rest pose), each new movement rewrote
+  the outputs of the neurons it shares with the earlier ones, and the earlier ones were forgotten.
+
 Everything else (counters, edges, ageing, removal, unbounded growth) is the GWR of `gwr.py`; the
-matrices move with their neurons in the same vectorised steps. `LocalLinearPredictor` is the
-online predictor around it (`step` / `reset_sequence` / checkpoints like the other predictors).
+matrices and visit counts move with their neurons in the same vectorised steps.
+`LocalLinearPredictor` is the online predictor around it (`step` / `reset_sequence` / checkpoints
+like the other predictors).
 
 A global read-out beside the local ones (`global_order` > 0, the default): where a person has shown
 little, most neurons have seen a handful of pairs and their local models are noise, while one linear
@@ -66,47 +73,91 @@ class LocalLinearError(GwrPredictorError, ValueError):
 
 
 class LocalLinearPGWR(PredictiveGWR):
-    """P-GWR over [regressor | output] whose neurons each also hold a (in_dim, out_dim) matrix."""
+    """P-GWR over [regressor | output] whose neurons each also hold a (in_dim, out_dim) matrix and
+    count their visits (learning steps as BMU since insertion).
+
+    `consolidate_after` (visits; 0 = never): past it, a neuron's output-function rates (its NLMS rate
+    and the share of Eq. 9's output step that changes its prediction) are scaled by
+    consolidate_after / visits, the search-then-converge schedule of stochastic approximation
+    (constant, then 1/t): the local model becomes the average over all its visits, not the fit to
+    the most recent ones. The input weights keep their GWR rates (where a neuron sits is not
+    consolidated), and a new neuron starts at full rate.
+    """
 
     def __init__(self, in_dim: int, out_dim: int, params: GWRParams, rng: np.random.Generator, *,
                  init_low: float | np.ndarray = -1.0, init_high: float | np.ndarray = 1.0,
-                 distance_factor: float = 1.0, rate: float = 0.5, delta: float = 1e-4) -> None:
+                 distance_factor: float = 1.0, rate: float = 0.5, delta: float = 1e-4,
+                 consolidate_after: float = 0.0) -> None:
         self.rate, self.delta = float(rate), float(delta)
+        self.consolidate_after = float(consolidate_after)
         super().__init__(in_dim, out_dim, params, rng, init_low=init_low, init_high=init_high,
                          distance_factor=distance_factor)
 
     # --- the matrices follow their neurons (allocation, insertion, removal) ----------------------
     def _alloc(self, cap: int) -> None:
-        old = getattr(self, "_A", None)
+        old, old_visits = getattr(self, "_A", None), getattr(self, "_visits", None)
         n = self._n
         super()._alloc(cap)
         a = np.zeros((cap, self.match_dim, self.dim - self.match_dim))
+        visits = np.zeros(cap)
         if old is not None and n:
             a[:n] = old[:n]
-        self._A = a
+            visits[:n] = old_visits[:n]
+        self._A, self._visits = a, visits
 
     def _append(self, xm: np.ndarray, xc: np.ndarray, b: int) -> int:
         r = super()._append(xm, xc, b)
         self._A[r] = self._A[b]
+        self._visits[r] = 0.0  # a new neuron learns at full rate, whatever its parent has seen
         return r
 
     def _remove(self, i: int) -> int:
         last = self._n - 1
         if i != last:
             self._A[i] = self._A[last]
+            self._visits[i] = self._visits[last]
         self._A[last] = 0.0
+        self._visits[last] = 0.0
         return super()._remove(i)
+
+    # --- consolidation --------------------------------------------------------------------------
+    def _plasticity(self, block: np.ndarray) -> np.ndarray:
+        """Per neuron of `block`: min(1, consolidate_after / visits), the factor on its output rates
+        (only called with consolidation on)."""
+        return np.minimum(1.0, self.consolidate_after / np.maximum(self._visits[block], 1.0))
+
+    def _carried_step(self, block: np.ndarray, xm: np.ndarray, w: np.ndarray, xc: np.ndarray,
+                      wo: np.ndarray, rate: np.ndarray) -> np.ndarray:
+        """Eq. 9's output step rate (y - v) is, for the local model v + A^T (r - w), two things: A^T of
+        the input step rate (x - w), which keeps the neuron's prediction where it was while w moves,
+        plus rate times the residual y - v - A^T (x - w), which changes it. Consolidation scales only
+        the second by the plasticity p: step = rate (p (y - v) + (1 - p) A^T (x - w))."""
+        step = super()._carried_step(block, xm, w, xc, wo, rate)
+        if self.consolidate_after <= 0 or self._visits[block].max() <= self.consolidate_after:
+            return step  # no neuron of the block consolidates yet
+        p = self._plasticity(block)[:, None]
+        kept = np.matmul((xm - w)[:, None, :], self._A[block])[:, 0]
+        kept *= (1.0 - p) * rate
+        step *= p
+        step += kept
+        return step
 
     @property
     def matrices(self) -> np.ndarray:
         """(n, in_dim, out_dim) view of the local linear models."""
         return self._A[:self._n]
 
+    @property
+    def visits(self) -> np.ndarray:
+        """(n,) view of each neuron's learning steps as BMU since it was inserted."""
+        return self._visits[:self._n]
+
     # --- learning and prediction -----------------------------------------------------------------
     def learn_local(self, x_in: np.ndarray, y: np.ndarray, neighbour_rate: float = 0.0) -> int:
         """One step on a trusted (x_in, y) pair: the BMU's local model by NLMS (and, with
-        `neighbour_rate`, its topological neighbours' at that rate, one gathered block), then the GWR
-        step (which reuses this search: `search_keep`). Returns the GWR step's BMU index."""
+        `neighbour_rate`, its topological neighbours' at that rate, one gathered block; each scaled by
+        its plasticity when consolidating), then the GWR step (which reuses this search:
+        `search_keep`), then the BMU's visit is counted. Returns the GWR step's BMU index."""
         aff = self.search_keep(x_in)
         b = int(aff.argmax())
         if neighbour_rate > 0:
@@ -116,13 +167,17 @@ class LocalLinearPGWR(PredictiveGWR):
             rates[0] = self.rate
         else:
             block, rates = np.array([b]), np.array([self.rate])
+        if self.consolidate_after > 0 and self._visits[block].max() > self.consolidate_after:
+            rates = rates * self._plasticity(block)
         d = x_in - self._w[block]  # (k, in)
         a = self._A[block]
         err = y - self._wo[block] - np.matmul(d[:, None, :], a)[:, 0]
         gain = rates / (np.vecdot(d, d) + self.delta)
         a += np.einsum("ki,ko->kio", gain[:, None] * d, err)  # rank-1 NLMS step per neuron
         self._A[block] = a
-        return self.learn_unchecked(x_in, y)
+        b = self.learn_unchecked(x_in, y)
+        self._visits[b] += 1.0
+        return b
 
     def predict_local(self, x_in: np.ndarray, k: int = 1) -> np.ndarray:
         """v_b + A_b^T (x - w_b) for the BMU b of a trusted regressor (a new array); with k > 1 the
@@ -146,8 +201,10 @@ class LocalLinearPGWR(PredictiveGWR):
     @classmethod
     def from_parts(cls, weights: np.ndarray, matrices: np.ndarray, params: GWRParams, *, edges: Any,
                    counters: np.ndarray, match_dim: int, distance_factor: float, rate: float,
-                   delta: float) -> LocalLinearPGWR:
-        """A network from saved arrays (checkpoints)."""
+                   delta: float, visits: np.ndarray | None = None,
+                   consolidate_after: float = 0.0) -> LocalLinearPGWR:
+        """A network from saved arrays (checkpoints); `visits` None = zeros (needed only when
+        consolidating)."""
         net = cls.from_arrays(weights, params, edges=edges, counters=counters, match_dim=match_dim,
                               distance_factor=distance_factor)
         expected = (net.n_neurons, net.in_dim, net.out_dim)
@@ -156,7 +213,16 @@ class LocalLinearPGWR(PredictiveGWR):
         if not np.isfinite(matrices).all():
             raise ValueError("local models contain NaN or infinite values")
         net._A[:net.n_neurons] = matrices
+        if visits is not None:
+            if np.shape(visits) != (net.n_neurons,):
+                raise ValueError(f"visit counts have shape {np.shape(visits)}, expected ({net.n_neurons},)")
+            if not (np.isfinite(visits).all() and (np.asarray(visits) >= 0).all()):
+                raise ValueError("visit counts must be finite and >= 0")
+            net._visits[:net.n_neurons] = visits
+        elif consolidate_after > 0:
+            raise ValueError("consolidating needs the neurons' visit counts")
         net.rate, net.delta = float(rate), float(delta)
+        net.consolidate_after = float(consolidate_after)
         return net
 
 
@@ -183,9 +249,14 @@ _LOCAL_LINEAR_SPECS = {spec.name: spec for spec in (
               lo_open=True),
     ParamSpec("mix_ridge", 0.01, "rad^2 per joint added to the mixing equations (pulls towards hold-last)", 0.0,
               lo_open=True),
+    ParamSpec("consolidate_after", 200, "visits after which a neuron's output rates fall as 1/visits (0 = never)",
+              0, 10**9),
 )}
-# per setting added after the first local-linear checkpoints: what a checkpoint written before it ran with
-_BEFORE = {"global_order": 0}
+# per setting added after the first local-linear P-GWR, in order: what a checkpoint written before it ran with
+_BEFORE = (
+    ("global_order", {"global_order": 0}),  # local read-outs only
+    ("consolidate_after", {"consolidate_after": 0}),  # constant output rates
+)
 
 
 @dataclass(frozen=True)
@@ -200,8 +271,14 @@ class LocalLinearParams:
     features span (0: none, the predictor before it existed); `global_delta`: the prior variance of its
     weights (large: a weak prior, so it follows the data within a few dozen pairs; the mix below and
     the gate keep an immature fit from doing harm); `mix_decay`, `mix_ridge`: forgetting and ridge of
-    the per-step least-squares mix of the local and global read-outs. `gwr`: the GWR step's
-    parameters (its a_T only fixes the constant -ln a_T the scaled distance is compared with).
+    the per-step least-squares mix of the local and global read-outs. `consolidate_after`: visits (as BMU) after which a
+    neuron's output rates fall as consolidate_after / visits (0 = constant rates): without it each
+    new movement rewrote the outputs of the neurons it shares with earlier ones (`experiment
+    incremental`). 200 is about the memory of Eq. 9's output step at the firing counter's floor,
+    1 / (eps_b (1 - 1/kappa)) = 210 visits: a neuron consolidates once it has had that many, and
+    from then on its output weight is about the running mean of its visits (rate ~ 1 / visits).
+    `gwr`: the GWR step's parameters (its a_T only fixes the constant -ln a_T the scaled distance is
+    compared with).
     """
 
     order: int = _LOCAL_LINEAR_SPECS["order"].default
@@ -217,6 +294,7 @@ class LocalLinearParams:
     global_delta: float = _LOCAL_LINEAR_SPECS["global_delta"].default
     mix_decay: float = _LOCAL_LINEAR_SPECS["mix_decay"].default
     mix_ridge: float = _LOCAL_LINEAR_SPECS["mix_ridge"].default
+    consolidate_after: int = _LOCAL_LINEAR_SPECS["consolidate_after"].default
     gwr: GWRParams = field(default_factory=_default_gwr)
 
     def __post_init__(self) -> None:
@@ -235,8 +313,7 @@ class LocalLinearParams:
 
     @classmethod
     def from_dict(cls, d: dict[str, Any]) -> LocalLinearParams:
-        """The parameters of `to_dict()`; settings a saved dict predates keep the value it ran with."""
-        d = {**_BEFORE, **d}
+        d = dict(d)
         return cls(**{**d, "gwr": GWRParams(**d["gwr"])}) if "gwr" in d else cls(**d)
 
 
@@ -256,7 +333,8 @@ class LocalLinearPredictor:
         lo, hi = InputScaling(1.0, p.n_joints).window_bounds(p.order)
         out_dim = p.horizon * p.n_joints
         self.pgwr = LocalLinearPGWR(p.order * p.n_joints, out_dim, p.gwr, rng, init_low=np.concatenate(
-            [lo, np.zeros(out_dim)]), init_high=np.concatenate([hi, np.zeros(out_dim)]), rate=p.rate)
+            [lo, np.zeros(out_dim)]), init_high=np.concatenate([hi, np.zeros(out_dim)]), rate=p.rate,
+            consolidate_after=p.consolidate_after)
         self._ln_at = -math.log(p.gwr.activation_threshold)
         self._motion_ms = p.noise_floor ** 2  # running mean of ||x(t) - x(t-1)||^2
         self._t = self._frames = self._missing = self._predictions = self._sequences = 0
@@ -430,6 +508,7 @@ class LocalLinearPredictor:
         return {**out, **self._errors.summary()}
 
     # --- persistence --------------------------------------------------------------------------------
+    #: The arrays every checkpoint has; "visits" came with consolidation (without it: zeros).
     ARRAYS: ClassVar[tuple[str, ...]] = ("weights", "matrices", "counters", "edges", "win", "hist", "regs",
                                          *ErrorTracker.ARRAYS)
     GLOBAL_ARRAYS: ClassVar[tuple[str, ...]] = ("global:weights", "global:p", "mix_sxx", "mix_sxy", "outs",
@@ -446,7 +525,8 @@ class LocalLinearPredictor:
                   "last_reg": self._last_reg is not None,
                   "counters": [self._t, self._frames, self._missing, self._predictions, self._sequences],
                   "errors": self._errors.header()}
-        arrays = {"weights": g.weights, "matrices": g.matrices.copy(), "counters": g.counters.copy(),
+        arrays = {"weights": g.weights, "matrices": g.matrices.copy(), "visits": g.visits.copy(),
+                  "counters": g.counters.copy(),
                   "edges": g.edge_array(), "win": self._win.copy(), "hist": hist, "regs": reg_arr,
                   **{k: v.copy() for k, v in self._errors.arrays().items()}}
         if self.linear is not None:
@@ -471,14 +551,19 @@ class LocalLinearPredictor:
         if missing:
             raise CheckpointError(f"{source}: missing arrays {missing}")
         try:
-            params = LocalLinearParams.from_dict(header["params"])
+            settings = header["params"]
+            for added, before in _BEFORE:  # an older checkpoint keeps the learner it was written with
+                if added not in settings:
+                    settings = {**settings, **before}
+            params = LocalLinearParams.from_dict(settings)
             model = cls.__new__(cls)
             model.params = params
             model._ln_at = -math.log(params.gwr.activation_threshold)
             model.pgwr = LocalLinearPGWR.from_parts(
                 arrays["weights"], arrays["matrices"], params.gwr, edges=arrays["edges"],
                 counters=arrays["counters"], match_dim=params.order * params.n_joints,
-                distance_factor=float(header["distance_factor"]), rate=params.rate, delta=1e-4)
+                distance_factor=float(header["distance_factor"]), rate=params.rate, delta=1e-4,
+                visits=arrays.get("visits"), consolidate_after=params.consolidate_after)
             if model.pgwr.out_dim != params.horizon * params.n_joints:
                 raise ValueError(f"outputs are {model.pgwr.out_dim}-d, parameters say "
                                  f"{params.horizon * params.n_joints}")
