@@ -308,9 +308,12 @@ class GWR:
         """One GWR step on x (shape (dim,)); returns the final index of the BMU."""
         return self.learn_unchecked(self._check_input(x, self.dim))
 
-    def learn_unchecked(self, x: np.ndarray, carried: np.ndarray | None = None) -> int:
+    def learn_unchecked(self, x: np.ndarray, carried: np.ndarray | None = None,
+                        neighbours: tuple[int, np.ndarray] | None = None) -> int:
         """`learn` on trusted finite float vectors: x whole (dim,), or x its matched part and
-        `carried` the rest (a Predictive GWR's (x_in, x_out): no concatenated copy)."""
+        `carried` the rest (a Predictive GWR's (x_in, x_out): no concatenated copy). `neighbours`:
+        (b, b's neighbours) if the caller has just looked them up for this very query on this network
+        (used only if b is again the BMU), so the edge row is not scanned twice."""
         p = self.params
         n = self._n
         m = self.match_dim
@@ -320,7 +323,7 @@ class GWR:
         self.last_distance = dist
 
         age = self._age
-        nb = (age[b, :n] >= 0).nonzero()[0]
+        nb = neighbours[1] if neighbours is not None and neighbours[0] == b else (age[b, :n] >= 0).nonzero()[0]
         k = nb.size + 1
         block = self._block[:k]  # [b, neighbours...]
         block[0] = b

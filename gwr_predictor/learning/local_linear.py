@@ -84,6 +84,11 @@ class LocalLinearPGWR(PredictiveGWR):
     consolidated), and a new neuron starts at full rate.
     """
 
+    #: what `learn_local` hands to the GWR step's output part on the same block (A^T (x - w), plasticity)
+    _handed: tuple[np.ndarray, np.ndarray] | None = None
+    #: at least the visits of the most visited neuron (removals do not lower it): 0 = nobody consolidates
+    _most_visits: float = 0.0
+
     def __init__(self, in_dim: int, out_dim: int, params: GWRParams, rng: np.random.Generator, *,
                  init_low: float | np.ndarray = -1.0, init_high: float | np.ndarray = 1.0,
                  distance_factor: float = 1.0, rate: float = 0.5, delta: float = 1e-4,
@@ -133,10 +138,15 @@ class LocalLinearPGWR(PredictiveGWR):
         plus rate times the residual y - v - A^T (x - w), which changes it. Consolidation scales only
         the second by the plasticity p: step = rate (p (y - v) + (1 - p) A^T (x - w))."""
         step = super()._carried_step(block, xm, w, xc, wo, rate)
-        if self.consolidate_after <= 0 or self._visits[block].max() <= self.consolidate_after:
-            return step  # no neuron of the block consolidates yet
-        p = self._plasticity(block)[:, None]
-        kept = np.matmul((xm - w)[:, None, :], self._A[block])[:, 0]
+        handed, self._handed = self._handed, None
+        if handed is not None:  # from `learn_local`, on this very block: A^T (x - w) and p
+            kept, p = handed
+        else:
+            if not 0 < self.consolidate_after < self._most_visits \
+                    or self._visits[block].max() <= self.consolidate_after:
+                return step  # no neuron of the block consolidates yet
+            p = self._plasticity(block)[:, None]
+            kept = np.matmul((xm - w)[:, None, :], self._A[block])[:, 0]
         kept *= (1.0 - p) * rate
         step *= p
         step += kept
@@ -160,23 +170,31 @@ class LocalLinearPGWR(PredictiveGWR):
         `search_keep`), then the BMU's visit is counted. Returns the GWR step's BMU index."""
         aff = self.search_keep(x_in)
         b = int(aff.argmax())
+        nb = (self._age[b, :self._n] >= 0).nonzero()[0]
         if neighbour_rate > 0:
-            nb = (self._age[b, :self._n] >= 0).nonzero()[0]
             block = np.concatenate([[b], nb])
             rates = np.full(block.size, neighbour_rate)
             rates[0] = self.rate
         else:
             block, rates = np.array([b]), np.array([self.rate])
-        if self.consolidate_after > 0 and self._visits[block].max() > self.consolidate_after:
-            rates = rates * self._plasticity(block)
+        plasticity = None
+        if 0 < self.consolidate_after < self._most_visits and self._visits[block].max() > self.consolidate_after:
+            plasticity = self._plasticity(block)
+            rates = rates * plasticity
         d = x_in - self._w[block]  # (k, in)
         a = self._A[block]
-        err = y - self._wo[block] - np.matmul(d[:, None, :], a)[:, 0]
-        gain = rates / (np.vecdot(d, d) + self.delta)
+        d_a = np.matmul(d[:, None, :], a)[:, 0]
+        err = y - self._wo[block] - d_a
+        dd = np.vecdot(d, d)
+        gain = rates / (dd + self.delta)
         a += np.einsum("ki,ko->kio", gain[:, None] * d, err)  # rank-1 NLMS step per neuron
         self._A[block] = a
-        b = self.learn_unchecked(x_in, y)
+        if plasticity is not None:  # the GWR step's output part needs A^T (x - w) with the new A, which is
+            d_a += (gain * dd)[:, None] * err  # the old one plus the NLMS step's share (same block, same d)
+            self._handed = (d_a, plasticity[:, None])
+        b = self.learn_unchecked(x_in, y, neighbours=(b, nb))
         self._visits[b] += 1.0
+        self._most_visits = max(self._most_visits, float(self._visits[b]))
         return b
 
     def predict_local(self, x_in: np.ndarray, k: int = 1) -> np.ndarray:
@@ -219,6 +237,7 @@ class LocalLinearPGWR(PredictiveGWR):
             if not (np.isfinite(visits).all() and (np.asarray(visits) >= 0).all()):
                 raise ValueError("visit counts must be finite and >= 0")
             net._visits[:net.n_neurons] = visits
+            net._most_visits = float(np.max(visits, initial=0.0))
         elif consolidate_after > 0:
             raise ValueError("consolidating needs the neurons' visit counts")
         net.rate, net.delta = float(rate), float(delta)

@@ -214,17 +214,30 @@ class GatedPredictor:
         bound (2 alpha S_xy - alpha^2 S_xx >= 0 for alpha <= 2 a)."""
         p = self.params
         s = self._stats
-        sxx = s[:, _XX] + (p.prior if p.per_joint else p.prior * p.joints)
-        a = s[:, _XY] / sxx
+        sxy, sxx_data = s[:, _XY], s[:, _XX]
+        sxx = sxx_data + (p.prior if p.per_joint else p.prior * p.joints)
+        a = sxy / sxx
         cap = a.copy()
-        if self._bounded:
-            b = self._bounded
-            rss = np.maximum(s[:b, _YY] - 2.0 * a[:b] * s[:b, _XY] + a[:b] * a[:b] * s[:b, _XX], 0.0)
-            cap[:b] -= self._z[:b] * np.sqrt(rss / (np.maximum(s[:b, _N] - 1.0, 1.0) * sxx[:b]))
+        b = self._bounded
+        if b:  # z se(a), se(a)^2 = RSS / ((n - 1) S_xx), RSS = S_yy - 2 a S_xy + a^2 S_xx (in place, few calls)
+            se = a[:b] * sxx_data[:b]
+            se -= sxy[:b]
+            se -= sxy[:b]
+            se *= a[:b]
+            se += s[:b, _YY]
+            np.maximum(se, 0.0, out=se)
+            dof = np.maximum(s[:b, _N], 2.0)
+            dof -= 1.0
+            dof *= sxx[:b]
+            se /= dof
+            np.sqrt(se, out=se)
+            se *= self._z[:b]
+            cap[:b] -= se
         cap *= 2.0
         if p.fast_step and cap.shape[0] > 1:  # the short memory: every step capped by one step's record
             cap[1] = cap[1, p.fast_step - 1]
-        out = np.minimum(a[0], cap.min(axis=0))
+        out = cap.min(axis=0)
+        np.minimum(out, a[0], out=out)
         np.minimum(out, 1.0, out=out)
         return np.maximum(out, 0.0, out=out)
 
