@@ -112,3 +112,31 @@ def test_consolidation_without_visit_counts_or_with_bad_ones_is_refused():
         LocalLinearPredictor.from_state(header, {**arrays, "visits": -arrays["visits"] - 1})
     with pytest.raises(LocalLinearError, match=r"LocalLinearParams\.consolidate_after must be"):
         LocalLinearParams(consolidate_after=-1)
+
+
+class _Unhanded(LocalLinearPGWR):
+    """The GWR step recomputes A^T (x - w) and the plasticity itself (what `learn_local` hands it)."""
+
+    def _carried_step(self, block, xm, w, xc, wo, rate):
+        self._handed = None
+        return super()._carried_step(block, xm, w, xc, wo, rate)
+
+
+def test_what_learning_hands_the_gwr_step_equals_recomputing_it_through_insertions():
+    """A growing network (insertions between consolidating steps): the shortcut gives the same network."""
+    rng = np.random.default_rng(0)
+    t = np.arange(3000) * 0.2
+    x = np.stack([np.sin(t), np.cos(0.7 * t), np.sin(1.3 * t)], axis=1) + rng.normal(0, 0.05, (3000, 3))
+    y = np.roll(x, -1, axis=0)[:, :2]
+    nets = []
+    for cls in (LocalLinearPGWR, _Unhanded):
+        net = cls(3, 2, GWRParams(activation_threshold=0.5), np.random.default_rng(1), consolidate_after=20)
+        late_insertions = 0
+        for xi, yi in zip(x, y, strict=True):
+            net.learn_local(xi, yi, 0.05)
+            late_insertions += net.last_inserted >= 0 and net.visits.max() > 20
+        nets.append(net)
+    a, b = nets
+    assert a.n_neurons == b.n_neurons > 10 and late_insertions > 5
+    np.testing.assert_allclose(a.weights, b.weights, atol=1e-9)
+    np.testing.assert_allclose(a.matrices, b.matrices, atol=1e-9)

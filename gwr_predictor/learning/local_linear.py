@@ -139,7 +139,7 @@ class LocalLinearPGWR(PredictiveGWR):
         the second by the plasticity p: step = rate (p (y - v) + (1 - p) A^T (x - w))."""
         step = super()._carried_step(block, xm, w, xc, wo, rate)
         handed, self._handed = self._handed, None
-        if handed is not None:  # from `learn_local`, on this very block: A^T (x - w) and p
+        if handed is not None and len(handed[0]) == len(block):  # from `learn_local`, this very block
             kept, p = handed
         else:
             if not 0 < self.consolidate_after < self._most_visits \
@@ -193,6 +193,7 @@ class LocalLinearPGWR(PredictiveGWR):
             d_a += (gain * dd)[:, None] * err  # the old one plus the NLMS step's share (same block, same d)
             self._handed = (d_a, plasticity[:, None])
         b = self.learn_unchecked(x_in, y, neighbours=(b, nb))
+        self._handed = None  # unused if the step inserted a neuron instead
         self._visits[b] += 1.0
         self._most_visits = max(self._most_visits, float(self._visits[b]))
         return b
