@@ -196,7 +196,7 @@ def test_experiment_tune(tmp_path):
     r, cfg = _run("tune", tmp_path, figures=False)
     for method, n in (("gated_llm_gwr", len(cfg["rates"]) * len(cfg["insertion_scales"]) * len(cfg["neighbour_rates"])),
                       ("rls_ar", len(cfg["orders"]) * len(cfg["forgettings"])),
-                      ("linear", len(cfg["linear_orders"]) * len(cfg["linear_forgettings"]))):
+                      ("linear", len(cfg["linear_orders"]) * len(cfg["linear_deltas"]))):
         res = r["methods"][method]
         assert len(res["grid"]) == n
         best = min(g["heldout_repetitions"]["mae"] for g in res["grid"])

@@ -191,4 +191,4 @@ class DirectLinear:
 
 #: The `linear` baseline's settings in every report, chosen by `gwr-predictor experiment tune` with the
 #: same split and grid size as the default predictor's (docs/results/tune).
-TUNED_LINEAR = DirectLinearParams(order=12, forgetting=1.0)
+TUNED_LINEAR = DirectLinearParams(order=12, forgetting=1.0, delta=1.0)
