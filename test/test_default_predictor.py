@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from fakes import damped_oscillation
 
 from gwr_predictor.evaluation.experiments import common
 from gwr_predictor.evaluation.experiments.delay import Oracle
@@ -85,13 +86,8 @@ def test_the_insertion_threshold_follows_the_data_scale():
 
 
 def _oscillation(n: int = 300, seed: int = 1) -> np.ndarray:
-    """Lightly damped oscillations of every joint, driven by a little noise: a linear system, seen once."""
-    rng = np.random.default_rng(seed)
-    x = np.zeros((n, 8))
-    x[0] = x[1] = rng.uniform(-1, 1, 8)
-    for t in range(2, n):
-        x[t] = x[t - 1] + 0.995 * (x[t - 1] - x[t - 2]) - 0.05 * x[t - 1] + rng.normal(scale=0.005, size=8)
-    return x
+    """A linear system, seen once."""
+    return damped_oscillation(n, seed, damping=0.995, stiffness=0.05, noise=0.005)
 
 
 def test_the_global_read_out_carries_what_the_network_has_barely_seen():

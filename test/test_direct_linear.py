@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from fakes import damped_oscillation
 
 from gwr_predictor.evaluation.online import compare_online, train_online
 from gwr_predictor.learning.checkpoint import CheckpointError
@@ -15,14 +16,7 @@ from gwr_predictor.predictors.registry import make_predictor
 
 
 def _damped(n: int = 400, seed: int = 0) -> np.ndarray:
-    """A second-order linear system (lightly damped oscillations about a rest pose, lightly driven by
-    noise): the future displacements are a linear function of the pose and its last change."""
-    rng = np.random.default_rng(seed)
-    x = np.zeros((n, 8))
-    x[0] = x[1] = rng.uniform(-1, 1, 8)
-    for t in range(2, n):
-        x[t] = x[t - 1] + 0.99 * (x[t - 1] - x[t - 2]) - 0.02 * x[t - 1] + rng.normal(scale=0.002, size=8)
-    return x
+    return damped_oscillation(n, seed, damping=0.99, stiffness=0.02, noise=0.002)
 
 
 def test_rls_is_the_ridge_least_squares_fit():

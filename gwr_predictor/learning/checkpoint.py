@@ -185,10 +185,15 @@ def read_checkpoint(path: str | os.PathLike[str], kind: str,
     if header.get("kind") != kind:
         found = header.get("kind")
         raise KindMismatchError(f"{path}: holds a {found!r}, expected a {kind!r}", found, kind)
+    require_arrays(required, arrays, path)
+    return header, arrays
+
+
+def require_arrays(required: Iterable[str], arrays: Mapping[str, Any], source: str | os.PathLike[str]) -> None:
+    """CheckpointError naming `source` and what is missing unless every `required` array is there."""
     missing = sorted(set(required) - arrays.keys())
     if missing:
-        raise CheckpointError(f"{path}: missing arrays {missing}")
-    return header, arrays
+        raise CheckpointError(f"{source}: missing arrays {missing}")
 
 
 def set_aside(path: str | Path, when: str | None = None) -> Path:

@@ -33,7 +33,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from gwr_predictor.learning.checkpoint import CheckpointError, read_checkpoint, write_checkpoint
+from gwr_predictor.learning.checkpoint import CheckpointError, read_checkpoint, require_arrays, write_checkpoint
 from gwr_predictor.learning.gwr import GWR, InputError
 from gwr_predictor.learning.params import LAYERS, HierarchyParams
 from gwr_predictor.learning.predictive_gwr import PredictiveGWR
@@ -432,9 +432,7 @@ class _OnlinePredictor:
     def from_state(cls, header: dict[str, Any], arrays: dict[str, np.ndarray],
                    source: str | os.PathLike[str] = "<state>") -> Any:
         """The model of a `state()` (header, arrays); content errors raise CheckpointError naming `source`."""
-        missing = sorted(set(cls.required_arrays()) - arrays.keys())
-        if missing:
-            raise CheckpointError(f"{source}: missing arrays {missing}")
+        require_arrays(cls.required_arrays(), arrays, source)
         try:
             return cls._from_saved(header, arrays)
         except CheckpointError:

@@ -57,7 +57,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from gwr_predictor.errors import GwrPredictorError
-from gwr_predictor.learning.checkpoint import CheckpointError, read_checkpoint, write_checkpoint
+from gwr_predictor.learning.checkpoint import CheckpointError, read_checkpoint, require_arrays, write_checkpoint
 from gwr_predictor.learning.gwr import InputError
 from gwr_predictor.learning.hierarchy import ErrorTracker
 from gwr_predictor.learning.params import GWRParams
@@ -567,9 +567,7 @@ class LocalLinearPredictor:
     def from_state(cls, header: dict[str, Any], arrays: dict[str, np.ndarray],
                    source: str | os.PathLike[str] = "<state>") -> LocalLinearPredictor:
         """The predictor of a `state()`; CheckpointError naming `source` if it does not fit."""
-        missing = sorted(set(cls.ARRAYS) - arrays.keys())
-        if missing:
-            raise CheckpointError(f"{source}: missing arrays {missing}")
+        require_arrays(cls.ARRAYS, arrays, source)
         try:
             settings = header["params"]
             for added, before in _BEFORE:  # an older checkpoint keeps the learner it was written with

@@ -31,7 +31,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from gwr_predictor.errors import GwrPredictorError
-from gwr_predictor.learning.checkpoint import CheckpointError, read_checkpoint, write_checkpoint
+from gwr_predictor.learning.checkpoint import CheckpointError, read_checkpoint, require_arrays, write_checkpoint
 from gwr_predictor.learning.rls import RecursiveLeastSquares, window_features
 from gwr_predictor.parameter_spec import ParamSpec, check_fields
 from gwr_predictor.pipeline.conventions import DEFAULT_HORIZON
@@ -155,9 +155,7 @@ class DirectLinear:
     def from_state(cls, header: dict[str, Any], arrays: dict[str, np.ndarray],
                    source: str | os.PathLike[str] = "<state>") -> DirectLinear:
         """The model of a `state()`; CheckpointError naming `source` if it does not fit."""
-        missing = sorted(set(cls.ARRAYS) - arrays.keys())
-        if missing:
-            raise CheckpointError(f"{source}: missing arrays {missing}")
+        require_arrays(cls.ARRAYS, arrays, source)
         try:
             model = cls(DirectLinearParams(**header["params"]))
             p = model.params
