@@ -134,6 +134,16 @@ def test_experiment_incremental(tmp_path):
     lost = np.mean([f["after_all"][p] - f["together"][p] for p in cfg["patterns"]])
     assert f["mean_forgotten"] == pytest.approx(lost)
     assert 0 < together["cpe"] < 1 and together["neurons"][-1] > 2
+    # the reference curve: fresh models trained on the first k patterns at once, and on all of them
+    curve = r["together_curve"]
+    assert [c["patterns"] for c in curve] == [*cfg["together_at"], len(cfg["patterns"])]
+    assert curve[-1]["together"] == f["cpe_together"]
+    for c in curve:  # the sequential C.P.E. at the end of block k, from the same table
+        assert c["sequential"] == r["cpe_mean"][r["evaluated_at"].index(c["patterns"] * cfg["epochs_per_pattern"])]
+        assert 0 < c["together"] < 1
+    prefix = r["runs"][0]["order"][:cfg["together_at"][0]]
+    assert r["runs"][0]["together_curve"][0][1] != together["cpe"]  # scored on its own prefix, not everything
+    assert set(prefix) < set(cfg["patterns"])
 
 
 def test_experiment_threshold(tmp_path):

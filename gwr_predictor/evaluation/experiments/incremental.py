@@ -41,12 +41,15 @@ class Config:
     eval_every: int = 10
     eval_repetitions: int = 1  # per subject and learned pattern, for the C.P.E./P.E.
     together: bool = True  # also train a fresh model on all patterns at once (the forgetting reference)
+    # and on the first k patterns of each order at once, for these k (the C.P.E. a learner that never
+    # forgets would have after k patterns; needs `together`)
+    together_at: tuple[int, ...] = (3, 5)
     method: str = common.HIERARCHY  # or common.DEFAULT, the node's default (`--method`)
     overrides: tuple[tuple[str, object], ...] = ()
 
 
 QUICK = Config(patterns=("wave_one", "raise_lateral_one", "rotate_cw_both"), subjects=1, repetitions=1,
-               epochs_per_pattern=3, orders=1, eval_every=1)
+               epochs_per_pattern=3, orders=1, eval_every=1, together_at=(2,))
 FULL = Config()
 
 
@@ -86,14 +89,18 @@ def one_order(config: Config, order: list[str], by_pattern: dict[str, list[Any]]
            "per_pattern_mse": per_pattern}
     if config.together:
         run["together"] = trained_together(config, params, order, by_pattern, learned, seed, progress)
+        run["together_curve"] = [[k, trained_together(config, params, order[:k], by_pattern,
+                                                      [s for s in learned if s.pattern in order[:k]], seed,
+                                                      progress)["cpe"]]
+                                 for k in config.together_at if 0 < k < len(order)]
     return run
 
 
 def trained_together(config: Config, params: Any, order: list[str], by_pattern: dict[str, list[Any]],
                      scored: list[Any], seed: int, progress: bool) -> dict[str, Any]:
-    """A fresh model trained on every pattern at once, as many presentations as the sequential run
-    (epochs_per_pattern epochs of all demonstrations, shuffled together): each pattern's own MSE and
-    the C.P.E. on everything, scored frozen like the sequential model."""
+    """A fresh model trained on every pattern of `order` at once, as many presentations as the
+    sequential run gave them (epochs_per_pattern epochs of all their demonstrations, shuffled
+    together): each pattern's own MSE and the C.P.E. on `scored`, frozen like the sequential model."""
     model = common.make_model(config.method, params, seed)
     rng = np.random.default_rng([seed, 2])
     everything = [s for p in order for s in by_pattern[p]]
@@ -132,6 +139,21 @@ def forgetting(runs: list[dict[str, Any]]) -> dict[str, Any]:
     return out
 
 
+def together_curve(runs: list[dict[str, Any]], cpe_mean: np.ndarray, evaluated_at: list[int], block: int,
+                   cpe_together: float | None) -> list[dict[str, float]]:
+    """Per number of patterns learned k (those with a reference, and all of them): the sequential C.P.E.
+    at the end of block k and the C.P.E. of fresh models trained on the same k patterns at once, means
+    over the orders. The gap between the two is forgetting; a C.P.E. that rises along with the
+    reference is the patterns getting harder to tell apart, which no learner can avoid."""
+    n = len(runs[0]["order"])
+    ks = [k for k, _ in runs[0].get("together_curve", [])]
+    refs = {k: float(np.mean([dict(map(tuple, r["together_curve"]))[k] for r in runs])) for k in ks}
+    if cpe_together is not None:
+        refs[n] = cpe_together
+    return [{"patterns": k, "sequential": float(cpe_mean[evaluated_at.index(k * block)]), "together": v}
+            for k, v in sorted(refs.items())]
+
+
 def growth_share(neurons: np.ndarray, block: int) -> np.ndarray:
     """Per layer, the share of each pattern block's growth that happened in its last
     `block - block // 2` epochs (0 = all growth at the start of the block, i.e. levelled off;
@@ -168,6 +190,8 @@ def run(config: Config, out: Path, seed: int = 0, progress: bool = True) -> Expe
                "neurons_std": neurons.std(axis=0),
                "cpe_mean": cpe.mean(axis=0), "pe_mean": pe.mean(axis=0), "late_growth_share": share,
                "evaluated_at": runs[0]["evaluated_at"], "forgetting": forgetting(runs)}
+    results["together_curve"] = together_curve(runs, results["cpe_mean"], results["evaluated_at"],
+                                               config.epochs_per_pattern, results["forgetting"].get("cpe_together"))
     e = config.epochs_per_pattern
     ends = [(i + 1) * e - 1 for i in range(len(names))]
     rows = [[i + 1, *[int(v) for v in neurons.mean(axis=0)[k]], cpe.mean(axis=0)[runs[0]["evaluated_at"].index(k + 1)],
@@ -180,7 +204,7 @@ def run(config: Config, out: Path, seed: int = 0, progress: bool = True) -> Expe
           "Share of each pattern's neuron growth that happened in the second half of its epochs "
           f"(0 = levelled off, {steady_share(e):.2f} = growing steadily): "
           + ", ".join(f"{n} {s:.2f}" for n, s in zip(layer_names, share, strict=True)) + ".", "",
-          *_forgetting_table(results["forgetting"])]
+          *_forgetting_table(results["forgetting"]), *_curve_table(results["together_curve"])]
     return ExperimentOutput(NAME, "Incremental learning of the patterns", asdict(config), results, md,
                             [_plot(results, config, len(names), Path(out))])
 
@@ -202,12 +226,25 @@ def _forgetting_table(f: dict[str, Any]) -> list[str]:
     return lines
 
 
+def _curve_table(curve: list[dict[str, float]]) -> list[str]:
+    if not curve:
+        return []
+    rows = [[c["patterns"], c["sequential"], c["together"], c["sequential"] / c["together"]] for c in curve]
+    return ["", "C.P.E. after k patterns, learned one after another and, in fresh models, all k at once "
+            "(what a learner that never forgets would reach; mean over the orders):", "",
+            markdown_table(["patterns learned", "C.P.E. one after another", "C.P.E. all at once", "ratio"],
+                           rows, digits=4)]
+
+
 def _plot(r: dict[str, Any], config: Config, n_patterns: int, out: Path) -> str:
     fig, axes = figure(2, 1, size=(8.0, 6.5))
     e = config.epochs_per_pattern
     ax = axes[0][0]
     ax.plot(r["evaluated_at"], r["cpe_mean"], "b-", marker=".", label="C.P.E.")
     ax.plot(r["evaluated_at"], r["pe_mean"], "r-", marker=".", label="P.E.")
+    if r.get("together_curve"):
+        ax.plot([c["patterns"] * e for c in r["together_curve"]], [c["together"] for c in r["together_curve"]],
+                "ks", ms=5, label="C.P.E. of a model trained on those patterns at once")
     ax.set_ylabel("MSE (rad²)")
     ax.legend(fontsize=8)
     ax = axes[1][0]
