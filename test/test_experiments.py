@@ -141,9 +141,16 @@ def test_experiment_incremental(tmp_path):
     for c in curve:  # the sequential C.P.E. at the end of block k, from the same table
         assert c["sequential"] == r["cpe_mean"][r["evaluated_at"].index(c["patterns"] * cfg["epochs_per_pattern"])]
         assert 0 < c["together"] < 1
-    prefix = r["runs"][0]["order"][:cfg["together_at"][0]]
-    assert r["runs"][0]["together_curve"][0][1] != together["cpe"]  # scored on its own prefix, not everything
-    assert set(prefix) < set(cfg["patterns"])
+    # the first reference, recomputed: a fresh model on the order's first k patterns, scored on those only
+    from gwr_predictor.evaluation.experiments import common, incremental
+    config = incremental.QUICK
+    groups = common.by_pattern(common.demo_data(config.patterns, config.subjects, config.repetitions, 0))
+    k, order = cfg["together_at"][0], r["runs"][0]["order"]
+    scored = [s for p in order[:k] for s in groups[p] if s.repetition <= config.eval_repetitions]
+    ref = incremental.trained_together(config, common.make_params(config.overrides), order[:k], groups, scored,
+                                       0, False)
+    assert r["runs"][0]["together_curve"][0] == [k, pytest.approx(ref["cpe"])]
+    assert ref["cpe"] != pytest.approx(together["cpe"])  # a prefix reference differs from the full one
 
 
 def test_experiment_threshold(tmp_path):

@@ -147,7 +147,7 @@ def together_curve(runs: list[dict[str, Any]], cpe_mean: np.ndarray, evaluated_a
     reference is the patterns getting harder to tell apart, which no learner can avoid."""
     n = len(runs[0]["order"])
     ks = [k for k, _ in runs[0].get("together_curve", [])]
-    refs = {k: float(np.mean([dict(map(tuple, r["together_curve"]))[k] for r in runs])) for k in ks}
+    refs = {k: float(np.mean([dict(r["together_curve"])[k] for r in runs])) for k in ks}
     if cpe_together is not None:
         refs[n] = cpe_together
     return [{"patterns": k, "sequential": float(cpe_mean[evaluated_at.index(k * block)]), "together": v}
