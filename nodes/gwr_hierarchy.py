@@ -206,6 +206,8 @@ class GwrHierarchyNode(PipelineNode):
         values: dict[str, object] = {conventions.NEURON_KEYS[k]: v for k, v in errors["neurons"].items()}
         for key in ("frames", "missing", "sequences", "predictions"):
             values[key] = errors[key]
+        if "recruited" in errors:  # the default's neurons recruited for surprising pairs
+            values["neurons_recruited"] = errors["recruited"]
         values["pe_mean_mse"] = float(errors["pe_mean"])
         values["cpe_mean_mse"] = float(errors["cpe_mean"])
         values[f"cpe_h{self.horizon}_mse"] = float(errors["cpe"][-1])

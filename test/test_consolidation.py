@@ -115,11 +115,11 @@ def test_consolidation_without_visit_counts_or_with_bad_ones_is_refused():
 
 
 class _Unhanded(LocalLinearPGWR):
-    """The GWR step recomputes A^T (x - w) and the plasticity itself (what `learn_local` hands it)."""
+    """The GWR step recomputes the plasticity itself (what `learn_local` hands it)."""
 
-    def _carried_step(self, block, xm, w, xc, wo, rate):
+    def _step_rates(self, block, h):
         self._handed = None
-        return super()._carried_step(block, xm, w, xc, wo, rate)
+        return super()._step_rates(block, h)
 
 
 def test_what_learning_hands_the_gwr_step_equals_recomputing_it_through_insertions():

@@ -13,6 +13,7 @@ from gwr_predictor.evaluation.experiments import EXPERIMENTS, UnknownExperiment,
 from gwr_predictor.evaluation.experiments.gate import DEFAULT as GATE_DEFAULT
 from gwr_predictor.evaluation.experiments.output import ExperimentOutputError, markdown_table, to_jsonable
 from gwr_predictor.evaluation.experiments.splits import SplitError, key, make_splits
+from gwr_predictor.learning.local_linear import LocalLinearParams
 
 
 def _seqs(patterns=("a", "b"), subjects=("s1", "s2", "s3"), reps=4):
@@ -219,6 +220,16 @@ def test_experiment_tune(tmp_path):
         best = min(g["heldout_repetitions"]["mae"] for g in res["grid"])
         tie = cfg["tie"] if method == "gated_llm_gwr" else 0.0  # chosen on held-out repetitions only
         assert best <= res["chosen_scores"]["heldout_repetitions"]["mae"] <= best * (1 + tie)
+    stage = r["methods"]["gated_llm_gwr:recruitment"]  # at the chosen point, each recruit_surprise
+    assert stage["at"] == r["methods"]["gated_llm_gwr"]["chosen"]
+    assert [g["settings"]["recruit_surprise"] for g in stage["grid"]] == list(cfg["recruit_surprises"])
+    surprise = LocalLinearParams().recruit_surprise
+    default = next(g for g in stage["grid"] if g["settings"]["recruit_surprise"] == surprise)
+    for split in ("heldout_repetitions", "heldout_subjects"):  # the first stage ran with the library default
+        assert default[split] == r["methods"]["gated_llm_gwr"]["chosen_scores"][split]
+    maes = {g["settings"]["recruit_surprise"]: g["heldout_repetitions"]["mae"] for g in stage["grid"]}
+    eager = [v for v in maes if v > 0 and maes[v] <= min(maes.values()) * (1 + cfg["tie"])]
+    assert stage["chosen"]["recruit_surprise"] == (min(eager) if eager else 0.0)
 
 
 def test_tune_choice_breaks_near_ties_towards_the_finer_insertion_threshold():
@@ -229,6 +240,16 @@ def test_tune_choice_breaks_near_ties_towards_the_finer_insertion_threshold():
     assert choose(rows, 0.0)["settings"] == {"insertion_scale": 1.5, "rate": 0.1}  # plain lowest MAE
     assert choose(rows, 0.005)["settings"] == {"insertion_scale": 1.0, "rate": 0.1}  # 0.5 is 1.7 % off: out
     assert choose(rows, 0.02)["settings"] == {"insertion_scale": 0.5, "rate": 0.1}
+
+
+def test_tune_recruitment_stage_takes_the_most_eager_recruitment_within_the_tie():
+    from gwr_predictor.evaluation.experiments.tune import _most_eager_recruitment, choose
+
+    rows = [{"settings": {"recruit_surprise": v}, "heldout_repetitions": {"mae": m}}
+            for v, m in ((0.0, 0.1280), (6.0, 0.1300), (9.0, 0.1283), (12.0, 0.1279), (16.0, 0.1280))]
+    assert choose(rows, 0.0, _most_eager_recruitment)["settings"] == {"recruit_surprise": 12.0}
+    assert choose(rows, 0.005, _most_eager_recruitment)["settings"] == {"recruit_surprise": 9.0}  # 6 is 1.6 % off
+    assert choose(rows[:1] + rows[1:2], 0.005, _most_eager_recruitment)["settings"] == {"recruit_surprise": 0.0}
 
 
 def test_experiment_real(tmp_path, monkeypatch):

@@ -334,12 +334,14 @@ class GWR:
                   and hb < p.firing_threshold
                   and (p.max_neurons is None or n < p.max_neurons))
         if not insert:  # Eq. 4 on b and its neighbours at once
-            rate = (self._eps_vec[:k] * h)[:, None]
+            rate = self._step_rates(block, h)
             wa = self._wa.take(block, axis=0)
             w = wa[:, :m]
-            if m < self.dim:  # the carried part first: its step may depend on w before the move
+            if m < self.dim:  # the carried part (Eq. 9), the same rates
                 wo = self._wo.take(block, axis=0)
-                wo += self._carried_step(block, xm, w, xc, wo, rate)
+                step = xc - wo
+                step *= rate
+                wo += step
                 self._wo[block] = wo
             step = xm - w  # w += rate * (x - w), with one temporary fewer (same products)
             step *= rate
@@ -373,14 +375,10 @@ class GWR:
         self.last_inserted = r
         return b
 
-    def _carried_step(self, block: np.ndarray, xm: np.ndarray, w: np.ndarray, xc: np.ndarray,
-                      wo: np.ndarray, rate: np.ndarray) -> np.ndarray:
-        """The step of the carried part of the block [b, neighbours...] (rows `wo`; `w` their matched
-        weights before this step moves them): rate * (x_carried - wo), Eq. 9. A subclass may change it
-        (`LocalLinearPGWR` consolidates its neurons' output functions)."""
-        step = xc - wo
-        step *= rate
-        return step
+    def _step_rates(self, block: np.ndarray, h: np.ndarray) -> np.ndarray:
+        """(k, 1) rates of Eq. 4 (and 9) for the block [b, neighbours...] with firing counters h:
+        eps_b h_b, eps_n h_n. A subclass may scale them (`LocalLinearPGWR` consolidates its neurons)."""
+        return (self._eps_vec[:block.size] * h)[:, None]
 
     # --- structure changes ----------------------------------------------------------------------
     def _append(self, xm: np.ndarray, xc: np.ndarray, b: int) -> int:

@@ -21,11 +21,20 @@ so the output varies continuously between prototypes. Here, in addition:
   the frame-to-frame motion (never below `noise_floor` rad), so a neuron covers about the same
   stretch of a movement whatever the speed, units or noise of the data.
 
-- consolidation (`consolidate_after` visits): a neuron's output function learns at full rate for
-  its first visits as BMU, then its rates fall as 1/visits, so that it keeps the average over
-  everything it has seen instead of the fit to its most recent visits. Why: where movements share
-  the regressor space (above all the onsets from the common rest pose), each new movement rewrote
-  the outputs of the neurons it shares with the earlier ones, and the earlier ones were forgotten.
+- consolidation (`consolidate_after` visits): a neuron learns (its position, output weight and
+  local model) at full rate for its first visits as BMU, then its rates fall as 1/visits, so that
+  it keeps the average over everything it has seen instead of the fit to its most recent visits.
+  Why: where movements share the regressor space (above all the onsets from the common rest pose),
+  each new movement rewrote the outputs of the neurons it shares with the earlier ones, and the
+  earlier ones were forgotten.
+- recruitment (`recruit_surprise`): a consolidated neuron whose read-out misses a pair by far more
+  than it usually misses (squared error > `recruit_surprise` x its running mean) does not learn
+  that pair; a new neuron is recruited at the pair itself, predicting it exactly. Why: such a pair
+  belongs to a movement the neuron has not seen (a new movement through poses an old one shares);
+  averaging it into the old neuron (consolidation) keeps neither, a neuron of its own keeps both.
+  GWR's own insertion cannot do this: it looks at the regressor alone, and the regressor is close.
+  A consolidated neighbour that such a pair surprises is not moved by it either, or the new
+  movement's neurons would drag the old movement's away from it.
 
 Everything else (counters, edges, ageing, removal, unbounded growth) is the GWR of `gwr.py`; the
 matrices and visit counts move with their neurons in the same vectorised steps.
@@ -76,44 +85,57 @@ class LocalLinearPGWR(PredictiveGWR):
     """P-GWR over [regressor | output] whose neurons each also hold a (in_dim, out_dim) matrix and
     count their visits (learning steps as BMU since insertion).
 
-    `consolidate_after` (visits; 0 = never): past it, a neuron's output-function rates (its NLMS rate
-    and the share of Eq. 9's output step that changes its prediction) are scaled by
-    consolidate_after / visits, the search-then-converge schedule of stochastic approximation
-    (constant, then 1/t): the local model becomes the average over all its visits, not the fit to
-    the most recent ones. The input weights keep their GWR rates (where a neuron sits is not
-    consolidated), and a new neuron starts at full rate.
+    `consolidate_after` (visits; 0 = never): past it, all a neuron's rates (its NLMS rate and the
+    GWR step's, Eqs. 4 and 9) are scaled by consolidate_after / visits, the search-then-converge
+    schedule of stochastic approximation (constant, then 1/t): position and local model become the
+    average over all its visits, not the fit to the most recent ones. A new neuron starts at full
+    rate.
+
+    `recruit_surprise` (0 = never; only consolidated neurons recruit): a consolidated BMU whose read-out's mean
+    squared error on a pair exceeds recruit_surprise x its running mean (`readout_mse`, over its own
+    visits as BMU) leaves the pair to a new neuron placed at it (input x, output y, the BMU's matrix,
+    an edge to the BMU) and does not learn it. A consolidated neighbour (of the block `learn_local`
+    updates) that the pair surprises is not moved by it: its plasticity is 0 for that step.
     """
 
-    #: what `learn_local` hands to the GWR step's output part on the same block (A^T (x - w), plasticity)
-    _handed: tuple[np.ndarray, np.ndarray] | None = None
+    #: what `learn_local` hands to the GWR step on the same block: the neurons' plasticity
+    _handed: np.ndarray | None = None
     #: at least the visits of the most visited neuron (removals do not lower it): 0 = nobody consolidates
     _most_visits: float = 0.0
+    #: per visit of a neuron as BMU, the weight of its newest squared read-out error in `readout_mse`
+    ERROR_RATE: ClassVar[float] = 0.05
+    #: neurons recruited since this network was created (or loaded from a checkpoint that counted them)
+    recruited: int = 0
 
     def __init__(self, in_dim: int, out_dim: int, params: GWRParams, rng: np.random.Generator, *,
                  init_low: float | np.ndarray = -1.0, init_high: float | np.ndarray = 1.0,
                  distance_factor: float = 1.0, rate: float = 0.5, delta: float = 1e-4,
-                 consolidate_after: float = 0.0) -> None:
+                 consolidate_after: float = 0.0, recruit_surprise: float = 0.0) -> None:
         self.rate, self.delta = float(rate), float(delta)
         self.consolidate_after = float(consolidate_after)
+        self.recruit_surprise = float(recruit_surprise)
         super().__init__(in_dim, out_dim, params, rng, init_low=init_low, init_high=init_high,
                          distance_factor=distance_factor)
 
     # --- the matrices follow their neurons (allocation, insertion, removal) ----------------------
     def _alloc(self, cap: int) -> None:
-        old, old_visits = getattr(self, "_A", None), getattr(self, "_visits", None)
+        old, old_visits, old_mse = (getattr(self, k, None) for k in ("_A", "_visits", "_mse"))
         n = self._n
         super()._alloc(cap)
         a = np.zeros((cap, self.match_dim, self.dim - self.match_dim))
         visits = np.zeros(cap)
+        mse = np.full(cap, np.nan)  # NaN: not yet a BMU
         if old is not None and n:
             a[:n] = old[:n]
             visits[:n] = old_visits[:n]
-        self._A, self._visits = a, visits
+            mse[:n] = old_mse[:n]
+        self._A, self._visits, self._mse = a, visits, mse
 
     def _append(self, xm: np.ndarray, xc: np.ndarray, b: int) -> int:
         r = super()._append(xm, xc, b)
         self._A[r] = self._A[b]
         self._visits[r] = 0.0  # a new neuron learns at full rate, whatever its parent has seen
+        self._mse[r] = np.nan
         return r
 
     def _remove(self, i: int) -> int:
@@ -121,36 +143,29 @@ class LocalLinearPGWR(PredictiveGWR):
         if i != last:
             self._A[i] = self._A[last]
             self._visits[i] = self._visits[last]
+            self._mse[i] = self._mse[last]
         self._A[last] = 0.0
         self._visits[last] = 0.0
+        self._mse[last] = np.nan
         return super()._remove(i)
 
     # --- consolidation --------------------------------------------------------------------------
     def _plasticity(self, block: np.ndarray) -> np.ndarray:
-        """Per neuron of `block`: min(1, consolidate_after / visits), the factor on its output rates
+        """Per neuron of `block`: min(1, consolidate_after / visits), the factor on all its rates
         (only called with consolidation on)."""
         return np.minimum(1.0, self.consolidate_after / np.maximum(self._visits[block], 1.0))
 
-    def _carried_step(self, block: np.ndarray, xm: np.ndarray, w: np.ndarray, xc: np.ndarray,
-                      wo: np.ndarray, rate: np.ndarray) -> np.ndarray:
-        """Eq. 9's output step rate (y - v) is, for the local model v + A^T (r - w), two things: A^T of
-        the input step rate (x - w), which keeps the neuron's prediction where it was while w moves,
-        plus rate times the residual y - v - A^T (x - w), which changes it. Consolidation scales only
-        the second by the plasticity p: step = rate (p (y - v) + (1 - p) A^T (x - w))."""
-        step = super()._carried_step(block, xm, w, xc, wo, rate)
+    def _step_rates(self, block: np.ndarray, h: np.ndarray) -> np.ndarray:
+        """The GWR step's rates (Eqs. 4, 9) scaled by each neuron's plasticity: a consolidated neuron
+        moves, and changes its output weight, as the running mean of its visits. Scaling position and
+        output alike leaves its local model's function v + A^T (r - w) where its own visits put it."""
+        rate = super()._step_rates(block, h)
         handed, self._handed = self._handed, None
-        if handed is not None and len(handed[0]) == len(block):  # from `learn_local`, this very block
-            kept, p = handed
-        else:
-            if not 0 < self.consolidate_after < self._most_visits \
-                    or self._visits[block].max() <= self.consolidate_after:
-                return step  # no neuron of the block consolidates yet
-            p = self._plasticity(block)[:, None]
-            kept = np.matmul((xm - w)[:, None, :], self._A[block])[:, 0]
-        kept *= (1.0 - p) * rate
-        step *= p
-        step += kept
-        return step
+        if handed is not None and len(handed) == len(block):  # from `learn_local`, this very block
+            return rate * handed[:, None]
+        if not 0 < self.consolidate_after < self._most_visits or self._visits[block].max() <= self.consolidate_after:
+            return rate  # no neuron of the block consolidates yet
+        return rate * self._plasticity(block)[:, None]
 
     @property
     def matrices(self) -> np.ndarray:
@@ -162,12 +177,30 @@ class LocalLinearPGWR(PredictiveGWR):
         """(n,) view of each neuron's learning steps as BMU since it was inserted."""
         return self._visits[:self._n]
 
+    @property
+    def readout_mse(self) -> np.ndarray:
+        """(n,) view of each neuron's running mean squared read-out error on the pairs it learned as
+        BMU (NaN: none yet), what recruitment compares a new pair's error with."""
+        return self._mse[:self._n]
+
+    def _recruit(self, x_in: np.ndarray, y: np.ndarray, b: int) -> int:
+        """A new neuron at the pair (x_in, y) with b's matrix, full plasticity and an edge to b."""
+        r = self._append(x_in, y, b)
+        self._put(r, np.concatenate([x_in, y]))
+        self._age[r, b] = self._age[b, r] = 0
+        self.last_inserted = r
+        self.recruited += 1
+        return r
+
     # --- learning and prediction -----------------------------------------------------------------
     def learn_local(self, x_in: np.ndarray, y: np.ndarray, neighbour_rate: float = 0.0) -> int:
         """One step on a trusted (x_in, y) pair: the BMU's local model by NLMS (and, with
         `neighbour_rate`, its topological neighbours' at that rate, one gathered block; each scaled by
         its plasticity when consolidating), then the GWR step (which reuses this search:
-        `search_keep`), then the BMU's visit is counted. Returns the GWR step's BMU index."""
+        `search_keep`), then the BMU's visit is counted. Returns the GWR step's BMU index. A
+        consolidated BMU surprised by the pair (`recruit_surprise`) learns nothing: a neuron is
+        recruited for the pair instead, and the BMU's index is returned; a surprised consolidated
+        neighbour is not moved by the pair (plasticity 0)."""
         aff = self.search_keep(x_in)
         b = int(aff.argmax())
         nb = (self._age[b, :self._n] >= 0).nonzero()[0]
@@ -180,18 +213,27 @@ class LocalLinearPGWR(PredictiveGWR):
         plasticity = None
         if 0 < self.consolidate_after < self._most_visits and self._visits[block].max() > self.consolidate_after:
             plasticity = self._plasticity(block)
-            rates = rates * plasticity
         d = x_in - self._w[block]  # (k, in)
         a = self._A[block]
         d_a = np.matmul(d[:, None, :], a)[:, 0]
         err = y - self._wo[block] - d_a
+        if self.recruit_surprise > 0:
+            e2 = np.vecdot(err, err) / err.shape[1]
+            if plasticity is not None:
+                surprised = (plasticity < 1.0) & (e2 > self.recruit_surprise * self._mse[block])  # NaN: False
+                if surprised[0] and (self.params.max_neurons is None or self._n < self.params.max_neurons):
+                    self._recruit(x_in, y, b)
+                    return b
+                plasticity[surprised] = 0.0  # a surprised consolidated neighbour keeps its function
+            known = self._mse[b]
+            self._mse[b] = e2[0] if math.isnan(known) else known + self.ERROR_RATE * (e2[0] - known)
+        if plasticity is not None:
+            rates = rates * plasticity
+            self._handed = plasticity
         dd = np.vecdot(d, d)
         gain = rates / (dd + self.delta)
         a += np.einsum("ki,ko->kio", gain[:, None] * d, err)  # rank-1 NLMS step per neuron
         self._A[block] = a
-        if plasticity is not None:  # the GWR step's output part needs A^T (x - w) with the new A, which is
-            d_a += (gain * dd)[:, None] * err  # the old one plus the NLMS step's share (same block, same d)
-            self._handed = (d_a, plasticity[:, None])
         b = self.learn_unchecked(x_in, y, neighbours=(b, nb))
         self._handed = None  # unused if the step inserted a neuron instead
         self._visits[b] += 1.0
@@ -220,10 +262,11 @@ class LocalLinearPGWR(PredictiveGWR):
     @classmethod
     def from_parts(cls, weights: np.ndarray, matrices: np.ndarray, params: GWRParams, *, edges: Any,
                    counters: np.ndarray, match_dim: int, distance_factor: float, rate: float,
-                   delta: float, visits: np.ndarray | None = None,
-                   consolidate_after: float = 0.0) -> LocalLinearPGWR:
+                   delta: float, visits: np.ndarray | None = None, consolidate_after: float = 0.0,
+                   readout_mse: np.ndarray | None = None, recruit_surprise: float = 0.0,
+                   recruited: int = 0) -> LocalLinearPGWR:
         """A network from saved arrays (checkpoints); `visits` None = zeros (needed only when
-        consolidating)."""
+        consolidating), `readout_mse` None = NaN (needed only when recruiting)."""
         net = cls.from_arrays(weights, params, edges=edges, counters=counters, match_dim=match_dim,
                               distance_factor=distance_factor)
         expected = (net.n_neurons, net.in_dim, net.out_dim)
@@ -241,8 +284,19 @@ class LocalLinearPGWR(PredictiveGWR):
             net._most_visits = float(np.max(visits, initial=0.0))
         elif consolidate_after > 0:
             raise ValueError("consolidating needs the neurons' visit counts")
+        if readout_mse is not None:
+            if np.shape(readout_mse) != (net.n_neurons,):
+                raise ValueError(f"read-out errors have shape {np.shape(readout_mse)}, expected ({net.n_neurons},)")
+            mse = np.asarray(readout_mse, dtype=float)
+            if not (np.isnan(mse) | (np.isfinite(mse) & (mse >= 0))).all():
+                raise ValueError("read-out errors must be NaN (no visit yet) or finite and >= 0")
+            net._mse[:net.n_neurons] = mse
+        elif recruit_surprise > 0:
+            raise ValueError("recruiting needs the neurons' read-out errors")
         net.rate, net.delta = float(rate), float(delta)
         net.consolidate_after = float(consolidate_after)
+        net.recruit_surprise = float(recruit_surprise)
+        net.recruited = int(recruited)
         return net
 
 
@@ -269,13 +323,16 @@ _LOCAL_LINEAR_SPECS = {spec.name: spec for spec in (
               lo_open=True),
     ParamSpec("mix_ridge", 0.01, "rad^2 per joint added to the mixing equations (pulls towards hold-last)", 0.0,
               lo_open=True),
-    ParamSpec("consolidate_after", 200, "visits after which a neuron's output rates fall as 1/visits (0 = never)",
+    ParamSpec("consolidate_after", 200, "visits after which a neuron's rates fall as 1/visits (0 = never)",
               0, 10**9),
+    ParamSpec("recruit_surprise", 9.0, "squared read-out error, in units of a consolidated BMU's running mean, "
+              "beyond which a pair gets a new neuron instead (0 = never)", 0.0, 1e6),
 )}
 # per setting added after the first local-linear P-GWR, in order: what a checkpoint written before it ran with
 _BEFORE = (
     ("global_order", {"global_order": 0}),  # local read-outs only
     ("consolidate_after", {"consolidate_after": 0}),  # constant output rates
+    ("recruit_surprise", {"recruit_surprise": 0.0}),  # no recruitment
 )
 
 
@@ -292,11 +349,16 @@ class LocalLinearParams:
     weights (large: a weak prior, so it follows the data within a few dozen pairs; the mix below and
     the gate keep an immature fit from doing harm); `mix_decay`, `mix_ridge`: forgetting and ridge of
     the per-step least-squares mix of the local and global read-outs. `consolidate_after`: visits (as BMU) after which a
-    neuron's output rates fall as consolidate_after / visits (0 = constant rates): without it each
+    neuron's rates fall as consolidate_after / visits (0 = constant rates): without it each
     new movement rewrote the outputs of the neurons it shares with earlier ones (`experiment
     incremental`). 200 is about the memory of Eq. 9's output step at the firing counter's floor,
     1 / (eps_b (1 - 1/kappa)) = 210 visits: a neuron consolidates once it has had that many, and
-    from then on its output weight is about the running mean of its visits (rate ~ 1 / visits).
+    from then on its position and output weight are about the running means of its visits.
+    `recruit_surprise`: a consolidated BMU whose read-out's squared error on a pair exceeds this x its
+    running mean leaves the pair to a new neuron placed at it (0 = never; only consolidated neurons
+    recruit, so none without `consolidate_after`):
+    a new movement through the poses of an old one gets neurons of its own instead of being averaged
+    into the old one's (`experiment incremental`).
     `gwr`: the GWR step's parameters (its a_T only fixes the constant -ln a_T the scaled distance is
     compared with).
     """
@@ -315,6 +377,7 @@ class LocalLinearParams:
     mix_decay: float = _LOCAL_LINEAR_SPECS["mix_decay"].default
     mix_ridge: float = _LOCAL_LINEAR_SPECS["mix_ridge"].default
     consolidate_after: int = _LOCAL_LINEAR_SPECS["consolidate_after"].default
+    recruit_surprise: float = _LOCAL_LINEAR_SPECS["recruit_surprise"].default
     gwr: GWRParams = field(default_factory=_default_gwr)
 
     def __post_init__(self) -> None:
@@ -354,7 +417,7 @@ class LocalLinearPredictor:
         out_dim = p.horizon * p.n_joints
         self.pgwr = LocalLinearPGWR(p.order * p.n_joints, out_dim, p.gwr, rng, init_low=np.concatenate(
             [lo, np.zeros(out_dim)]), init_high=np.concatenate([hi, np.zeros(out_dim)]), rate=p.rate,
-            consolidate_after=p.consolidate_after)
+            consolidate_after=p.consolidate_after, recruit_surprise=p.recruit_surprise)
         self._ln_at = -math.log(p.gwr.activation_threshold)
         self._motion_ms = p.noise_floor ** 2  # running mean of ||x(t) - x(t-1)||^2
         self._t = self._frames = self._missing = self._predictions = self._sequences = 0
@@ -518,17 +581,19 @@ class LocalLinearPredictor:
         return None if self.linear is None else self._mix.copy()
 
     def errors(self) -> dict[str, Any]:
-        """Counts, neurons, the motion scale, the read-outs' mixing weights, and C.P.E. (= P.E.) per
-        step as the hierarchy reports it."""
+        """Counts, neurons (and how many of them were recruited), the motion scale, the read-outs'
+        mixing weights, and C.P.E. (= P.E.) per step as the hierarchy reports it."""
         out = {"steps": self._t, "frames": self._frames, "missing": self._missing,
                "sequences": self._sequences, "predictions": self._predictions,
-               "neurons": {"pgwr": self.pgwr.n_neurons}, "motion_rms_rad": self.motion_rms}
+               "neurons": {"pgwr": self.pgwr.n_neurons}, "recruited": self.pgwr.recruited,
+               "motion_rms_rad": self.motion_rms}
         if self.linear is not None:
             out["mix_weights"] = {"local": self._mix[:, 0].tolist(), "global": self._mix[:, 1].tolist()}
         return {**out, **self._errors.summary()}
 
     # --- persistence --------------------------------------------------------------------------------
-    #: The arrays every checkpoint has; "visits" came with consolidation (without it: zeros).
+    #: The arrays every checkpoint has; "visits" came with consolidation (without it: zeros), "readout_mse"
+    #: with recruitment (without it: NaN).
     ARRAYS: ClassVar[tuple[str, ...]] = ("weights", "matrices", "counters", "edges", "win", "hist", "regs",
                                          *ErrorTracker.ARRAYS)
     GLOBAL_ARRAYS: ClassVar[tuple[str, ...]] = ("global:weights", "global:p", "mix_sxx", "mix_sxy", "outs",
@@ -544,8 +609,9 @@ class LocalLinearPredictor:
                   "motion_ms": self._motion_ms, "fill": self._fill, "reg_present": [r is not None for r in regs],
                   "last_reg": self._last_reg is not None,
                   "counters": [self._t, self._frames, self._missing, self._predictions, self._sequences],
-                  "errors": self._errors.header()}
+                  "errors": self._errors.header(), "recruited": g.recruited}
         arrays = {"weights": g.weights, "matrices": g.matrices.copy(), "visits": g.visits.copy(),
+                  "readout_mse": g.readout_mse.copy(),
                   "counters": g.counters.copy(),
                   "edges": g.edge_array(), "win": self._win.copy(), "hist": hist, "regs": reg_arr,
                   **{k: v.copy() for k, v in self._errors.arrays().items()}}
@@ -581,7 +647,9 @@ class LocalLinearPredictor:
                 arrays["weights"], arrays["matrices"], params.gwr, edges=arrays["edges"],
                 counters=arrays["counters"], match_dim=params.order * params.n_joints,
                 distance_factor=float(header["distance_factor"]), rate=params.rate, delta=1e-4,
-                visits=arrays.get("visits"), consolidate_after=params.consolidate_after)
+                visits=arrays.get("visits"), consolidate_after=params.consolidate_after,
+                readout_mse=arrays.get("readout_mse"), recruit_surprise=params.recruit_surprise,
+                recruited=int(header.get("recruited", 0)))
             if model.pgwr.out_dim != params.horizon * params.n_joints:
                 raise ValueError(f"outputs are {model.pgwr.out_dim}-d, parameters say "
                                  f"{params.horizon * params.n_joints}")

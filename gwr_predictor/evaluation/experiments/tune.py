@@ -9,13 +9,19 @@ the finest insertion threshold (smallest `insertion_scale`) wins: more neurons s
 regressor space between movements, so a newly learned movement rewrites less of the old ones (the
 default forgets about half as much at insertion_scale 1.0 as at 1.5, `experiment incremental`), and a
 0.5 % difference on one split is within what the seed changes. The held-out subject never takes part
-in the choice (it is reported, not used). The chosen settings are the library defaults
+in the choice (it is reported, not used). Then, at the chosen point, a second stage sweeps
+`recruit_surprise` (0 = no recruitment): among the values within `tie` of the best MAE of that stage,
+the most eager recruitment (smallest value > 0) wins, for the same reason: a recruited neuron keeps
+an old movement's neurons from being rewritten (`experiment incremental`), and held-out accuracy
+says how far that can go before it fits the training pairs' noise. The chosen settings are the library defaults
 (`LocalLinearParams()`, `baselines.TUNED_RLS`, `direct_linear.TUNED_LINEAR`); this experiment checks
 that they still are the winners."""
 
 from __future__ import annotations
 
 import itertools
+import math
+from collections.abc import Callable
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
@@ -28,6 +34,7 @@ from gwr_predictor.evaluation.experiments.splits import make_splits
 from gwr_predictor.evaluation.online import compare_online
 
 NAME = "tune"
+RECRUIT = f"{common.GATED}:recruitment"  # the default predictor's second stage
 
 
 @dataclass(frozen=True)
@@ -43,6 +50,8 @@ class Config:
     insertion_scales: tuple[float, ...] = (1.0, 1.5, 2.0)
     neighbour_rates: tuple[float, ...] = (0.02, 0.05)
     tie: float = 0.005  # default predictor: within this share of the best MAE, the finest insertion wins
+    # the default predictor's second stage, at the chosen point (0 = no recruitment; the most eager within `tie` wins)
+    recruit_surprises: tuple[float, ...] = (0.0, 6.0, 9.0, 12.0, 16.0)
     # RLS-AR's grid: order x forgetting (18 points)
     orders: tuple[int, ...] = (3, 5, 8, 10, 12, 15)
     forgettings: tuple[float, ...] = (0.995, 0.999, 1.0)
@@ -55,19 +64,24 @@ class Config:
 
 QUICK = Config(patterns=("wave_one", "raise_front_both"), subjects=2, repetitions=3, heldout_repetitions=1,
                epochs=1, rates=(0.1,), insertion_scales=(2.0,), neighbour_rates=(0.02, 0.05), orders=(5, 10),
-               forgettings=(1.0,), linear_orders=(2, 12), linear_deltas=(1.0,))
+               forgettings=(1.0,), linear_orders=(2, 12), linear_deltas=(1.0,), recruit_surprises=(0.0, 9.0))
 FULL = Config()
 
 
-def _candidates(config: Config, horizon: int) -> dict[str, list[tuple[dict[str, Any], Any]]]:
+def _gated(horizon: int, **settings: Any) -> Any:
     from gwr_predictor.learning.local_linear import LocalLinearParams, LocalLinearPredictor
-    from gwr_predictor.predictors.baselines import RLSAutoregressive, RLSParams
-    from gwr_predictor.predictors.direct_linear import DirectLinear, DirectLinearParams
     from gwr_predictor.predictors.gate import GatedPredictor, GateParams
 
+    lp = LocalLinearParams(horizon=horizon).replace(**settings)
+    return GatedPredictor(LocalLinearPredictor(lp), GateParams(horizon=horizon))
+
+
+def _candidates(config: Config, horizon: int) -> dict[str, list[tuple[dict[str, Any], Any]]]:
+    from gwr_predictor.predictors.baselines import RLSAutoregressive, RLSParams
+    from gwr_predictor.predictors.direct_linear import DirectLinear, DirectLinearParams
+
     def gated(**s: Any) -> Any:
-        lp = LocalLinearParams(horizon=horizon).replace(**s)
-        return GatedPredictor(LocalLinearPredictor(lp), GateParams(horizon=horizon))
+        return _gated(horizon, **s)
 
     llm = [{"rate": r, "insertion_scale": i, "neighbour_rate": n}
            for r, i, n in itertools.product(config.rates, config.insertion_scales, config.neighbour_rates)]
@@ -78,9 +92,18 @@ def _candidates(config: Config, horizon: int) -> dict[str, list[tuple[dict[str, 
             common.LINEAR: [(s, lambda s=s: DirectLinear(DirectLinearParams(horizon=horizon, **s))) for s in linear]}
 
 
-def choose(rows: list[dict[str, Any]], tie: float) -> dict[str, Any]:
+def _finest_insertion(settings: dict[str, Any]) -> float:
+    return settings["insertion_scale"]
+
+
+def _most_eager_recruitment(settings: dict[str, Any]) -> float:
+    return settings["recruit_surprise"] or math.inf  # 0 = no recruitment: the least eager
+
+
+def choose(rows: list[dict[str, Any]], tie: float,
+           prefer: Callable[[dict[str, Any]], float] = _finest_insertion) -> dict[str, Any]:
     """The lowest held-out-repetitions MAE; with `tie` > 0, among the rows within that share of it,
-    the smallest insertion_scale (then the lowest MAE)."""
+    the one `prefer` ranks first (default: the smallest insertion_scale), then the lowest MAE."""
     def mae(r: dict[str, Any]) -> float:
         return r["heldout_repetitions"]["mae"]
 
@@ -88,7 +111,22 @@ def choose(rows: list[dict[str, Any]], tie: float) -> dict[str, Any]:
     if tie <= 0:
         return best
     close = [r for r in rows if mae(r) <= mae(best) * (1.0 + tie)]
-    return min(close, key=lambda r: (r["settings"]["insertion_scale"], mae(r)))
+    return min(close, key=lambda r: (prefer(r["settings"]), mae(r)))
+
+
+def _score(factory: Callable[[], Any], settings: dict[str, Any], splits: Any, config: Config, params: Any,
+           seed: int) -> dict[str, Any]:
+    """Train a fresh model `config.epochs` passes over the training split; score it on both held-out splits."""
+    models = {"m": factory()}
+    rng = np.random.default_rng(seed)
+    for _ in range(config.epochs):
+        compare_online(models, common.shuffled(splits.train, rng), horizon=params.horizon, progress=False)
+    row: dict[str, Any] = {"settings": settings}
+    for split, seqs, learn in (("heldout_repetitions", splits.heldout_repetitions, False),
+                               ("heldout_subjects", splits.heldout_subjects, True)):
+        r = compare_online(common.clone(models), seqs, learn=learn, horizon=params.horizon, progress=False)["m"]
+        row[split] = {"mae": float(r.stats.mae[-1]), "mse": float(r.stats.mse[-1])}
+    return row
 
 
 def measure(config: Config, seed: int, progress: bool) -> dict[str, Any]:
@@ -99,22 +137,28 @@ def measure(config: Config, seed: int, progress: bool) -> dict[str, Any]:
     for method, grid in _candidates(config, params.horizon).items():
         rows = []
         for settings, factory in grid:
-            models = {"m": factory()}
-            rng = np.random.default_rng(seed)
-            for _ in range(config.epochs):
-                compare_online(models, common.shuffled(splits.train, rng), horizon=params.horizon, progress=False)
-            row: dict[str, Any] = {"settings": settings}
-            for split, seqs, learn in (("heldout_repetitions", splits.heldout_repetitions, False),
-                                       ("heldout_subjects", splits.heldout_subjects, True)):
-                r = compare_online(common.clone(models), seqs, learn=learn, horizon=params.horizon,
-                                   progress=False)["m"]
-                row[split] = {"mae": float(r.stats.mae[-1]), "mse": float(r.stats.mse[-1])}
-            rows.append(row)
+            rows.append(_score(factory, settings, splits, config, params, seed))
             if progress:
-                print(f"{method} {settings}: {row['heldout_repetitions']}", flush=True)
+                print(f"{method} {settings}: {rows[-1]['heldout_repetitions']}", flush=True)
         best = choose(rows, config.tie if method == common.GATED else 0.0)
         out[method] = {"grid": rows, "chosen": best["settings"], "chosen_scores": best}
+    if config.recruit_surprises:
+        out[RECRUIT] = _recruitment_stage(out[common.GATED]["chosen"], splits, config, params, seed, progress)
     return {"params": params.to_flat(), "splits": splits.sizes(), "methods": out}
+
+
+def _recruitment_stage(base: dict[str, Any], splits: Any, config: Config, params: Any, seed: int,
+                       progress: bool) -> dict[str, Any]:
+    """The default predictor at its chosen point, for each `recruit_surprise`; the most eager within `tie`."""
+    rows = []
+    for surprise in config.recruit_surprises:
+        settings = {"recruit_surprise": surprise}
+        rows.append(_score(lambda s=settings: _gated(params.horizon, **base, **s), settings, splits, config, params,
+                           seed))
+        if progress:
+            print(f"{RECRUIT} {settings}: {rows[-1]['heldout_repetitions']}", flush=True)
+    best = choose(rows, config.tie, _most_eager_recruitment)
+    return {"grid": rows, "chosen": best["settings"], "chosen_scores": best, "at": base}
 
 
 def run(config: Config, out: Path, seed: int = 0, progress: bool = True) -> ExperimentOutput:
@@ -127,7 +171,9 @@ def run(config: Config, out: Path, seed: int = 0, progress: bool = True) -> Expe
         keys = list(res["grid"][0]["settings"])
         rows = [[*[g["settings"][k] for k in keys], g["heldout_repetitions"]["mae"], g["heldout_repetitions"]["mse"],
                  g["heldout_subjects"]["mae"], g["heldout_subjects"]["mse"]] for g in res["grid"]]
-        md += ["", f"**{common.label(method)}**: chosen {res['chosen']}", "",
+        title = (f"{common.label(common.GATED)}, then `recruit_surprise` at {res['at']}" if method == RECRUIT
+                 else common.label(method))
+        md += ["", f"**{title}**: chosen {res['chosen']}", "",
                markdown_table([*keys, "new reps MAE", "new reps MSE", "new person MAE", "new person MSE"], rows,
                               digits=4)]
     return ExperimentOutput(NAME, "Settings of the default predictor and the linear baselines, one protocol",
