@@ -17,14 +17,16 @@ from gwr_predictor.learning.local_linear import (
 from gwr_predictor.learning.params import GWRParams
 
 
-def _net(recruit_surprise: float, consolidate_after: float = 200, max_neurons: int | None = None) -> LocalLinearPGWR:
+def _net(recruit_surprise: float, consolidate_after: float = 200, max_neurons: int | None = None,
+         recruit_after: int = 1) -> LocalLinearPGWR:
     """Two linked neurons far apart; GWR's own insertion never fires (a_T so low no distance reaches
     it), so any growth is recruitment."""
     return LocalLinearPGWR.from_parts(
         np.array([[0.0, 0.0, 0.0], [5.0, 5.0, 0.0]]), np.zeros((2, 2, 1)),
         GWRParams(activation_threshold=1e-9, max_neurons=max_neurons), edges=[(0, 1, 0)], counters=np.ones(2),
         match_dim=2, distance_factor=1.0, rate=0.1, delta=1e-4, visits=np.zeros(2),
-        consolidate_after=consolidate_after, readout_mse=np.full(2, np.nan), recruit_surprise=recruit_surprise)
+        consolidate_after=consolidate_after, readout_mse=np.full(2, np.nan), recruit_surprise=recruit_surprise,
+        recruit_after=recruit_after)
 
 
 def _movement(seed: int, centre: float, level: float, n: int = 600) -> tuple[np.ndarray, np.ndarray]:
@@ -47,16 +49,17 @@ def _learn(net: LocalLinearPGWR, x: np.ndarray, y: np.ndarray) -> list[int]:
     return steps
 
 
+@pytest.mark.parametrize("recruit_after", [1, 2])
 @pytest.mark.parametrize("seed", [0, 1, 2])
-def test_a_new_movement_through_an_old_ones_poses_gets_neurons_of_its_own(seed):
+def test_a_new_movement_through_an_old_ones_poses_gets_neurons_of_its_own(seed, recruit_after):
     """A (level +1 around the origin) for 600 steps, then B (level -1, 0.3 rad away on each axis): the
     one neuron of the region has consolidated on A. Without recruitment it ends as a compromise, A's
     error over 4x what it was; with it, B gets a neuron of its own, A's error is what it was right
-    after A, to the bit, and B's is near 0."""
+    after A, to the bit, and B's is near 0 (at the first surprise or the second in a row)."""
     xa, ya = _movement(seed, 0.0, 1.0)
     xb, yb = _movement(seed + 100, 0.3, -1.0)
     for surprise in (0.0, 6.0):
-        net = _net(surprise)
+        net = _net(surprise, recruit_after=recruit_after)
         assert _learn(net, xa, ya) == []  # one movement: nothing surprises its own neuron
         a_learned = _mse(net, xa, ya)
         _learn(net, xb, yb)
@@ -89,6 +92,45 @@ def test_a_recruited_neuron_sits_at_its_pair_with_its_parents_matrix_and_an_edge
     np.testing.assert_array_equal(net.weights_out[0], wo_before)
     np.testing.assert_array_equal(net.weights_in[0], w_before)
     assert net.visits[0] == visits_before
+
+
+@pytest.mark.parametrize("again", ["learn_local", "learn"])
+def test_the_pair_learned_again_right_after_its_recruitment_finds_its_new_neuron(again):
+    """Recruiting changes the network after the step's search, which is kept for the GWR step to
+    reuse on the same query: it must not outlive the change (plain `learn` would reuse it)."""
+    xa, ya = _movement(0, 0.0, 1.0)
+    net = _net(6.0)
+    _learn(net, xa, ya)
+    net._search.kept_buf[:] = -1e9  # what an earlier, larger search could have left there
+    x, y = np.array([0.21, 0.19]), np.array([-0.8])
+    assert net.learn_local(x, y, 0.05) == 0 and net.recruited == 1
+    b = net.learn_local(x, y, 0.05) if again == "learn_local" else net.learn(x, y)
+    assert b == 2  # the recruited neuron, at distance 0
+
+
+def test_one_odd_pair_is_ignored_and_only_a_second_in_a_row_recruits():
+    """recruit_after 2: the first surprising pair moves nothing and does not count in the neuron's
+    error; an ordinary pair in between resets the streak; two surprising pairs in a row recruit."""
+    xa, ya = _movement(0, 0.0, 1.0)
+    net = _net(6.0, recruit_after=2)
+    _learn(net, xa, ya)
+    odd_x, odd_y = np.array([0.02, -0.01]), np.array([-1.0])
+
+    def frozen() -> tuple[np.ndarray, ...]:  # the surprised BMU's (its unconsolidated neighbour still learns)
+        return net.weights[0].copy(), net.matrices[0].copy(), net.readout_mse[:1].copy()
+
+    before = frozen()
+    net.learn_local(odd_x, odd_y, 0.05)
+    assert net.recruited == 0 and net.surprise_streaks[0] == 1
+    for was, now in zip(before, frozen(), strict=True):
+        np.testing.assert_array_equal(was, now)
+    net.learn_local(xa[0], ya[0], 0.05)  # an ordinary pair: learned, and the streak starts over
+    assert net.surprise_streaks[0] == 0 and net.recruited == 0
+    net.learn_local(odd_x, odd_y, 0.05)
+    assert net.recruited == 0 and net.surprise_streaks[0] == 1
+    net.learn_local(odd_x + 0.01, odd_y, 0.05)
+    assert net.recruited == 1 and net.surprise_streaks[0] == 0
+    np.testing.assert_array_equal(net.weights_in[2], odd_x + 0.01)
 
 
 def test_neurons_that_have_not_consolidated_learn_exactly_as_without_recruitment():
@@ -149,7 +191,8 @@ def test_a_recruiting_checkpoint_continues_bit_for_bit(tmp_path):
 def test_a_checkpoint_from_before_recruitment_loads_without_it_and_continues_bit_for_bit():
     model, rest = _trained(LocalLinearParams(recruit_surprise=0.0))
     header, arrays = model.state()
-    del header["params"]["recruit_surprise"], header["recruited"], arrays["readout_mse"]
+    del header["params"]["recruit_surprise"], header["params"]["recruit_after"], header["recruited"]
+    del arrays["readout_mse"], arrays["surprise_streaks"]
     again = LocalLinearPredictor.from_state(header, arrays)
     assert again.params.recruit_surprise == 0.0
     for f in rest:
@@ -163,5 +206,9 @@ def test_recruitment_without_its_errors_or_with_bad_ones_is_refused():
         LocalLinearPredictor.from_state(header, {k: v for k, v in arrays.items() if k != "readout_mse"})
     with pytest.raises(CheckpointError, match="read-out errors"):
         LocalLinearPredictor.from_state(header, {**arrays, "readout_mse": np.full_like(arrays["readout_mse"], -1.0)})
+    with pytest.raises(CheckpointError, match="surprise streaks"):
+        LocalLinearPredictor.from_state(header, {**arrays, "surprise_streaks": arrays["surprise_streaks"][:-1]})
     with pytest.raises(LocalLinearError, match=r"LocalLinearParams\.recruit_surprise must be"):
         LocalLinearParams(recruit_surprise=-1.0)
+    with pytest.raises(LocalLinearError, match=r"LocalLinearParams\.recruit_after must be"):
+        LocalLinearParams(recruit_after=0)

@@ -27,9 +27,10 @@ so the output varies continuously between prototypes. Here, in addition:
   Why: where movements share the regressor space (above all the onsets from the common rest pose),
   each new movement rewrote the outputs of the neurons it shares with the earlier ones, and the
   earlier ones were forgotten.
-- recruitment (`recruit_surprise`): a consolidated neuron whose read-out misses a pair by far more
-  than it usually misses (squared error > `recruit_surprise` x its running mean) does not learn
-  that pair; a new neuron is recruited at the pair itself, predicting it exactly. Why: such a pair
+- recruitment (`recruit_surprise`, `recruit_after`): a consolidated neuron whose read-out misses a
+  pair by far more than it usually misses (squared error > `recruit_surprise` x its running mean)
+  does not learn that pair; when that happens `recruit_after` (2) times in a row, a new neuron is
+  recruited at the pair itself, predicting it exactly (one odd pair is only ignored). Why: such a pair
   belongs to a movement the neuron has not seen (a new movement through poses an old one shares);
   averaging it into the old neuron (consolidation) keeps neither, a neuron of its own keeps both.
   GWR's own insertion cannot do this: it looks at the regressor alone, and the regressor is close.
@@ -91,11 +92,12 @@ class LocalLinearPGWR(PredictiveGWR):
     average over all its visits, not the fit to the most recent ones. A new neuron starts at full
     rate.
 
-    `recruit_surprise` (0 = never; only consolidated neurons recruit): a consolidated BMU whose read-out's mean
-    squared error on a pair exceeds recruit_surprise x its running mean (`readout_mse`, over its own
-    visits as BMU) leaves the pair to a new neuron placed at it (input x, output y, the BMU's matrix,
-    an edge to the BMU) and does not learn it. A consolidated neighbour (of the block `learn_local`
-    updates) that the pair surprises is not moved by it: its plasticity is 0 for that step.
+    `recruit_surprise` (0 = never; only consolidated neurons recruit): a pair surprises a consolidated
+    neuron when its read-out's mean squared error on it exceeds recruit_surprise x its running mean
+    (`readout_mse`, over its own unsurprised visits as BMU). A surprised BMU is not moved by the pair;
+    at the `recruit_after`-th surprising pair in a row (`surprise_streaks`) it leaves the pair to a
+    new neuron placed at it (input x, output y, the BMU's matrix, an edge to the BMU). A consolidated
+    neighbour (of the block `learn_local` updates) that the pair surprises is not moved by it either.
     """
 
     #: what `learn_local` hands to the GWR step on the same block: the neurons' plasticity
@@ -110,32 +112,36 @@ class LocalLinearPGWR(PredictiveGWR):
     def __init__(self, in_dim: int, out_dim: int, params: GWRParams, rng: np.random.Generator, *,
                  init_low: float | np.ndarray = -1.0, init_high: float | np.ndarray = 1.0,
                  distance_factor: float = 1.0, rate: float = 0.5, delta: float = 1e-4,
-                 consolidate_after: float = 0.0, recruit_surprise: float = 0.0) -> None:
+                 consolidate_after: float = 0.0, recruit_surprise: float = 0.0, recruit_after: int = 1) -> None:
         self.rate, self.delta = float(rate), float(delta)
         self.consolidate_after = float(consolidate_after)
         self.recruit_surprise = float(recruit_surprise)
+        self.recruit_after = int(recruit_after)
         super().__init__(in_dim, out_dim, params, rng, init_low=init_low, init_high=init_high,
                          distance_factor=distance_factor)
 
     # --- the matrices follow their neurons (allocation, insertion, removal) ----------------------
     def _alloc(self, cap: int) -> None:
-        old, old_visits, old_mse = (getattr(self, k, None) for k in ("_A", "_visits", "_mse"))
+        old, old_visits, old_mse, old_streak = (getattr(self, k, None) for k in ("_A", "_visits", "_mse", "_streak"))
         n = self._n
         super()._alloc(cap)
         a = np.zeros((cap, self.match_dim, self.dim - self.match_dim))
         visits = np.zeros(cap)
         mse = np.full(cap, np.nan)  # NaN: not yet a BMU
+        streak = np.zeros(cap)
         if old is not None and n:
             a[:n] = old[:n]
             visits[:n] = old_visits[:n]
             mse[:n] = old_mse[:n]
-        self._A, self._visits, self._mse = a, visits, mse
+            streak[:n] = old_streak[:n]
+        self._A, self._visits, self._mse, self._streak = a, visits, mse, streak
 
     def _append(self, xm: np.ndarray, xc: np.ndarray, b: int) -> int:
         r = super()._append(xm, xc, b)
         self._A[r] = self._A[b]
         self._visits[r] = 0.0  # a new neuron learns at full rate, whatever its parent has seen
         self._mse[r] = np.nan
+        self._streak[r] = 0.0
         return r
 
     def _remove(self, i: int) -> int:
@@ -144,9 +150,11 @@ class LocalLinearPGWR(PredictiveGWR):
             self._A[i] = self._A[last]
             self._visits[i] = self._visits[last]
             self._mse[i] = self._mse[last]
+            self._streak[i] = self._streak[last]
         self._A[last] = 0.0
         self._visits[last] = 0.0
         self._mse[last] = np.nan
+        self._streak[last] = 0.0
         return super()._remove(i)
 
     # --- consolidation --------------------------------------------------------------------------
@@ -178,6 +186,11 @@ class LocalLinearPGWR(PredictiveGWR):
         return self._visits[:self._n]
 
     @property
+    def surprise_streaks(self) -> np.ndarray:
+        """(n,) view of each neuron's surprising visits in a row as a consolidated BMU (recruitment)."""
+        return self._streak[:self._n]
+
+    @property
     def readout_mse(self) -> np.ndarray:
         """(n,) view of each neuron's running mean squared read-out error on the pairs it learned as
         BMU (NaN: none yet), what recruitment compares a new pair's error with."""
@@ -185,6 +198,7 @@ class LocalLinearPGWR(PredictiveGWR):
 
     def _recruit(self, x_in: np.ndarray, y: np.ndarray, b: int) -> int:
         """A new neuron at the pair (x_in, y) with b's matrix, full plasticity and an edge to b."""
+        self._search.kept = None  # the step's search (`search_keep`) is stale once the network changes
         r = self._append(x_in, y, b)
         self._put(r, np.concatenate([x_in, y]))
         self._age[r, b] = self._age[b, r] = 0
@@ -199,8 +213,9 @@ class LocalLinearPGWR(PredictiveGWR):
         its plasticity when consolidating), then the GWR step (which reuses this search:
         `search_keep`), then the BMU's visit is counted. Returns the GWR step's BMU index. A
         consolidated BMU surprised by the pair (`recruit_surprise`) learns nothing: a neuron is
-        recruited for the pair instead, and the BMU's index is returned; a surprised consolidated
-        neighbour is not moved by the pair (plasticity 0)."""
+        recruited for the pair instead (at the `recruit_after`-th surprise in a row; before it, the BMU
+        is not moved), and the BMU's index is returned; a surprised consolidated neighbour is not
+        moved by the pair (plasticity 0)."""
         aff = self.search_keep(x_in)
         b = int(aff.argmax())
         nb = (self._age[b, :self._n] >= 0).nonzero()[0]
@@ -222,11 +237,20 @@ class LocalLinearPGWR(PredictiveGWR):
             if plasticity is not None:
                 surprised = (plasticity < 1.0) & (e2 > self.recruit_surprise * self._mse[block])  # NaN: False
                 if surprised[0] and (self.params.max_neurons is None or self._n < self.params.max_neurons):
-                    self._recruit(x_in, y, b)
-                    return b
-                plasticity[surprised] = 0.0  # a surprised consolidated neighbour keeps its function
-            known = self._mse[b]
-            self._mse[b] = e2[0] if math.isnan(known) else known + self.ERROR_RATE * (e2[0] - known)
+                    self._streak[b] += 1.0
+                    if self._streak[b] >= self.recruit_after:
+                        self._streak[b] = 0.0
+                        self._recruit(x_in, y, b)
+                        return b
+                else:
+                    surprised[0] = False
+                plasticity[surprised] = 0.0  # a surprised consolidated neuron is not moved by the pair
+            else:
+                surprised = None
+            if surprised is None or not surprised[0]:  # a surprising pair is not what the neuron usually misses
+                self._streak[b] = 0.0
+                known = self._mse[b]
+                self._mse[b] = e2[0] if math.isnan(known) else known + self.ERROR_RATE * (e2[0] - known)
         if plasticity is not None:
             rates = rates * plasticity
             self._handed = plasticity
@@ -264,7 +288,7 @@ class LocalLinearPGWR(PredictiveGWR):
                    counters: np.ndarray, match_dim: int, distance_factor: float, rate: float,
                    delta: float, visits: np.ndarray | None = None, consolidate_after: float = 0.0,
                    readout_mse: np.ndarray | None = None, recruit_surprise: float = 0.0,
-                   recruited: int = 0) -> LocalLinearPGWR:
+                   recruited: int = 0, streaks: np.ndarray | None = None, recruit_after: int = 1) -> LocalLinearPGWR:
         """A network from saved arrays (checkpoints); `visits` None = zeros (needed only when
         consolidating), `readout_mse` None = NaN (needed only when recruiting)."""
         net = cls.from_arrays(weights, params, edges=edges, counters=counters, match_dim=match_dim,
@@ -293,9 +317,16 @@ class LocalLinearPGWR(PredictiveGWR):
             net._mse[:net.n_neurons] = mse
         elif recruit_surprise > 0:
             raise ValueError("recruiting needs the neurons' read-out errors")
+        if streaks is not None:
+            if np.shape(streaks) != (net.n_neurons,):
+                raise ValueError(f"surprise streaks have shape {np.shape(streaks)}, expected ({net.n_neurons},)")
+            if not (np.isfinite(streaks).all() and (np.asarray(streaks) >= 0).all()):
+                raise ValueError("surprise streaks must be finite and >= 0")
+            net._streak[:net.n_neurons] = streaks
         net.rate, net.delta = float(rate), float(delta)
         net.consolidate_after = float(consolidate_after)
         net.recruit_surprise = float(recruit_surprise)
+        net.recruit_after = int(recruit_after)
         net.recruited = int(recruited)
         return net
 
@@ -308,7 +339,7 @@ _LOCAL_LINEAR_SPECS = {spec.name: spec for spec in (
     ParamSpec("order", 4, "frames in the regressor", 1, 32),
     ParamSpec("horizon", DEFAULT_HORIZON, "frames predicted", 1, 64),
     ParamSpec("n_joints", 8, "joints per frame", 1),
-    ParamSpec("insertion_scale", 1.0, "insertion distance in units of the motion scale", 0.0, 1e3,
+    ParamSpec("insertion_scale", 1.5, "insertion distance in units of the motion scale", 0.0, 1e3,
               lo_open=True, hi_open=True),
     ParamSpec("noise_floor", 0.01, "lower bound of the motion scale (rad)", 0.0, 10.0, lo_open=True, hi_open=True),
     ParamSpec("motion_decay", 0.999, "forgetting of the motion estimate per frame", 0.0, 1.0,
@@ -326,7 +357,9 @@ _LOCAL_LINEAR_SPECS = {spec.name: spec for spec in (
     ParamSpec("consolidate_after", 200, "visits after which a neuron's rates fall as 1/visits (0 = never)",
               0, 10**9),
     ParamSpec("recruit_surprise", 9.0, "squared read-out error, in units of a consolidated BMU's running mean, "
-              "beyond which a pair gets a new neuron instead (0 = never)", 0.0, 1e6),
+              "beyond which a pair surprises it (0 = never recruit)", 0.0, 1e6),
+    ParamSpec("recruit_after", 2, "surprising pairs in a row after which a consolidated BMU recruits a neuron",
+              1, 1000),
 )}
 # per setting added after the first local-linear P-GWR, in order: what a checkpoint written before it ran with
 _BEFORE = (
@@ -354,11 +387,13 @@ class LocalLinearParams:
     incremental`). 200 is about the memory of Eq. 9's output step at the firing counter's floor,
     1 / (eps_b (1 - 1/kappa)) = 210 visits: a neuron consolidates once it has had that many, and
     from then on its position and output weight are about the running means of its visits.
-    `recruit_surprise`: a consolidated BMU whose read-out's squared error on a pair exceeds this x its
-    running mean leaves the pair to a new neuron placed at it (0 = never; only consolidated neurons
-    recruit, so none without `consolidate_after`):
-    a new movement through the poses of an old one gets neurons of its own instead of being averaged
-    into the old one's (`experiment incremental`).
+    `recruit_surprise`: a pair surprises a consolidated BMU when its read-out's squared error exceeds
+    this x the neuron's running mean (0 = never recruit; only consolidated neurons recruit, so none
+    without `consolidate_after`). `recruit_after`: at that many surprising pairs in a row, the BMU
+    leaves the pair to a new neuron placed at it; the surprising pairs before it move nothing and do
+    not count in its error. So a new movement through the poses of an old one gets neurons of its own
+    instead of being averaged into the old one's (`experiment incremental`), while one odd pair (a
+    tracking glitch, one person's quirk) is only ignored.
     `gwr`: the GWR step's parameters (its a_T only fixes the constant -ln a_T the scaled distance is
     compared with).
     """
@@ -378,6 +413,7 @@ class LocalLinearParams:
     mix_ridge: float = _LOCAL_LINEAR_SPECS["mix_ridge"].default
     consolidate_after: int = _LOCAL_LINEAR_SPECS["consolidate_after"].default
     recruit_surprise: float = _LOCAL_LINEAR_SPECS["recruit_surprise"].default
+    recruit_after: int = _LOCAL_LINEAR_SPECS["recruit_after"].default
     gwr: GWRParams = field(default_factory=_default_gwr)
 
     def __post_init__(self) -> None:
@@ -417,7 +453,7 @@ class LocalLinearPredictor:
         out_dim = p.horizon * p.n_joints
         self.pgwr = LocalLinearPGWR(p.order * p.n_joints, out_dim, p.gwr, rng, init_low=np.concatenate(
             [lo, np.zeros(out_dim)]), init_high=np.concatenate([hi, np.zeros(out_dim)]), rate=p.rate,
-            consolidate_after=p.consolidate_after, recruit_surprise=p.recruit_surprise)
+            consolidate_after=p.consolidate_after, recruit_surprise=p.recruit_surprise, recruit_after=p.recruit_after)
         self._ln_at = -math.log(p.gwr.activation_threshold)
         self._motion_ms = p.noise_floor ** 2  # running mean of ||x(t) - x(t-1)||^2
         self._t = self._frames = self._missing = self._predictions = self._sequences = 0
@@ -611,7 +647,7 @@ class LocalLinearPredictor:
                   "counters": [self._t, self._frames, self._missing, self._predictions, self._sequences],
                   "errors": self._errors.header(), "recruited": g.recruited}
         arrays = {"weights": g.weights, "matrices": g.matrices.copy(), "visits": g.visits.copy(),
-                  "readout_mse": g.readout_mse.copy(),
+                  "readout_mse": g.readout_mse.copy(), "surprise_streaks": g.surprise_streaks.copy(),
                   "counters": g.counters.copy(),
                   "edges": g.edge_array(), "win": self._win.copy(), "hist": hist, "regs": reg_arr,
                   **{k: v.copy() for k, v in self._errors.arrays().items()}}
@@ -649,7 +685,8 @@ class LocalLinearPredictor:
                 distance_factor=float(header["distance_factor"]), rate=params.rate, delta=1e-4,
                 visits=arrays.get("visits"), consolidate_after=params.consolidate_after,
                 readout_mse=arrays.get("readout_mse"), recruit_surprise=params.recruit_surprise,
-                recruited=int(header.get("recruited", 0)))
+                recruited=int(header.get("recruited", 0)), streaks=arrays.get("surprise_streaks"),
+                recruit_after=params.recruit_after)
             if model.pgwr.out_dim != params.horizon * params.n_joints:
                 raise ValueError(f"outputs are {model.pgwr.out_dim}-d, parameters say "
                                  f"{params.horizon * params.n_joints}")
