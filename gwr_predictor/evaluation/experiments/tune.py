@@ -6,16 +6,16 @@ every point is trained online for `epochs` passes over the training split (rando
 and scored frozen on the held-out repetitions at the last horizon step; the point with the lowest MAE
 there wins, except that for the default predictor, among the points within `tie` (0.5 %) of that MAE,
 the finest insertion threshold (smallest `insertion_scale`) wins: more neurons share less of the
-regressor space between movements, so a newly learned movement rewrites less of the old ones (the
-default forgets about half as much at insertion_scale 1.0 as at 1.5, `experiment incremental`), and a
-0.5 % difference on one split is within what the seed changes. The held-out subject never takes part
-in the choice (it is reported, not used). Then, at the chosen point, a second stage sweeps
-`recruit_surprise` (0 = no recruitment): among the values within `tie` of the best MAE of that stage,
-the most eager recruitment (smallest value > 0) wins, for the same reason: a recruited neuron keeps
-an old movement's neurons from being rewritten (`experiment incremental`), and held-out accuracy
-says how far that can go before it fits the training pairs' noise. The chosen settings are the library defaults
-(`LocalLinearParams()`, `baselines.TUNED_RLS`, `direct_linear.TUNED_LINEAR`); this experiment checks
-that they still are the winners."""
+regressor space between movements, so a newly learned movement rewrites less of the old ones
+(`experiment incremental`), and a 0.5 % difference on one split is within what the seed changes. The
+held-out subject never takes part in the choice (it is reported, not used). The grid runs with the
+library's recruitment settings; then, at the chosen point, a second stage sweeps `recruit_surprise`
+(0 = no recruitment): among the values within `tie` of the best MAE of that stage, the most eager
+recruitment (smallest value > 0) wins, for the same reason: a recruited neuron keeps an old
+movement's neurons from being rewritten, and held-out accuracy says how far that can go before it
+fits the training pairs' noise. The chosen settings are the library defaults (`LocalLinearParams()`,
+`baselines.TUNED_RLS`, `direct_linear.TUNED_LINEAR`); this experiment checks that they still are
+the winners."""
 
 from __future__ import annotations
 
