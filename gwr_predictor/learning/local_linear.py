@@ -163,17 +163,21 @@ class LocalLinearPGWR(PredictiveGWR):
         (only called with consolidation on)."""
         return np.minimum(1.0, self.consolidate_after / np.maximum(self._visits[block], 1.0))
 
+    def _block_plasticity(self, block: np.ndarray) -> np.ndarray | None:
+        """`_plasticity(block)`, or None while no neuron of the block has consolidated (all at full rate)."""
+        if 0 < self.consolidate_after < self._most_visits and self._visits[block].max() > self.consolidate_after:
+            return self._plasticity(block)
+        return None
+
     def _step_rates(self, block: np.ndarray, h: np.ndarray) -> np.ndarray:
         """The GWR step's rates (Eqs. 4, 9) scaled by each neuron's plasticity: a consolidated neuron
         moves, and changes its output weight, as the running mean of its visits. Scaling position and
         output alike leaves its local model's function v + A^T (r - w) where its own visits put it."""
         rate = super()._step_rates(block, h)
         handed, self._handed = self._handed, None
-        if handed is not None and len(handed) == len(block):  # from `learn_local`, this very block
-            return rate * handed[:, None]
-        if not 0 < self.consolidate_after < self._most_visits or self._visits[block].max() <= self.consolidate_after:
-            return rate  # no neuron of the block consolidates yet
-        return rate * self._plasticity(block)[:, None]
+        if handed is None or len(handed) != len(block):  # not from `learn_local` on this very block
+            handed = self._block_plasticity(block)
+        return rate if handed is None else rate * handed[:, None]
 
     @property
     def matrices(self) -> np.ndarray:
@@ -225,9 +229,7 @@ class LocalLinearPGWR(PredictiveGWR):
             rates[0] = self.rate
         else:
             block, rates = np.array([b]), np.array([self.rate])
-        plasticity = None
-        if 0 < self.consolidate_after < self._most_visits and self._visits[block].max() > self.consolidate_after:
-            plasticity = self._plasticity(block)
+        plasticity = self._block_plasticity(block)
         d = x_in - self._w[block]  # (k, in)
         a = self._A[block]
         d_a = np.matmul(d[:, None, :], a)[:, 0]
