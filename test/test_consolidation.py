@@ -62,8 +62,12 @@ def test_a_movement_learned_first_keeps_what_a_model_of_both_gives_it(seed):
 
 def test_rates_fall_as_one_over_visits_past_the_knee_and_a_new_neuron_starts_at_full_rate():
     net = _one_region_net(50)
-    net._visits[:2] = [25.0, 400.0]
-    np.testing.assert_allclose(net._plasticity(np.array([0, 1])), [1.0, 0.125])
+    net._visits[:2] = [25.0, 40.0]
+    net._most_visits = 40.0
+    assert net._block_plasticity(np.array([0, 1])) is None  # nobody past the knee: full rates
+    net._visits[1] = net._most_visits = 400.0
+    np.testing.assert_allclose(net._block_plasticity(np.array([0, 1])), [1.0, 0.125])
+    np.testing.assert_allclose(net._block_plasticity(np.array([1])), [0.125])
     grown = LocalLinearPredictor(LocalLinearParams(consolidate_after=5), seed=0)
     t = np.arange(400)[:, None] * 0.1
     for frame in 0.5 * np.sin(2 * np.pi * 0.4 * t + np.arange(8)[None, :]):

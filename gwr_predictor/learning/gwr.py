@@ -309,21 +309,22 @@ class GWR:
         return self.learn_unchecked(self._check_input(x, self.dim))
 
     def learn_unchecked(self, x: np.ndarray, carried: np.ndarray | None = None,
-                        neighbours: tuple[int, np.ndarray] | None = None) -> int:
+                        neighbours: tuple[int, np.ndarray, float] | None = None) -> int:
         """`learn` on trusted finite float vectors: x whole (dim,), or x its matched part and
         `carried` the rest (a Predictive GWR's (x_in, x_out): no concatenated copy). `neighbours`:
-        (b, b's neighbours) if the caller has just looked them up for this very query on this network
-        (used only if b is again the BMU), so the edge row is not scanned twice."""
+        (b, b's neighbours, ||x - w_b||^2) if the caller has just computed them for this very query on
+        this network (used only if b is again the BMU), so neither is computed twice."""
         p = self.params
         n = self._n
         m = self.match_dim
         xm, xc = (x[:m], x[m:]) if carried is None else (x, carried)
         b, s = self._search.two_nearest(xm, n)  # 1. the two nearest neurons
-        dist = self._distance(b, xm)
+        known = neighbours is not None and neighbours[0] == b
+        dist = math.sqrt(neighbours[2]) if known else self._distance(b, xm)
         self.last_distance = dist
 
         age = self._age
-        nb = neighbours[1] if neighbours is not None and neighbours[0] == b else (age[b, :n] >= 0).nonzero()[0]
+        nb = neighbours[1] if known else (age[b, :n] >= 0).nonzero()[0]
         k = nb.size + 1
         block = self._block[:k]  # [b, neighbours...]
         block[0] = b

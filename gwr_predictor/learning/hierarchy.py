@@ -76,10 +76,13 @@ class ErrorTracker:
         """Score the predictions targeting step t (None: missing frame, they are dropped)."""
         predicted, valid = self._pending.take(t)
         if frame is not None and valid.any():
-            targets = self._targets
-            targets[0, 0] = represented
-            targets[1, 0] = frame
-            diff = predicted - targets
+            if represented is frame:  # no lower layers (P.E. = C.P.E.): one difference for both rows
+                diff = predicted - frame
+            else:
+                targets = self._targets
+                targets[0, 0] = represented
+                targets[1, 0] = frame
+                diff = predicted - targets
             err = np.vecdot(diff, diff)
             if not valid.all():
                 err *= valid

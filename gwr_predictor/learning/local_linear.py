@@ -100,8 +100,8 @@ class LocalLinearPGWR(PredictiveGWR):
     neighbour (of the block `learn_local` updates) that the pair surprises is not moved by it either.
     """
 
-    #: what `learn_local` hands to the GWR step on the same block: the neurons' plasticity
-    _handed: np.ndarray | None = None
+    #: what `learn_local` hands to the GWR step on the same block: (block size, the neurons' plasticity)
+    _handed: tuple[int, np.ndarray | None] | None = None
     #: at least the visits of the most visited neuron (removals do not lower it): 0 = nobody consolidates
     _most_visits: float = 0.0
     #: per visit of a neuron as BMU, the weight of its newest squared read-out error in `readout_mse`
@@ -158,15 +158,14 @@ class LocalLinearPGWR(PredictiveGWR):
         return super()._remove(i)
 
     # --- consolidation --------------------------------------------------------------------------
-    def _plasticity(self, block: np.ndarray) -> np.ndarray:
-        """Per neuron of `block`: min(1, consolidate_after / visits), the factor on all its rates
-        (only called with consolidation on)."""
-        return np.minimum(1.0, self.consolidate_after / np.maximum(self._visits[block], 1.0))
-
     def _block_plasticity(self, block: np.ndarray) -> np.ndarray | None:
-        """`_plasticity(block)`, or None while no neuron of the block has consolidated (all at full rate)."""
-        if 0 < self.consolidate_after < self._most_visits and self._visits[block].max() > self.consolidate_after:
-            return self._plasticity(block)
+        """Per neuron of `block`: min(1, consolidate_after / visits), the factor on all its rates; None
+        while no neuron of the block has consolidated (all at full rate) or consolidation is off."""
+        after = self.consolidate_after
+        if 0 < after < self._most_visits:
+            visits = self._visits[block]
+            if visits.max() > after:
+                return np.minimum(1.0, after / np.maximum(visits, 1.0))
         return None
 
     def _step_rates(self, block: np.ndarray, h: np.ndarray) -> np.ndarray:
@@ -175,9 +174,11 @@ class LocalLinearPGWR(PredictiveGWR):
         output alike leaves its local model's function v + A^T (r - w) where its own visits put it."""
         rate = super()._step_rates(block, h)
         handed, self._handed = self._handed, None
-        if handed is None or len(handed) != len(block):  # not from `learn_local` on this very block
-            handed = self._block_plasticity(block)
-        return rate if handed is None else rate * handed[:, None]
+        if handed is not None and handed[0] == block.size:  # from `learn_local` on this very block
+            plasticity = handed[1]
+        else:
+            plasticity = self._block_plasticity(block)
+        return rate if plasticity is None else rate * plasticity[:, None]
 
     @property
     def matrices(self) -> np.ndarray:
@@ -224,7 +225,9 @@ class LocalLinearPGWR(PredictiveGWR):
         b = int(aff.argmax())
         nb = (self._age[b, :self._n] >= 0).nonzero()[0]
         if neighbour_rate > 0:
-            block = np.concatenate([[b], nb])
+            block = np.empty(nb.size + 1, dtype=nb.dtype)
+            block[0] = b
+            block[1:] = nb
             rates = np.full(block.size, neighbour_rate)
             rates[0] = self.rate
         else:
@@ -255,12 +258,12 @@ class LocalLinearPGWR(PredictiveGWR):
                 self._mse[b] = e2[0] if math.isnan(known) else known + self.ERROR_RATE * (e2[0] - known)
         if plasticity is not None:
             rates = rates * plasticity
-            self._handed = plasticity
+        self._handed = (block.size, plasticity)
         dd = np.vecdot(d, d)
         gain = rates / (dd + self.delta)
         a += np.einsum("ki,ko->kio", gain[:, None] * d, err)  # rank-1 NLMS step per neuron
         self._A[block] = a
-        b = self.learn_unchecked(x_in, y, neighbours=(b, nb))
+        b = self.learn_unchecked(x_in, y, neighbours=(b, nb, float(dd[0])))
         self._handed = None  # unused if the step inserted a neuron instead
         self._visits[b] += 1.0
         self._most_visits = max(self._most_visits, float(self._visits[b]))
@@ -278,8 +281,8 @@ class LocalLinearPGWR(PredictiveGWR):
         d = x_in - self._w[idx]  # (k, in)
         ys = self._wo[idx] + np.matmul(d[:, None, :], self._A[idx])[:, 0]
         dist = np.sqrt(np.vecdot(d, d))
-        self.last_distance = float(dist.min())
-        if dist.min() <= 1e-12:
+        self.last_distance = nearest = float(dist.min())
+        if nearest <= 1e-12:
             return ys[int(dist.argmin())]
         wts = 1.0 / dist
         return (wts / wts.sum()) @ ys
@@ -539,19 +542,15 @@ class LocalLinearPredictor:
     def _mix_weights(self) -> np.ndarray:
         """(horizon, 2) least-squares weights of the [local, global] read-outs per step: the 2 x 2 ridge
         normal equations of every step, solved in closed form (a new array)."""
-        ridge = self.params.mix_ridge * self.params.n_joints
         sxx, sxy = self._mix_sxx, self._mix_sxy
-        a = sxx[:, 0, 0] + ridge
-        d = sxx[:, 1, 1] + ridge
-        b = sxx[:, 0, 1]
-        det = a * d  # > 0 once b * b is taken off: a ridge-regularised Gram matrix is positive definite
+        # [d, a]: the diagonal, swapped, plus the ridge; w = ([d, a] * sxy - b * sxy swapped) / det
+        da = sxx.diagonal(axis1=1, axis2=2)[:, ::-1] + self.params.mix_ridge * self.params.n_joints
+        b = sxx[:, :1, 1]
+        det = da[:, :1] * da[:, 1:]  # > 0 once b * b is taken off: a ridge-regularised Gram matrix is positive definite
         det -= b * b
-        w = np.empty_like(sxy)
-        np.multiply(d, sxy[:, 0], out=w[:, 0])
-        w[:, 0] -= b * sxy[:, 1]
-        np.multiply(a, sxy[:, 1], out=w[:, 1])
-        w[:, 1] -= b * sxy[:, 0]
-        w /= det[:, None]
+        w = da * sxy
+        w -= b * sxy[:, ::-1]
+        w /= det
         return w
 
     def _forecast(self, reg: np.ndarray, record: bool = False) -> np.ndarray:

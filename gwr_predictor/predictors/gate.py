@@ -121,8 +121,10 @@ class GatedPredictor:
         self._stats = np.zeros((len(p.memories), 4, p.horizon, p.joints))
         self._new = np.ones((4, p.horizon, p.joints))  # scratch of `_score` (row _N stays 1)
         self._filed = np.empty((2, p.horizon, p.joints))  # scratch of `step`: newest pose, model's step
-        self._decays = np.array([d for d, _ in p.memories])[:, None, None]
+        self._decays = np.array([d for d, _ in p.memories])[:, None, None, None]  # per memory, over `_stats`
         self._z = np.array([z for _, z in p.memories])[:, None, None]
+        self._z2 = 2.0 * self._z  # `alpha`'s doubled bound
+        self._prior = p.prior if p.per_joint else p.prior * p.joints  # added to S_xx
         # the memories whose bound needs computing: up to the last one with z > 0 (0: none)
         self._bounded = int(np.flatnonzero(self._z.ravel() > 0).max()) + 1 if self._z.any() else 0
         self._scored = np.zeros(p.horizon, dtype=np.int64)
@@ -198,12 +200,12 @@ class GatedPredictor:
             new[_XX] = np.vecdot(diff, diff)[:, None]
             new[_YY] = np.vecdot(resid, resid)[:, None]
         if ok.all():  # the common case: every step has a scored prediction
-            self._stats *= self._decays[..., None]
+            self._stats *= self._decays
             self._stats += new
             self._scored += 1
             return
         rows = ok.nonzero()[0]
-        self._stats[:, :, rows] = self._decays[..., None] * self._stats[:, :, rows] + new[:, rows]
+        self._stats[:, :, rows] = self._decays * self._stats[:, :, rows] + new[:, rows]
         self._scored[rows] += 1
 
     def alpha(self) -> np.ndarray:
@@ -212,18 +214,18 @@ class GatedPredictor:
         min(a, 2 lcb_long, 2 lcb_short): the long memory's least-squares estimate, capped by each
         memory at the largest shrinkage that still saves squared error against hold-last at the lower
         bound (2 alpha S_xy - alpha^2 S_xx >= 0 for alpha <= 2 a)."""
-        p = self.params
         s = self._stats
-        sxy, sxx_data = s[:, _XY], s[:, _XX]
-        sxx = sxx_data + (p.prior if p.per_joint else p.prior * p.joints)
+        sxy = s[:, _XY]
+        sxx = s[:, _XX] + self._prior
         a = sxy / sxx
-        cap = a.copy()
+        cap = a * 2.0  # 2 (a - z se(a)), the doubling exact: 2 a - (2 z) se
         b = self._bounded
         if b:  # z se(a), se(a)^2 = RSS / ((n - 1) S_xx), RSS = S_yy - 2 a S_xy + a^2 S_xx (in place, few calls)
-            se = a[:b] * sxx_data[:b]
-            se -= sxy[:b]
-            se -= sxy[:b]
-            se *= a[:b]
+            sxy_b, a_b = sxy[:b], a[:b]
+            se = a_b * s[:b, _XX]
+            se -= sxy_b
+            se -= sxy_b
+            se *= a_b
             se += s[:b, _YY]
             np.maximum(se, 0.0, out=se)
             dof = np.maximum(s[:b, _N], 2.0)
@@ -231,12 +233,12 @@ class GatedPredictor:
             dof *= sxx[:b]
             se /= dof
             np.sqrt(se, out=se)
-            se *= self._z[:b]
+            se *= self._z2[:b]
             cap[:b] -= se
-        cap *= 2.0
-        if p.fast_step and cap.shape[0] > 1:  # the short memory: every step capped by one step's record
-            cap[1] = cap[1, p.fast_step - 1]
-        out = cap.min(axis=0)
+        fast = self.params.fast_step
+        if fast and len(cap) > 1:  # the short memory: every step capped by one step's record
+            cap[1] = cap[1, fast - 1]
+        out = np.minimum(cap[0], cap[1]) if len(cap) == 2 else cap.min(axis=0)
         np.minimum(out, a[0], out=out)
         np.minimum(out, 1.0, out=out)
         return np.maximum(out, 0.0, out=out)
