@@ -282,7 +282,8 @@ def _last_json(capsys):
 def test_bench_quick_prints_its_figures_as_json(capsys):
     assert cli.main(["bench", "--quick", "--quiet"]) == 0
     result = _last_json(capsys)
-    for key in ("frames_per_s", "predict_p99_ms", "peak_rss_mb", "speedup_vs_loop"):
+    for key in ("frames_per_s", "predict_p99_ms", "peak_rss_mb", "speedup_vs_loop", "frames_per_s_default",
+                "default_vs_recursive"):
         assert key in result and math.isfinite(result[key]) and result[key] > 0
     assert result["predict_p99_ms"] >= result["predict_p50_ms"]
 

@@ -12,6 +12,9 @@ Prints readable lines, then one JSON object as the last line:
                     `products_per_frame`); the rest is numpy call overhead, learning updates, copies
   frames_per_s_default  the same for the node's default predictor (gated local-linear P-GWR, grown
                     on the stream to the size the data asks for, `neurons_default`)
+  default_vs_recursive  the default's speed over the recursive hierarchy's: median over chunks of
+                    the ratio, each chunk timed on both back to back (in alternating order), so
+                    that a load coming and going hits both alike (their separate runs do not)
   peak_rss_mb       peak resident memory with the benchmark models (before the loop/BMU probes)
   bmu_overhead_us / bmu_ns_per_value  fit of one BMU search time = overhead + n * dim * cost,
                     to tell call overhead from memory bandwidth
@@ -73,29 +76,53 @@ def bench_params(size: int, pgwr_size: int, mode: str, input_scale: float) -> Hi
                         pgwr=base.pgwr.replace(max_neurons=pgwr_size))
 
 
+def _chunk_seconds(model: Any, part: np.ndarray) -> float:
+    """Wall time of step() (learn + predict) over the frames of `part`."""
+    t0 = time.perf_counter()
+    for x in part:
+        model.step(x)
+    return time.perf_counter() - t0
+
+
 def measure_throughput(h: Hierarchy, stream: np.ndarray, chunk: int = 1000) -> tuple[float, float]:
     """(median, best) frames per second of step() (learn + predict) over chunks of `stream`.
     The median of chunks resists other processes stealing the CPU for a while."""
-    rates = []
-    for start in range(0, len(stream), chunk):
-        part = stream[start:start + chunk]
-        t0 = time.perf_counter()
-        for x in part:
-            h.step(x)
-        rates.append(len(part) / (time.perf_counter() - t0))
+    rates = [len(part) / _chunk_seconds(h, part) for part in _chunks(stream, chunk)]
     return float(np.median(rates)), float(np.max(rates))
 
 
-def measure_default(stream: np.ndarray, frames: int, chunk: int) -> tuple[float, float, int]:
-    """(median, best) frames/s of the node's default predictor (the registry's) and its neurons,
-    after learning the rest of `stream` first (it grows to the size the data asks for)."""
+def _chunks(stream: np.ndarray, chunk: int) -> list[np.ndarray]:
+    return [stream[start:start + chunk] for start in range(0, len(stream), chunk)]
+
+
+def measure_against(reference: Any, model: Any, stream: np.ndarray, chunk: int) -> tuple[float, float, float]:
+    """(median, best) frames/s of `model`, and the median over chunks of its speed over `reference`'s
+    on the same chunk, the two timed back to back in alternating order (a passing load hits both)."""
+    rates, ratios = [], []
+    for i, part in enumerate(_chunks(stream, chunk)):
+        if i % 2:
+            t_model = _chunk_seconds(model, part)
+            t_reference = _chunk_seconds(reference, part)
+        else:
+            t_reference = _chunk_seconds(reference, part)
+            t_model = _chunk_seconds(model, part)
+        rates.append(len(part) / t_model)
+        ratios.append(t_reference / t_model)
+    return float(np.median(rates)), float(np.max(rates)), float(np.median(ratios))
+
+
+def measure_default(reference: Hierarchy, stream: np.ndarray, frames: int,
+                    chunk: int) -> tuple[float, float, float, int]:
+    """(median, best) frames/s of the node's default predictor (the registry's), its speed over
+    `reference`'s (`measure_against`) and its neurons, after it learned the rest of `stream` first (it
+    grows to the size the data asks for)."""
     from gwr_predictor.predictors.registry import DEFAULT_PREDICTOR, make_predictor
 
     model = make_predictor(DEFAULT_PREDICTOR)
     for x in stream[frames:]:
         model.step(x)
-    fps, best = measure_throughput(model, stream[:frames], chunk)  # type: ignore[arg-type]
-    return fps, best, int(model.neuron_counts[0])
+    fps, best, ratio = measure_against(reference, model, stream[:frames], chunk)
+    return fps, best, ratio, int(model.neuron_counts[0])
 
 
 def products_per_frame(params: HierarchyParams) -> tuple[int, int, int]:
@@ -211,11 +238,15 @@ def run(args: argparse.Namespace) -> int:
                          f"{best:.0f}), neurons {h.neuron_counts} (grown on {used} frames); per frame "
                          f"{1e6 / fps:.0f} us, of which {search:.0f} us in {sum(counts)} BMU products "
                          f"{counts}, {1e6 / fps - search:.0f} us the rest")
+        if mode == "recursive":  # the default against this hierarchy, chunk by chunk
+            fps, best, ratio, neurons = measure_default(h, stream, frames, chunk)
+            result.update(frames_per_s_default=round(fps, 1), neurons_default=neurons,
+                          default_vs_recursive=round(ratio, 3))
+            _log(args.quiet, f"default  : {fps:9.0f} frames/s learn+predict, gated_llm_gwr (the node's default), "
+                             f"{neurons} P-GWR neurons after the warm-up (best {best:.0f}); "
+                             f"{ratio:.3f}x the recursive hierarchy's speed (median of paired chunks)")
+        del h
     result["frames_per_s"] = result[f"frames_per_s_{HierarchyParams().mode}"]
-    fps, best, neurons = measure_default(stream, frames, chunk)
-    result["frames_per_s_default"], result["neurons_default"] = round(fps, 1), neurons
-    _log(args.quiet, f"default  : {fps:9.0f} frames/s learn+predict, gated_llm_gwr (the node's default), "
-                     f"{neurons} P-GWR neurons after the warm-up (best {best:.0f})")
 
     mode = HierarchyParams().mode
     params = bench_params(size, pgwr_size, mode, args.input_scale)
