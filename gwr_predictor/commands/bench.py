@@ -76,6 +76,10 @@ def bench_params(size: int, pgwr_size: int, mode: str, input_scale: float) -> Hi
                         pgwr=base.pgwr.replace(max_neurons=pgwr_size))
 
 
+def _chunks(stream: np.ndarray, chunk: int) -> list[np.ndarray]:
+    return [stream[start:start + chunk] for start in range(0, len(stream), chunk)]
+
+
 def _chunk_seconds(model: Any, part: np.ndarray) -> float:
     """Wall time of step() (learn + predict) over the frames of `part`."""
     t0 = time.perf_counter()
@@ -89,10 +93,6 @@ def measure_throughput(h: Hierarchy, stream: np.ndarray, chunk: int = 1000) -> t
     The median of chunks resists other processes stealing the CPU for a while."""
     rates = [len(part) / _chunk_seconds(h, part) for part in _chunks(stream, chunk)]
     return float(np.median(rates)), float(np.max(rates))
-
-
-def _chunks(stream: np.ndarray, chunk: int) -> list[np.ndarray]:
-    return [stream[start:start + chunk] for start in range(0, len(stream), chunk)]
 
 
 def measure_against(reference: Any, model: Any, stream: np.ndarray, chunk: int) -> tuple[float, float, float]:
