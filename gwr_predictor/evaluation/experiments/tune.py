@@ -80,14 +80,11 @@ def _candidates(config: Config, horizon: int) -> dict[str, list[tuple[dict[str, 
     from gwr_predictor.predictors.baselines import RLSAutoregressive, RLSParams
     from gwr_predictor.predictors.direct_linear import DirectLinear, DirectLinearParams
 
-    def gated(**s: Any) -> Any:
-        return _gated(horizon, **s)
-
     llm = [{"rate": r, "insertion_scale": i, "neighbour_rate": n}
            for r, i, n in itertools.product(config.rates, config.insertion_scales, config.neighbour_rates)]
     rls = [{"order": o, "forgetting": f} for o, f in itertools.product(config.orders, config.forgettings)]
     linear = [{"order": o, "delta": d} for o, d in itertools.product(config.linear_orders, config.linear_deltas)]
-    return {common.GATED: [(s, lambda s=s: gated(**s)) for s in llm],
+    return {common.GATED: [(s, lambda s=s: _gated(horizon, **s)) for s in llm],
             "rls_ar": [(s, lambda s=s: RLSAutoregressive(RLSParams(**s), horizon)) for s in rls],
             common.LINEAR: [(s, lambda s=s: DirectLinear(DirectLinearParams(horizon=horizon, **s))) for s in linear]}
 
