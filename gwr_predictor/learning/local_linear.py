@@ -305,35 +305,36 @@ class LocalLinearPGWR(PredictiveGWR):
             raise ValueError("local models contain NaN or infinite values")
         net._A[:net.n_neurons] = matrices
         if visits is not None:
-            if np.shape(visits) != (net.n_neurons,):
-                raise ValueError(f"visit counts have shape {np.shape(visits)}, expected ({net.n_neurons},)")
-            if not (np.isfinite(visits).all() and (np.asarray(visits) >= 0).all()):
-                raise ValueError("visit counts must be finite and >= 0")
-            net._visits[:net.n_neurons] = visits
+            net._visits[:net.n_neurons] = _per_neuron(visits, net.n_neurons, "visit counts")
             net._most_visits = float(np.max(visits, initial=0.0))
         elif consolidate_after > 0:
             raise ValueError("consolidating needs the neurons' visit counts")
         if readout_mse is not None:
-            if np.shape(readout_mse) != (net.n_neurons,):
-                raise ValueError(f"read-out errors have shape {np.shape(readout_mse)}, expected ({net.n_neurons},)")
-            mse = np.asarray(readout_mse, dtype=float)
-            if not (np.isnan(mse) | (np.isfinite(mse) & (mse >= 0))).all():
-                raise ValueError("read-out errors must be NaN (no visit yet) or finite and >= 0")
-            net._mse[:net.n_neurons] = mse
+            net._mse[:net.n_neurons] = _per_neuron(readout_mse, net.n_neurons, "read-out errors", nan="no visit yet")
         elif recruit_surprise > 0:
             raise ValueError("recruiting needs the neurons' read-out errors")
         if streaks is not None:
-            if np.shape(streaks) != (net.n_neurons,):
-                raise ValueError(f"surprise streaks have shape {np.shape(streaks)}, expected ({net.n_neurons},)")
-            if not (np.isfinite(streaks).all() and (np.asarray(streaks) >= 0).all()):
-                raise ValueError("surprise streaks must be finite and >= 0")
-            net._streak[:net.n_neurons] = streaks
+            net._streak[:net.n_neurons] = _per_neuron(streaks, net.n_neurons, "surprise streaks")
         net.rate, net.delta = float(rate), float(delta)
         net.consolidate_after = float(consolidate_after)
         net.recruit_surprise = float(recruit_surprise)
         net.recruit_after = int(recruit_after)
         net.recruited = int(recruited)
         return net
+
+
+def _per_neuron(values: Any, n: int, what: str, nan: str | None = None) -> np.ndarray:
+    """`values` as n per-neuron figures, finite and >= 0 (or NaN, meaning `nan`, when that is given);
+    ValueError naming `what` otherwise."""
+    if np.shape(values) != (n,):
+        raise ValueError(f"{what} have shape {np.shape(values)}, expected ({n},)")
+    v = np.asarray(values, dtype=float)
+    ok = np.isfinite(v) & (v >= 0)
+    if nan is not None:
+        ok |= np.isnan(v)
+    if not ok.all():
+        raise ValueError(f"{what} must be {f'NaN ({nan}) or ' if nan else ''}finite and >= 0")
+    return v
 
 
 def _default_gwr() -> GWRParams:
