@@ -239,20 +239,20 @@ class LocalLinearPGWR(PredictiveGWR):
         err = y - self._wo[block] - d_a
         if self.recruit_surprise > 0:
             e2 = np.vecdot(err, err) / err.shape[1]
+            bmu_surprised = False
             if plasticity is not None:
                 surprised = (plasticity < 1.0) & (e2 > self.recruit_surprise * self._mse[block])  # NaN: False
-                if surprised[0] and (self.params.max_neurons is None or self._n < self.params.max_neurons):
-                    self._streak[b] += 1.0
-                    if self._streak[b] >= self.recruit_after:
-                        self._streak[b] = 0.0
-                        self._recruit(x_in, y, b)
-                        return b
-                else:
-                    surprised[0] = False
+                # the BMU only while there is room to recruit (at max_neurons it learns the pair as usual)
+                surprised[0] &= self.params.max_neurons is None or self._n < self.params.max_neurons
+                bmu_surprised = bool(surprised[0])
                 plasticity[surprised] = 0.0  # a surprised consolidated neuron is not moved by the pair
-            else:
-                surprised = None
-            if surprised is None or not surprised[0]:  # a surprising pair is not what the neuron usually misses
+            if bmu_surprised:
+                self._streak[b] += 1.0
+                if self._streak[b] >= self.recruit_after:
+                    self._streak[b] = 0.0
+                    self._recruit(x_in, y, b)
+                    return b
+            else:  # a surprising pair is not what the neuron usually misses: only the others count
                 self._streak[b] = 0.0
                 known = self._mse[b]
                 self._mse[b] = e2[0] if math.isnan(known) else known + self.ERROR_RATE * (e2[0] - known)
