@@ -23,7 +23,7 @@ import numpy as np
 
 from gwr_predictor.parameter_spec import ParamSpec
 from gwr_predictor.pipeline import conventions
-from gwr_predictor.pipeline.conventions import LayoutError
+from gwr_predictor.pipeline.conventions import LayoutError, TooLargeError
 from gwr_predictor.pipeline.trajectory import command_trajectory
 from gwr_predictor.robot import compensator
 from gwr_predictor.robot.nao import ARM_JOINTS
@@ -118,6 +118,9 @@ class DelayCompensatorNode(PipelineNode):
             stamp, names, preds = messages.read_predictions(msg)
             if names != ARM_JOINTS:
                 preds = preds[:, [names.index(n) for n in ARM_JOINTS]]
+        except TooLargeError as exc:
+            self.counters.reject("predictions.too_large", str(exc))
+            return
         except (LayoutError, ValueError) as exc:
             self.counters.reject("predictions.layout", str(exc))
             return

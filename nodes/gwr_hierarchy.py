@@ -127,7 +127,10 @@ class GwrHierarchyNode(PipelineNode):
             self.schedule_checkpoints(float(value))
 
     def create(self, params: HierarchyParams) -> Hierarchy | BlendedPredictor:
-        return make_predictor(self.params["predictor"], params, seed=self.params["seed"])
+        try:
+            return make_predictor(self.params["predictor"], params, seed=self.params["seed"])
+        except ValueError as exc:  # a setting this predictor cannot take (ParameterError and the like)
+            raise ParameterError(f"predictor {self.params['predictor']!r}: {exc}") from None
 
     def load_or_create(self, params: HierarchyParams) -> Hierarchy | BlendedPredictor:
         """The checkpoint's model if there is a readable one, else a fresh one with `params`."""

@@ -70,12 +70,11 @@ from gwr_predictor.errors import GwrPredictorError
 from gwr_predictor.learning.checkpoint import CheckpointError, read_checkpoint, require_arrays, write_checkpoint
 from gwr_predictor.learning.gwr import InputError
 from gwr_predictor.learning.hierarchy import ErrorTracker
-from gwr_predictor.learning.params import GWRParams
+from gwr_predictor.learning.params import DEFAULT_HORIZON, MAX_HORIZON, GWRParams
 from gwr_predictor.learning.predictive_gwr import PredictiveGWR
 from gwr_predictor.learning.rls import RecursiveLeastSquares, window_features
 from gwr_predictor.learning.scaling import InputScaling
 from gwr_predictor.parameter_spec import ParamSpec, check_fields
-from gwr_predictor.pipeline.conventions import DEFAULT_HORIZON
 
 
 class LocalLinearError(GwrPredictorError, ValueError):
@@ -343,7 +342,7 @@ def _default_gwr() -> GWRParams:
 
 _LOCAL_LINEAR_SPECS = {spec.name: spec for spec in (
     ParamSpec("order", 4, "frames in the regressor", 1, 32),
-    ParamSpec("horizon", DEFAULT_HORIZON, "frames predicted", 1, 64),
+    ParamSpec("horizon", DEFAULT_HORIZON, "frames predicted", 1, MAX_HORIZON),
     ParamSpec("n_joints", 8, "joints per frame", 1),
     ParamSpec("insertion_scale", 1.5, "insertion distance in units of the motion scale", 0.0, 1e3,
               lo_open=True, hi_open=True),

@@ -80,11 +80,16 @@ class GWRParams:
         return dataclasses.replace(self, **changes)
 
 
+#: Frames predicted by default: 6 at 10 fps, 600 ms, the paper's horizon.
+DEFAULT_HORIZON = 6
+#: The longest horizon any predictor accepts; prediction messages with more rows are refused on arrival.
+MAX_HORIZON = 100
+
 _HIER_SPECS: dict[str, ParamSpec] = {s.name: s for s in (
     ParamSpec("n_joints", 8, "angles per frame (8 Nao arm joints)", 1, 256),
     ParamSpec("tau1", 3, "window of GWR1 BMUs concatenated into the GWR2 input (Eq. 5)", 1, 32),
     ParamSpec("tau2", 3, "window of GWR2 BMUs concatenated into the P-GWR regressor (Eq. 5)", 1, 32),
-    ParamSpec("horizon", 6, "frames predicted ahead (6 at 10 fps = 600 ms)", 1, 100),
+    ParamSpec("horizon", DEFAULT_HORIZON, "frames predicted ahead (6 at 10 fps = 600 ms)", 1, MAX_HORIZON),
     ParamSpec("input_scale", DEFAULT_INPUT_SCALE,
               "model units per radian; -ln(a_T)/input_scale is the insertion distance in radians",
               0.0, 1000.0, lo_open=True),
@@ -109,7 +114,7 @@ class HierarchyParams:
     n_joints: int = 8
     tau1: int = 3
     tau2: int = 3
-    horizon: int = 6
+    horizon: int = DEFAULT_HORIZON
     mode: str = "recursive"
     input_scale: float = DEFAULT_INPUT_SCALE
     normalise_distance: bool = True

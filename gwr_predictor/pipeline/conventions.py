@@ -14,12 +14,15 @@ This module is pure Python/numpy; `gwr_predictor.nodes.messages` turns these int
 from __future__ import annotations
 
 import math
+from collections import Counter
 from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
 from gwr_predictor.errors import GwrPredictorError
+from gwr_predictor.learning.params import DEFAULT_HORIZON as DEFAULT_HORIZON
+from gwr_predictor.learning.params import MAX_HORIZON
 from gwr_predictor.robot.nao import ARM_JOINTS
 
 # --- topics (relative names, so a namespace or remapping moves the whole pipeline) -------------
@@ -81,7 +84,15 @@ SKELETON_JOINTS: tuple[str, ...] = (
 
 SKELETON_FPS = 30.0
 ANGLE_FPS = 10.0
-DEFAULT_HORIZON = 6  # frames at 10 fps: 600 ms
+
+# --- bounds on what a message may make a node allocate (checked where the message is unpacked) ---
+#: Joint names in one skeleton, prediction or joint state (a full-body tracker sends about 30).
+MAX_JOINTS = 256
+#: Characters in one joint name.
+MAX_NAME_CHARS = 128
+#: Markers in one body-tracking MarkerArray (32 joints x 6 bodies is 192).
+MAX_MARKERS = 4096
+#: MAX_HORIZON (rows of a prediction) comes from the learner's own limit, `learning.params`.
 
 JOINT_DIM_PREFIX = "joint:"
 XYZ_LABEL = "xyz"
@@ -90,6 +101,30 @@ HORIZON_LABEL = "horizon"
 
 class LayoutError(GwrPredictorError, ValueError):
     """A MultiArray whose layout does not match the convention; the message says what differs."""
+
+
+class TooLargeError(LayoutError):
+    """A message larger than a declared bound (MAX_JOINTS, MAX_NAME_CHARS, MAX_MARKERS, MAX_HORIZON):
+    refused before anything is sized by it, and counted as `too_large` rather than `layout`."""
+
+
+def check_size(what: str, n: int, limit: int) -> None:
+    """Raise TooLargeError when a message declares more than `limit` of `what`."""
+    if n > limit:
+        raise TooLargeError(f"{n} {what} exceeds the limit of {limit}")
+
+
+def check_joint_names(names: Sequence[str]) -> None:
+    """Joint names as a message gives them: at most MAX_JOINTS, none longer than MAX_NAME_CHARS, none
+    empty or twice (a joint named twice has no one position). Raises TooLargeError or LayoutError."""
+    check_size("joint names", len(names), MAX_JOINTS)
+    longest = max(map(len, names), default=0)
+    check_size("characters in a joint name", longest, MAX_NAME_CHARS)
+    if len(set(names)) != len(names):
+        twice = next(n for n, count in Counter(names).items() if count > 1)
+        raise LayoutError(f"joint name {twice!r} appears twice")
+    if not all(names):
+        raise LayoutError("empty joint name")
 
 
 @dataclass(frozen=True)
@@ -115,11 +150,14 @@ def joint_label(names: tuple[str, ...] | list[str]) -> str:
 
 
 def parse_joint_label(label: str) -> tuple[str, ...]:
+    """The joint names of a `joint:a|b|...` label, checked by `check_joint_names`."""
     if not label.startswith(JOINT_DIM_PREFIX):
         raise LayoutError(f"joint dim label must start with {JOINT_DIM_PREFIX!r}, got {label[:40]!r}")
+    check_size("characters in a joint label", len(label), len(JOINT_DIM_PREFIX) + MAX_JOINTS * (MAX_NAME_CHARS + 1))
     names = tuple(label[len(JOINT_DIM_PREFIX):].split("|"))
     if any(not n for n in names):
         raise LayoutError(f"empty joint name in label {label[:80]!r}")
+    check_joint_names(names)
     return names
 
 
@@ -175,6 +213,7 @@ def unpack_predictions(packed: PackedArray) -> tuple[float, tuple[str, ...], np.
     if dims[1].size != len(names):
         raise LayoutError(f"joint dim size {dims[1].size} != {len(names)} names in its label")
     h = dims[0].size
+    check_size("prediction rows (horizon)", h, MAX_HORIZON)
     data = np.asarray(packed.data, dtype=np.float64)
     if packed.data_offset != 1 or data.size != 1 + h * len(names) or h < 1:
         raise LayoutError(f"expected data_offset 1 and {1 + h * len(names)} values, got "
@@ -224,11 +263,8 @@ def select_joints(names: Sequence[str], positions: np.ndarray, wanted: Sequence[
     Raises LayoutError naming the missing joints or a duplicated name; extra joints are ignored
     (a full-body JointState carries more than the arms).
     """
-    index: dict[str, int] = {}
-    for i, name in enumerate(names):
-        if name in index:
-            raise LayoutError(f"joint name {name!r} appears twice")
-        index[name] = i
+    check_joint_names(names)
+    index = {name: i for i, name in enumerate(names)}
     missing = [n for n in wanted if n not in index]
     if missing:
         raise LayoutError(f"missing joints {missing}")

@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 
 from gwr_predictor.pipeline import stamps
-from gwr_predictor.pipeline.conventions import SKELETON_JOINTS, LayoutError, select_joints
+from gwr_predictor.pipeline.conventions import SKELETON_JOINTS, LayoutError, TooLargeError, select_joints
 from gwr_predictor.robot.nao import ARM_JOINTS, limits_array
 
 # --- counters and throttled warnings ---------------------------------------------------------------
@@ -99,7 +99,8 @@ class ArmAnglesGate:
     """Checks one JointState input stream of the arm joints and returns (stamp, angles) or None.
 
     Rules, each counted as `rejected.<input>.<reason>` (with a throttled warning):
-    - names and positions of different lengths, or a name twice: `layout`;
+    - names and positions of different lengths, or a name twice: `layout`; more names than
+      `conventions.MAX_JOINTS` or a name longer than `conventions.MAX_NAME_CHARS`: `too_large`;
     - any of `names` missing: `missing_joints` (extra joints are ignored; order does not matter);
     - NaN or inf among the wanted positions: `non_finite`;
     - a stamp of 0 or one not after the previous accepted stamp (repeat, jump back): `stamp`; one
@@ -136,6 +137,9 @@ class ArmAnglesGate:
             if positions.size != len(names):
                 raise LayoutError(f"{len(names)} joint names but {positions.size} positions")
             angles = select_joints(names, positions, self._names)
+        except TooLargeError as exc:
+            self._reject("too_large", str(exc))
+            return None
         except LayoutError as exc:
             self._reject("missing_joints" if "missing joints" in str(exc) else "layout", str(exc))
             return None

@@ -49,7 +49,6 @@ import numpy as np
 
 from gwr_predictor.errors import GwrPredictorError
 from gwr_predictor.parameter_spec import ParamSpec, check_fields
-from gwr_predictor.pending import PendingPredictions
 from gwr_predictor.robot.nao import ARM_JOINTS
 
 MODES = ("none", "guarded", "fixed", "variable")
@@ -178,7 +177,9 @@ class DelayCompensator:
 
     def _new_guard(self) -> _Guard:
         p = self.params
-        return _Guard(p.guard_decay, p.frame_period, p.guard_margin, p.guard_min_frames)
+        # the longest step a usable prediction can be asked for: the delay plus the staleness allowance
+        reach = fixed_step(p.delay_s + p.stale_after_s, p.frame_period, 2**31) + 1
+        return _Guard(p.guard_decay, p.frame_period, p.guard_margin, p.guard_min_frames, reach)
 
     @property
     def fallback_count(self) -> int:
@@ -304,21 +305,26 @@ class DelayCompensator:
 class _Guard:
     """Running MSE of executing P(t+j) (j = 0: the pose held since t) when the person is at t + k.
 
-    A prediction set made at t waits in `pending.PendingPredictions` (the one scorer of pending
-    predictions), its step clock the frame index round(t / frame_period), until its targets
-    t + k * frame_period (k = 1..h) are observed; each observed target frame scores every candidate
-    j = 0..h against it (mean over joints), so `allowed(k)` can pick the candidate that has recently
-    been closest to where the person was k frames later. Only observations that arrive count (no
-    peeking); each prediction set is filed once per frame and scored once per target; a frame that
-    is never observed drops what targets it; stamps that go back (a new sequence) drop everything
-    pending, as does a change of horizon (which also restarts the statistics).
+    Only steps up to `reach` can ever be commanded (the delay plus the staleness allowance), so the
+    guard keeps the first `reach` rows of a prediction set and ignores the rest: its memory is
+    O(reach^2 x joints), whatever horizon a message claims. The set made at frame t waits in a ring of
+    `reach` slots (slot t mod reach) until its targets t + k (k = 1..reach) are observed; each observed
+    target frame scores every candidate j = 0..reach against it (mean over joints), so `allowed(k)` can
+    pick the candidate that has recently been closest to where the person was k frames later. Only
+    observations that arrive count (no peeking); each set is filed once per frame and scored once per
+    target; a target never observed is never scored; stamps that go back (a new sequence) or a gap
+    longer than `reach` drop every pending set, and a change of the kept horizon restarts the statistics.
     """
 
-    def __init__(self, decay: float, frame_period: float, margin: float = 1.0, min_frames: int = 1) -> None:
+    _EMPTY = np.iinfo(np.int64).min
+
+    def __init__(self, decay: float, frame_period: float, margin: float = 1.0, min_frames: int = 1,
+                 reach: int | None = None) -> None:
         self.decay, self.period, self.margin, self.min_frames = decay, frame_period, margin, min_frames
-        self._pending: PendingPredictions | None = None  # candidates [base, P(t+1..t+h)] lead, allocated on use
-        self._filed = np.zeros(0, dtype=np.int64)  # by frame % h: the frame whose set was filed there
-        self._clock: int | None = None  # the last frame taken from the pending predictions
+        self.reach = reach  # None: every row of every set
+        self._sets = np.zeros((0, 1, 0))  # (slot, candidate j, joint): [base, P(t+1..t+k)] of the set in the slot
+        self._made = np.zeros(0, dtype=np.int64)  # by slot: the frame its set was made at (_EMPTY: none)
+        self._clock: int | None = None  # the last frame observed
         self._sse = np.zeros((0, 1))  # (target step k - 1, candidate j)
         self._weight = np.zeros(0)
         self._scored = np.zeros(0, dtype=np.int64)  # frames scored per target step, not decayed
@@ -329,47 +335,43 @@ class _Guard:
     def expect(self, t: float, preds: np.ndarray, base: np.ndarray) -> None:
         """File the candidates of the prediction set made at t (the first one given for its frame)."""
         i, (h, joints) = self._index(t), preds.shape
-        if self._pending is None or self._pending.horizon != h:
-            self._pending = PendingPredictions(h, joints, lead=(h + 1,))
-            self._filed = np.full(h, np.iinfo(np.int64).min)
-            self._sse, self._weight, self._scored = np.zeros((h, h + 1)), np.zeros(h), np.zeros(h, dtype=np.int64)
+        k = h if self.reach is None else min(h, self.reach)
+        if self._sets.shape != (k, k + 1, joints):
+            self._sets = np.zeros((k, k + 1, joints))
+            self._made = np.full(k, self._EMPTY, dtype=np.int64)
+            self._sse, self._weight, self._scored = np.zeros((k, k + 1)), np.zeros(k), np.zeros(k, dtype=np.int64)
         if self._clock is None:
             self._clock = i
-        if self._filed[i % h] == i or i + h <= self._clock:
+        slot = i % k
+        if self._made[slot] == i or i + k <= self._clock:
             return  # filed already, or every target has passed
-        self._filed[i % h] = i
-        cands = np.vstack([base[None, :], preds])  # (h + 1, J)
-        ahead = i + 1 + np.arange(h) > self._clock  # rows whose target is still to come
-        self._pending.file(i, np.broadcast_to(cands[:, None, :], (h + 1, h, joints)),
-                           np.broadcast_to(ahead, (h + 1, h)))
+        self._made[slot] = i
+        self._sets[slot, 0] = base
+        self._sets[slot, 1:] = preds[:k]
 
     def observe(self, t: float, obs: np.ndarray) -> None:
         """Score the candidates of every pending set that targets the frame stamped t."""
         j = self._index(t)
-        if self._pending is None or self._clock is None or j < self._clock:
-            if self._pending is not None:  # stamps went back: a new sequence
-                self._pending.drop()
-                self._filed[:] = np.iinfo(np.int64).min
+        k = self._made.shape[0]
+        if self._clock is None or j < self._clock or (k and j - self._clock > k):
+            self._made[:] = self._EMPTY  # a new sequence, or a gap that every pending target falls into
             self._clock = j
             return
-        if j == self._clock:
-            return  # this frame was scored already
-        if j - self._clock > self._pending.horizon:
-            self._pending.drop()  # a gap longer than the horizon: every target in between is lost
-        else:
-            for missing in range(self._clock + 1, j):
-                self._pending.take(missing)  # frames never observed drop what targets them
+        if j == self._clock or not k:
+            self._clock = j
+            return  # this frame was scored already, or nothing was filed yet
         self._clock = j
-        due, valid = self._pending.take(j)  # (h + 1, h, J): candidate, row k made k + 1 frames ago
-        rows = valid[0]
-        if rows.any():
-            err = np.mean((due[:, rows] - obs) ** 2, axis=-1).T  # (scored rows, candidate)
+        lead = j - self._made
+        due = (lead >= 1) & (lead <= k)
+        if due.any():
+            rows = lead[due] - 1
+            err = np.mean((self._sets[due] - obs) ** 2, axis=-1)  # (scored rows, candidate)
             self._sse[rows] = self.decay * self._sse[rows] + err
             self._weight[rows] = self.decay * self._weight[rows] + 1.0
             self._scored[rows] += 1
 
     def mse(self) -> tuple[np.ndarray, np.ndarray]:
-        """(MSE of P(t+k) at step k, MSE of holding still at step k), k = 1..h; NaN before any score."""
+        """(MSE of P(t+k) at step k, MSE of holding still at step k), k = 1..kept horizon; NaN before any score."""
         with np.errstate(invalid="ignore", divide="ignore"):
             m = np.where(self._weight[:, None] > 0, self._sse / np.maximum(self._weight, 1e-300)[:, None], np.nan)
         k = np.arange(m.shape[0])
