@@ -15,7 +15,8 @@ import numpy as np
 
 from gwr_predictor.data import demonstrator, faults
 from gwr_predictor.data.mocap import ImportOptions, load_any_skeleton
-from gwr_predictor.data.skeleton_files import SkeletonFileError, SkeletonSequence
+from gwr_predictor.data.skeleton_files import SkeletonSequence
+from gwr_predictor.errors import GwrPredictorError
 from gwr_predictor.parameter_spec import ParamSpec
 from gwr_predictor.pipeline import conventions
 
@@ -77,8 +78,10 @@ class SkeletonSourceNode(PipelineNode):
             try:
                 options = ImportOptions(units=p["mocap_units"], fps=p["mocap_fps"], joint_map=p["joint_map"] or None)
                 seqs: list[SkeletonSequence] | None = [load_any_skeleton(p["file"], options)]
-            except SkeletonFileError as exc:
-                raise NodeFatalError(str(exc)) from None
+            except GwrPredictorError as exc:
+                raise NodeFatalError(" ".join(str(exc).split())) from None
+            except MemoryError:  # within the import limits but not within this machine's memory
+                raise NodeFatalError(f"{p['file']}: needs more memory than is available; refused") from None
         else:
             patterns = tuple(p["patterns"]) or demonstrator.PATTERNS
             unknown = [x for x in patterns if x not in demonstrator.PATTERNS]

@@ -13,11 +13,14 @@ here. Positions are named after the bone that *starts* there (`lhumerus` = the s
 
 from __future__ import annotations
 
+from collections import deque
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
+from gwr_predictor.data import file_limits as limits
 from gwr_predictor.data.mocap import MocapClip, MocapError
 
 INCH_M = 0.0254
@@ -64,6 +67,7 @@ def parse_asf(path: Path) -> AsfSkeleton:
     sections: dict[str, list[list[str]]] = {}
     units: dict[str, str] = {}
     current = None
+    limits.check_file_size(path, limits.MAX_SKELETON_BYTES, "ASF skeleton", MocapError)
     for raw in path.read_text(errors="replace").splitlines():
         line = raw.split("#", 1)[0].strip()
         if not line:
@@ -130,6 +134,8 @@ def _parse_bones(path: Path, rows: list[list[str]]) -> dict[str, AsfBone]:
             if bad:
                 raise MocapError(f"{path}: bone {name!r}: unknown dof {bad}")
             bones[name] = bone
+            limits.check_count(path, 2 * len(bones) + 1, limits.MAX_JOINTS, "joints (bone starts and ends)",
+                               MocapError)
             cur = None
         elif cur is not None:
             if key == "limits" or (row[0].startswith("(") and "limits" in cur):
@@ -140,6 +146,8 @@ def _parse_bones(path: Path, rows: list[list[str]]) -> dict[str, AsfBone]:
 
 
 def _parse_hierarchy(path: Path, rows: list[list[str]], bones: dict[str, AsfBone]) -> list[str]:
+    """Bones in an order that puts parents first; a bone with two parents (a cycle or a diamond, which
+    would be visited exponentially often) is refused, as is a chain deeper than `MAX_DEPTH`."""
     for row in rows:
         if row[0].lower() in ("begin", "end"):
             continue
@@ -149,64 +157,96 @@ def _parse_hierarchy(path: Path, rows: list[list[str]], bones: dict[str, AsfBone
         for c in children:
             if c not in bones:
                 raise MocapError(f"{path}: :hierarchy names bone {c!r}, which :bonedata lacks")
+            if bones[c].parent != "root":
+                raise MocapError(f"{path}: :hierarchy gives bone {c!r} two parents")
             bones[c].parent = parent
             if parent != "root":
                 bones[parent].children.append(c)
     order: list[str] = []
-    frontier = [n for n, b in bones.items() if b.parent == "root"]
+    depth = {n: 1 for n, b in bones.items() if b.parent == "root"}
+    frontier = deque(depth)
     while frontier:
-        name = frontier.pop(0)
+        name = frontier.popleft()
         order.append(name)
-        frontier.extend(bones[name].children)
-    missing = [n for n in bones if n not in order]
+        for child in bones[name].children:
+            if child in depth:
+                raise MocapError(f"{path}: :hierarchy gives bone {child!r} two parents")
+            depth[child] = limits.check_count(path, depth[name] + 1, limits.MAX_DEPTH, "levels of bone nesting",
+                                              MocapError)
+            frontier.append(child)
+    missing = [n for n in bones if n not in depth]
     if missing:
-        raise MocapError(f"{path}: bones {missing} are not connected to the root in :hierarchy")
+        raise MocapError(f"{path}: bones {missing[:5]} are not connected to the root in :hierarchy")
     return order
 
 
+def _amc_lines(path: Path) -> Iterator[tuple[int, list[str]]]:
+    """Line numbers and tokens of an AMC's data lines (comments and ':' keywords skipped), streamed."""
+    with path.open(errors="replace") as fh:
+        for n, raw in enumerate(fh, 1):
+            line = raw.strip()
+            if line and not line.startswith(("#", ":")):
+                yield n, line.split()
+
+
+def _is_frame_number(parts: list[str]) -> bool:
+    return len(parts) == 1 and parts[0].isdigit()
+
+
 def parse_amc(path: Path, skeleton: AsfSkeleton) -> dict[str, np.ndarray]:
-    """Per bone (and 'root') the (frames, dof) values of an AMC file."""
-    frames: list[dict[str, list[float]]] = []
-    for n, raw in enumerate(path.read_text(errors="replace").splitlines(), 1):
-        line = raw.strip()
-        if not line or line.startswith("#") or line.startswith(":"):
-            continue
-        parts = line.split()
-        if len(parts) == 1 and parts[0].isdigit():
-            frames.append({})
-            continue
-        if not frames:
-            raise MocapError(f"{path}: line {n}: bone values before the first frame number")
-        try:
-            frames[-1][parts[0]] = [float(v) for v in parts[1:]]
-        except ValueError:
-            raise MocapError(f"{path}: line {n}: bone {parts[0]!r} has a value that is not a number") from None
+    """Per bone (and 'root') the (frames, dof) values of an AMC file. Read twice: once to count the
+    frames (checked against the limits), once to fill tables of exactly that size."""
+    limits.check_file_size(path, limits.MAX_TEXT_BYTES, "AMC motion", MocapError)
+    expected = {"root": len(skeleton.root_order), **{n: len(b.dof) for n, b in skeleton.bones.items()}}
+    frames = sum(1 for _, parts in _amc_lines(path) if _is_frame_number(parts))
     if not frames:
         raise MocapError(f"{path}: no frames (not an AMC file?)")
-    out: dict[str, np.ndarray] = {}
-    expected = {"root": len(skeleton.root_order), **{n: len(b.dof) for n, b in skeleton.bones.items()}}
-    for name, width in expected.items():
-        if width == 0:
+    limits.check_shape(path, frames, 2 * len(skeleton.bones) + 1, MocapError)
+    limits.check_count(path, frames * sum(expected.values()), limits.MAX_VALUES, "motion values (frames x dof)",
+                       MocapError)
+    out = {name: np.zeros((frames, width)) for name, width in expected.items() if width or name == "root"}
+    has_root = np.zeros(frames, dtype=bool)
+    unknown: set[str] = set()
+    f = -1
+    for n, parts in _amc_lines(path):
+        if _is_frame_number(parts):
+            f += 1
             continue
-        table = np.zeros((len(frames), width))
-        for f, values in enumerate(frames):
-            if name not in values:
-                if name == "root":
-                    raise MocapError(f"{path}: frame {f + 1} lacks the root")
-                continue  # an absent bone keeps its rest pose
-            if len(values[name]) != width:
-                raise MocapError(f"{path}: frame {f + 1}, bone {name!r}: {len(values[name])} values, the ASF "
-                                 f"gives it {width} dof")
-            table[f] = values[name]
-        out[name] = table
-    unknown = sorted({b for fr in frames for b in fr if b not in expected})
+        if f < 0:
+            raise MocapError(f"{path}: line {n}: bone values before the first frame number")
+        name = parts[0]
+        if name not in expected:
+            unknown.add(name)
+            continue
+        try:
+            values = [float(v) for v in parts[1:]]
+        except ValueError:
+            raise MocapError(f"{path}: line {n}: bone {name[:30]!r} has a value that is not a number") from None
+        if expected[name] and len(values) != expected[name]:
+            raise MocapError(f"{path}: frame {f + 1}, bone {name!r}: {len(values)} values, the ASF "
+                             f"gives it {expected[name]} dof")
+        if name in out:
+            out[name][f] = values
+        has_root[f] |= name == "root"
+    if expected["root"] and not has_root.all():
+        raise MocapError(f"{path}: frame {int(np.argmin(has_root)) + 1} lacks the root")
     if unknown:
-        raise MocapError(f"{path}: bones {unknown[:5]} are not in the ASF skeleton")
+        raise MocapError(f"{path}: bones {sorted(unknown)[:5]} are not in the ASF skeleton")
     return out
 
 
 def forward_kinematics(skeleton: AsfSkeleton, motion: dict[str, np.ndarray]) -> tuple[np.ndarray, list[str]]:
-    """Positions (frames, joints, 3) in metres: the root, then each bone's start, then its end."""
+    """Positions (frames, joints, 3) in metres: the root, then each bone's start, then its end; a few
+    frames at a time so that the rotations of every bone are never held for the whole clip."""
+    frames = motion["root"].shape[0]
+    names = ["root", *skeleton.order, *(f"{n}_end" for n in skeleton.order)]
+    out = np.empty((frames, len(names), 3))
+    for chunk in limits.frame_chunks(frames, 15 * len(names)):
+        out[chunk] = _forward_kinematics(skeleton, {k: v[chunk] for k, v in motion.items()})[0]
+    return out, names
+
+
+def _forward_kinematics(skeleton: AsfSkeleton, motion: dict[str, np.ndarray]) -> tuple[np.ndarray, list[str]]:
     root = motion["root"]
     t = root.shape[0]
     col = {k: i for i, k in enumerate(skeleton.root_order)}

@@ -14,14 +14,30 @@ told otherwise. Positions of a joint are where its bone starts: `LeftArm` is the
 
 from __future__ import annotations
 
+import itertools
+from collections import Counter
+from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
+from gwr_predictor.data.file_limits import (
+    MAX_DEPTH,
+    MAX_JOINTS,
+    MAX_TEXT_BYTES,
+    MAX_VALUES,
+    check_count,
+    check_file_size,
+    check_shape,
+    frame_chunks,
+)
 from gwr_predictor.data.mocap import MocapClip, MocapError
 
 _AXIS = {"x": 0, "y": 1, "z": 2}
+_CHANNELS = frozenset(f"{a}{kind}" for a in "xyz" for kind in ("position", "rotation"))
+#: Motion lines parsed per numpy call: the text of a few thousand frames at a time.
+_ROWS_PER_CHUNK = 4096
 
 
 @dataclass
@@ -54,129 +70,182 @@ def rotation_matrices(angles_deg: np.ndarray, axes: str) -> np.ndarray:
 
 
 def parse_bvh(path: Path) -> tuple[list[BvhJoint], np.ndarray, float]:
-    """Joints, motion table (frames, channels) and frame time in seconds; errors name file and line."""
-    tokens: list[tuple[int, str]] = []
-    text = path.read_text(errors="replace")
-    head, sep, motion = text.partition("MOTION")
-    if not sep:
-        raise MocapError(f"{path}: no MOTION section (not a BVH file?)")
-    for n, line in enumerate(head.splitlines(), 1):
-        tokens.extend((n, tok) for tok in line.split())
-    if not tokens or tokens[0][1] != "HIERARCHY":
+    """Joints, motion table (frames, channels) and frame time in seconds; errors name file and line.
+
+    The file is streamed line by line and every declared size (file, joints, nesting, channels,
+    frames x channels) is checked against `file_limits` before the motion table is allocated."""
+    check_file_size(path, MAX_TEXT_BYTES, "BVH file", MocapError)
+    with path.open(errors="replace") as fh:
+        lines = enumerate(fh, 1)
+        joints, n_channels = _parse_hierarchy(path, _tokens(lines))
+        table, time = _parse_motion(path, lines, n_channels, len(joints))
+    return joints, table, time
+
+
+def _tokens(lines: Iterator[tuple[int, str]]) -> Iterator[tuple[int, str]]:
+    for n, line in lines:
+        for tok in line.split():
+            yield n, tok
+
+
+class _Hierarchy:
+    """The HIERARCHY section as it is read: joints so far, the open ones, the next joint's name."""
+
+    def __init__(self, path: Path) -> None:
+        self.path = path
+        self.joints: list[BvhJoint] = []
+        self.stack: list[int] = []
+        self.n_channels = 0
+        self.pending: tuple[str, int] | None = None  # name, parent of the joint whose '{' comes next
+
+    def open(self, line: int) -> None:
+        if self.pending is None:
+            raise MocapError(f"{self.path}: line {line}: '{{' without a joint")
+        check_count(self.path, len(self.joints) + 1, MAX_JOINTS, "joints", MocapError)
+        check_count(self.path, len(self.stack) + 1, MAX_DEPTH, "levels of joint nesting", MocapError)
+        self.joints.append(BvhJoint(self.pending[0], self.pending[1], np.zeros(3), (), self.n_channels))
+        self.stack.append(len(self.joints) - 1)
+        self.pending = None
+
+    def channels(self, line: int, names: tuple[str, ...]) -> None:
+        bad = [c for c in names if c.lower() not in _CHANNELS]
+        if bad or not self.stack:
+            raise MocapError(f"{self.path}: line {line}: unknown channels {bad} in joint "
+                             f"{self.joints[self.stack[-1]].name if self.stack else '?'}")
+        j = self.joints[self.stack[-1]]
+        j.channels, j.first_channel = names, self.n_channels
+        self.n_channels += len(names)
+
+
+def _parse_hierarchy(path: Path, tokens: Iterator[tuple[int, str]]) -> tuple[list[BvhJoint], int]:
+    """Reads tokens up to and including MOTION; refuses more than `MAX_JOINTS` or `MAX_DEPTH` as it goes."""
+    def take() -> tuple[int, str]:
+        tok = next(tokens, None)
+        if tok is None:
+            raise MocapError(f"{path}: hierarchy ends early (unbalanced braces?; no MOTION section?)")
+        return tok
+
+    first = next(tokens, (0, ""))
+    if first[1] != "HIERARCHY":
         raise MocapError(f"{path}: must start with HIERARCHY")
-    joints: list[BvhJoint] = []
-    stack: list[int] = []
-    n_channels = 0
-    i = 1
-    pending: tuple[str, int] | None = None  # name, parent of the joint whose '{' comes next
-
-    def expect(k: int) -> tuple[int, str]:
-        if k >= len(tokens):
-            raise MocapError(f"{path}: hierarchy ends early (unbalanced braces?)")
-        return tokens[k]
-
-    while i < len(tokens):
-        line, tok = tokens[i]
+    h = _Hierarchy(path)
+    while True:
+        line, tok = take()
+        if tok == "MOTION":
+            break
+        if not h.stack and h.joints and tok != "ROOT":
+            raise MocapError(f"{path}: line {line}: expected MOTION after the hierarchy, got {tok[:30]!r} "
+                             "(no MOTION section?)")
         if tok in ("ROOT", "JOINT"):
-            _, name = expect(i + 1)
-            pending = (name, stack[-1] if stack else -1)
-            if tok == "JOINT" and not stack:
+            _, name = take()
+            if tok == "JOINT" and not h.stack:
                 raise MocapError(f"{path}: line {line}: JOINT {name} outside a ROOT")
-            i += 2
+            h.pending = (name, h.stack[-1] if h.stack else -1)
         elif tok == "End":
-            parent = stack[-1] if stack else -1
-            if parent < 0:
+            take()
+            if not h.stack:
                 raise MocapError(f"{path}: line {line}: End Site outside a joint")
-            pending = (f"{joints[parent].name}_end", parent)
-            i += 2
+            h.pending = (f"{h.joints[h.stack[-1]].name}_end", h.stack[-1])
         elif tok == "{":
-            if pending is None:
-                raise MocapError(f"{path}: line {line}: '{{' without a joint")
-            joints.append(BvhJoint(pending[0], pending[1], np.zeros(3), (), n_channels))
-            stack.append(len(joints) - 1)
-            pending = None
-            i += 1
+            h.open(line)
         elif tok == "}":
-            if not stack:
+            if not h.stack:
                 raise MocapError(f"{path}: line {line}: unbalanced '}}'")
-            stack.pop()
-            i += 1
+            h.stack.pop()
         elif tok == "OFFSET":
-            vals = [expect(i + k)[1] for k in (1, 2, 3)]
+            vals = [take()[1] for _ in range(3)]
             try:
-                joints[stack[-1]].offset = np.array([float(v) for v in vals])
+                h.joints[h.stack[-1]].offset = np.array([float(v) for v in vals])
             except (ValueError, IndexError):
                 raise MocapError(f"{path}: line {line}: OFFSET needs 3 numbers, got {vals}") from None
-            i += 4
         elif tok == "CHANNELS":
             try:
-                k = int(expect(i + 1)[1])
+                k = int(take()[1])
             except ValueError:
                 raise MocapError(f"{path}: line {line}: CHANNELS needs a count") from None
-            names = tuple(expect(i + 2 + c)[1] for c in range(k))
-            bad = [c for c in names if c.lower() not in {f"{a}{kind}" for a in "xyz" for kind in ("position",
-                                                                                                  "rotation")}]
-            if bad or not stack:
-                raise MocapError(f"{path}: line {line}: unknown channels {bad} in joint "
-                                 f"{joints[stack[-1]].name if stack else '?'}")
-            j = joints[stack[-1]]
-            j.channels, j.first_channel = names, n_channels
-            n_channels += k
-            i += 2 + k
+            if not 0 <= k <= len(_CHANNELS):
+                raise MocapError(f"{path}: line {line}: CHANNELS {k}: a joint has 0 to {len(_CHANNELS)} channels")
+            h.channels(line, tuple(take()[1] for _ in range(k)))
         else:
-            raise MocapError(f"{path}: line {line}: unexpected {tok!r} in HIERARCHY")
-    if stack:
-        raise MocapError(f"{path}: hierarchy not closed (missing '}}' for {joints[stack[-1]].name})")
-    if not joints:
+            raise MocapError(f"{path}: line {line}: unexpected {tok[:30]!r} in HIERARCHY")
+    if h.stack:
+        raise MocapError(f"{path}: hierarchy not closed (missing '}}' for {h.joints[h.stack[-1]].name})")
+    if not h.joints:
         raise MocapError(f"{path}: no joints in HIERARCHY")
-    return joints, *_parse_motion(path, motion, n_channels)
+    return h.joints, h.n_channels
 
 
-def _parse_motion(path: Path, motion: str, n_channels: int) -> tuple[np.ndarray, float]:
-    lines = [ln.strip() for ln in motion.splitlines() if ln.strip()]
+def _motion_header(path: Path, lines: Iterator[tuple[int, str]]) -> tuple[int, float, str | None]:
+    """Frames and frame time, and the first line after them (None at the end of the file)."""
     frames = time = None
-    body = 0
-    while body < len(lines) and ":" in lines[body]:
-        key, _, value = lines[body].partition(":")
+    for _, raw in lines:
+        line = raw.strip()
+        if not line:
+            continue
+        key, colon, value = line.partition(":")
         key = key.strip().lower()
+        if not colon or key not in ("frames", "frame time"):
+            break
         try:
             if key == "frames":
                 frames = int(value)
-            elif key == "frame time":
-                time = float(value)
             else:
-                break
+                time = float(value)
         except ValueError:
-            raise MocapError(f"{path}: MOTION header {lines[body]!r} needs a number") from None
-        body += 1
+            raise MocapError(f"{path}: MOTION header {line[:60]!r} needs a number") from None
+    else:
+        line = None
     if frames is None or time is None:
         raise MocapError(f"{path}: MOTION needs 'Frames:' and 'Frame Time:' lines")
+    return frames, time, line
+
+
+def _parse_motion(path: Path, lines: Iterator[tuple[int, str]], n_channels: int,
+                  n_joints: int) -> tuple[np.ndarray, float]:
+    frames, time, first = _motion_header(path, lines)
     if not time > 0:
         raise MocapError(f"{path}: Frame Time must be positive, got {time}")
     if frames < 1:
         raise MocapError(f"{path}: no motion frames (Frames: {frames})")
-    rows = lines[body:]
-    if len(rows) < frames:
-        raise MocapError(f"{path}: header says {frames} frames, file has {len(rows)} (truncated?)")
-    try:
-        table = np.array([r.split() for r in rows[:frames]], dtype=np.float64)
-    except ValueError:
-        for n, r in enumerate(rows[:frames]):
-            vals = r.split()
-            if len(vals) != n_channels:
-                raise MocapError(f"{path}: motion frame {n}: {len(vals)} values, hierarchy has {n_channels} "
-                                 "channels") from None
-        raise MocapError(f"{path}: motion data has a value that is not a number") from None
-    if table.ndim != 2 or table.shape[1] != n_channels:
-        raise MocapError(f"{path}: motion rows have {table.shape[-1] if table.ndim == 2 else '?'} values, "
-                         f"hierarchy has {n_channels} channels")
+    check_shape(path, frames, n_joints, MocapError)
+    check_count(path, frames * n_channels, MAX_VALUES, "motion values (frames x channels)", MocapError)
+    table = np.empty((frames, n_channels))
+    rows = itertools.chain([] if first is None else [first], (ln.strip() for _, ln in lines))
+    done = 0
+    while done < frames:
+        chunk = list(itertools.islice((r for r in rows if r), min(_ROWS_PER_CHUNK, frames - done)))
+        if not chunk:
+            raise MocapError(f"{path}: header says {frames} frames, file has {done} (truncated?)")
+        table[done:done + len(chunk)] = _rows(path, chunk, done, n_channels)
+        done += len(chunk)
     if not np.all(np.isfinite(table)):
         raise MocapError(f"{path}: motion data has NaN or infinite values")
     return table, time
 
 
+def _rows(path: Path, chunk: list[str], first: int, n_channels: int) -> np.ndarray:
+    """Motion lines -> (len(chunk), n_channels) floats; errors name the frame."""
+    cells = [r.split() for r in chunk]
+    for n, vals in enumerate(cells):
+        if len(vals) != n_channels:
+            raise MocapError(f"{path}: motion frame {first + n}: {len(vals)} values, hierarchy has {n_channels} "
+                             "channels")
+    try:
+        return np.array(cells, dtype=np.float64).reshape(len(chunk), n_channels)
+    except ValueError:
+        raise MocapError(f"{path}: motion data has a value that is not a number") from None
+
+
 def forward_kinematics(joints: list[BvhJoint], motion: np.ndarray) -> np.ndarray:
-    """Global joint positions (frames, joints, 3) in file units."""
+    """Global joint positions (frames, joints, 3) in file units, a few frames at a time so that the
+    rotations of every joint are never held for the whole clip."""
+    out = np.empty((motion.shape[0], len(joints), 3))
+    for frames in frame_chunks(motion.shape[0], 12 * len(joints)):
+        out[frames] = _forward_kinematics(joints, motion[frames])
+    return out
+
+
+def _forward_kinematics(joints: list[BvhJoint], motion: np.ndarray) -> np.ndarray:
     t = motion.shape[0]
     rot = np.zeros((len(joints), t, 3, 3))
     pos = np.zeros((len(joints), t, 3))
@@ -202,7 +271,7 @@ def load_bvh(path: str | Path) -> MocapClip:
     path = Path(path)
     joints, motion, frame_time = parse_bvh(path)
     names = [j.name for j in joints]
-    dup = sorted({n for n in names if names.count(n) > 1})
+    dup = sorted(n for n, count in Counter(names).items() if count > 1)
     if dup:
         raise MocapError(f"{path}: duplicate joint names {dup}")
     return MocapClip(forward_kinematics(joints, motion), tuple(names), 1.0 / frame_time, str(path), up="y",

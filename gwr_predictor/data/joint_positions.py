@@ -15,6 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
+from gwr_predictor.data.file_limits import MAX_JOINTS, check_count, check_shape
 from gwr_predictor.data.mocap import ImportOptions, MocapClip, MocapError
 
 POSITION_KEYS = ("positions", "joints", "joint_positions", "global_joint_positions")
@@ -59,6 +60,7 @@ def load_joint_positions(path: str | Path, options: ImportOptions | None = None)
             arr = data[key]
             name_key = next((k for k in NAME_KEYS if k in data), None)
             if name_key is not None:
+                check_count(path, np.size(data[name_key]), MAX_JOINTS, "joint names", MocapError)
                 names = tuple(str(x) for x in np.atleast_1d(data[name_key]))
             fps_key = next((k for k in FPS_KEYS if k in data), None)
             if not fps and fps_key is not None:
@@ -73,6 +75,7 @@ def load_joint_positions(path: str | Path, options: ImportOptions | None = None)
         arr = arr.reshape(arr.shape[0], -1, 3)
     if arr.ndim != 3 or arr.shape[2] != 3:
         raise MocapError(f"{path}: positions must be (frames, joints, 3), got shape {arr.shape}")
+    check_shape(path, arr.shape[0], arr.shape[1], MocapError)
     if names is None:
         names = _names_from_options(path, options, arr.shape[1])
     elif len(names) != arr.shape[1]:

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import warnings
 import zipfile
+import zlib
 from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass, field
@@ -23,6 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
+from gwr_predictor.data import file_limits as limits
 from gwr_predictor.data.skeleton_files import SkeletonFileError, SkeletonSequence
 from gwr_predictor.pipeline.conventions import SKELETON_FPS, SKELETON_JOINTS
 
@@ -131,6 +133,7 @@ def load_clip(path: str | Path, options: ImportOptions | None = None) -> MocapCl
         elif suffix in (".npy", ".npz"):
             from gwr_predictor.data.joint_positions import load_joint_positions
 
+            check_numpy_file(path, MocapError)
             clip = load_joint_positions(path, options)
         elif suffix == ".pt":
             from gwr_predictor.data.torch_files import load_torch_clip
@@ -140,8 +143,8 @@ def load_clip(path: str | Path, options: ImportOptions | None = None) -> MocapCl
             raise MocapError(f"{path}: unknown mocap suffix {path.suffix!r}; use one of {', '.join(SUFFIXES)}")
     except MocapError:
         raise
-    except (ValueError, KeyError, IndexError, OSError, UnicodeDecodeError) as exc:
-        raise MocapError(f"{path}: cannot read it ({type(exc).__name__}: {exc})") from exc
+    except (ValueError, KeyError, IndexError, OSError, UnicodeDecodeError, zlib.error) as exc:
+        raise MocapError(f"{path}: cannot read it ({type(exc).__name__}: {str(exc)[:200]})") from exc
     if options.fps:
         clip.fps = float(options.fps)
     scale = unit_scale(options.units)
@@ -151,6 +154,14 @@ def load_clip(path: str | Path, options: ImportOptions | None = None) -> MocapCl
     elif not clip.scale_known:
         clip.positions = clip.positions * auto_scale(clip)
     return clip
+
+
+def check_numpy_file(path: Path, error: type[SkeletonFileError]) -> None:
+    """A `.npy` or `.npz` within the recording limits, judged from its headers before numpy reads it."""
+    if path.suffix.lower() == ".npy":
+        limits.check_npy_file(path, error)
+    else:
+        limits.check_archive(path, limits.MAX_RECORDING_BYTES, "recording", error)
 
 
 def auto_scale(clip: MocapClip) -> float:
@@ -185,13 +196,16 @@ def is_mocap_file(path: str | Path) -> bool:
     suffix = path.suffix.lower()
     if suffix == ".npz":
         try:
+            check_numpy_file(path, SkeletonFileError)
             with np.load(path, allow_pickle=False) as npz:
                 if "convention" in npz.files or "timestamps" in npz.files:
                     return False
-                names = {str(n) for n in np.atleast_1d(npz["joint_names"])} if "joint_names" in npz.files else set()
-                return not set(SKELETON_JOINTS) <= names
-        except (OSError, ValueError, EOFError, zipfile.BadZipFile):
-            return False  # unreadable: the skeleton reader says why
+                names = npz["joint_names"] if "joint_names" in npz.files else np.array([])
+                if names.size > limits.MAX_JOINTS:
+                    return False
+                return not set(SKELETON_JOINTS) <= {str(n) for n in np.atleast_1d(names)}
+        except (OSError, ValueError, EOFError, zipfile.BadZipFile, zlib.error, NotImplementedError, RuntimeError):
+            return False  # unreadable or over the limits: the skeleton reader says why
     return suffix in SUFFIXES or suffix == ".asf"
 
 
@@ -216,6 +230,7 @@ def clip_to_skeleton(clip: MocapClip, options: ImportOptions | None = None,
     joint_map = resolve_map(clip.joint_names, options.joint_map, source=clip.source)
     mapped = map_joints(clip.positions, clip.joint_names, joint_map, source=clip.source)
     up = options.up if options.up != "auto" else clip.up
+    limits.check_resampled(clip.source, clip.duration_s, fps, MocapError)
     camera = to_camera_frame(mapped, up, source=clip.source)
     t = np.arange(camera.shape[0]) / clip.fps
     positions, stamps = resample(camera, t, fps)
@@ -287,6 +302,19 @@ def to_camera_frame(positions: np.ndarray, up: str = "auto", source: str = "clip
     return p + shift
 
 
+def _box_filter(flat: np.ndarray, width: int) -> np.ndarray:
+    """Centred moving average of each column (edges padded with the end values) by running sums, so
+    its cost does not grow with `width`; a window holding a NaN is NaN, as with a convolution."""
+    pad = np.pad(flat, ((width // 2, width - 1 - width // 2), (0, 0)), mode="edge")
+    nan = np.isnan(pad)
+    sums = np.zeros((pad.shape[0] + 1, pad.shape[1]))
+    np.cumsum(np.where(nan, 0.0, pad), axis=0, out=sums[1:])
+    counts = np.concatenate([np.zeros((1, pad.shape[1]), int), np.cumsum(nan, axis=0)])
+    out = (sums[width:] - sums[:-width]) / width
+    out[counts[width:] - counts[:-width] > 0] = np.nan
+    return out
+
+
 def resample(positions: np.ndarray, t: np.ndarray, fps: float = SKELETON_FPS) -> tuple[np.ndarray, np.ndarray]:
     """Positions (T, ...) at stamps t -> the same motion at `fps` (linear; box filter first when
     downsampling, so a 120 fps clip is not aliased). A NaN next to a new frame makes it NaN."""
@@ -297,10 +325,9 @@ def resample(positions: np.ndarray, t: np.ndarray, fps: float = SKELETON_FPS) ->
     flat = positions.reshape(positions.shape[0], -1)
     ratio = src_fps / fps
     if ratio > 1.5:
-        width = 2 * int(ratio // 2) + 1  # odd: a centred window does not delay the motion
-        kernel = np.ones(width) / width
-        pad = np.pad(flat, ((width // 2, width - 1 - width // 2), (0, 0)), mode="edge")
-        flat = np.apply_along_axis(lambda col: np.convolve(col, kernel, mode="valid"), 0, pad)
+        # odd: a centred window does not delay the motion; never wider than the clip
+        width = 2 * int(min(ratio, flat.shape[0]) // 2) + 1
+        flat = _box_filter(flat, width)
     new_t = np.arange(0.0, t[-1] - t[0] + 1e-3 / fps, 1.0 / fps)  # tolerance: frame times in files are rounded
     pos = new_t * src_fps
     lo = np.clip(np.floor(pos).astype(int), 0, flat.shape[0] - 1)

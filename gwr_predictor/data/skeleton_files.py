@@ -23,13 +23,22 @@ from __future__ import annotations
 import csv
 import io
 import zipfile
+import zlib
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
-from gwr_predictor.data.file_limits import MAX_CSV_BYTES, MAX_RECORDING_BYTES, check_file_size, check_npz_members
+from gwr_predictor.data.file_limits import (
+    MAX_CSV_BYTES,
+    MAX_FRAMES,
+    MAX_JOINTS,
+    MAX_RECORDING_BYTES,
+    check_archive,
+    check_count,
+    check_file_size,
+)
 from gwr_predictor.errors import GwrPredictorError
 from gwr_predictor.pipeline.conventions import SKELETON_JOINTS
 
@@ -146,12 +155,11 @@ def load_skeleton(path: str | Path) -> SkeletonSequence:
 
 
 def _read_npz(path: Path) -> dict:
-    check_file_size(path, MAX_RECORDING_BYTES, "skeleton recording", SkeletonFileError)
-    check_npz_members(path, MAX_RECORDING_BYTES, "skeleton recording", SkeletonFileError)
+    check_archive(path, MAX_RECORDING_BYTES, "skeleton recording", SkeletonFileError)
     try:
         with np.load(path, allow_pickle=False) as npz:
             data = {k: npz[k] for k in npz.files}
-    except (zipfile.BadZipFile, OSError, EOFError, ValueError) as exc:
+    except (zipfile.BadZipFile, OSError, EOFError, ValueError, zlib.error, NotImplementedError, RuntimeError) as exc:
         raise SkeletonFileError(f"{path}: not a readable NPZ archive (truncated or not NPZ?): {exc}") from exc
     for key in ("positions", "joint_names"):
         if key not in data:
@@ -170,6 +178,7 @@ def _read_npz(path: Path) -> dict:
     if not np.issubdtype(np.asarray(stamps).dtype, np.number):
         raise SkeletonFileError(f"{path}: field 'timestamps' must be numeric, got dtype {stamps.dtype}")
     rep = _scalar(path, data, "repetition", int) if "repetition" in data else -1
+    check_count(path, np.size(data["joint_names"]), MAX_JOINTS, "joint names", SkeletonFileError)
     return {"positions": data["positions"].astype(np.float64), "timestamps": np.asarray(stamps, np.float64),
             "joint_names": [str(n) for n in np.atleast_1d(data["joint_names"])],
             "convention": _scalar(path, data, "convention", str) if "convention" in data else None,
@@ -208,6 +217,7 @@ def _read_csv(path: Path) -> dict:
         raise SkeletonFileError(f"{path}: no header line (expected 'time,head_x,head_y,head_z,...')")
     header = [h.strip() for h in rows[0]]
     names = _csv_joint_names(path, header)
+    check_count(path, len(rows) - 1, MAX_FRAMES, "frames", SkeletonFileError)
     table, _ = parse_float_table(path, rows[1:], len(header), first_line=n_comment + 2,
                                  error=SkeletonFileError, header=header)
     rep_text = meta.get("repetition", "")
@@ -224,6 +234,7 @@ def _csv_joint_names(path: Path, header: list[str]) -> list[str]:
     if not header or header[0] != "time":
         raise SkeletonFileError(f"{path}: first header column must be 'time', got {header[:1]}")
     cols = header[1:]
+    check_count(path, len(cols) // 3, MAX_JOINTS, "joints", SkeletonFileError)
     if len(cols) % 3:
         raise SkeletonFileError(f"{path}: {len(cols)} position columns is not a multiple of 3 (x, y, z per joint)")
     names = []

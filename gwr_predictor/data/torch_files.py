@@ -13,13 +13,16 @@ columns 162:318 are 52 SMPL-H joint positions (metres, Z up, 30 fps) in `INTERMI
 from __future__ import annotations
 
 import pickle
+import struct
 import zipfile
+import zlib
 from collections import OrderedDict
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from gwr_predictor.data.file_limits import MAX_RECORDING_BYTES, MAX_VALUES, check_archive, check_count
 from gwr_predictor.data.mocap import ImportOptions, MocapClip, MocapError
 
 STORAGE_DTYPES = {"FloatStorage": np.float32, "DoubleStorage": np.float64, "HalfStorage": np.float16,
@@ -43,14 +46,27 @@ class _Storage:
         self.name = name
 
 
+def _ints(value: Any, what: str) -> tuple[int, ...]:
+    if not isinstance(value, tuple) or not all(isinstance(v, int) and not isinstance(v, bool) for v in value):
+        raise MocapError(f"tensor {what} must be a tuple of integers, got {str(value)[:60]}")
+    return value
+
+
 def _rebuild_tensor(storage: np.ndarray, offset: int, size: tuple[int, ...], stride: tuple[int, ...],
                     *_: Any) -> np.ndarray:
-    item = storage.itemsize
-    need = offset + sum((s - 1) * st for s, st in zip(size, stride, strict=True)) + 1 if size else offset + 1
-    if any(s < 0 for s in size) or need > storage.size:
+    """The tensor as numpy, after checking that its shape, strides and offset stay inside its
+    storage and that its element count (strides may repeat values) is within `MAX_VALUES`."""
+    if not isinstance(storage, np.ndarray) or not isinstance(offset, int):
+        raise MocapError("tensor without a storage or an integer offset")
+    size, stride = _ints(size, "size"), _ints(stride, "stride")
+    if len(size) != len(stride) or offset < 0 or any(s < 0 for s in size) or any(st < 0 for st in stride):
+        raise MocapError(f"tensor of size {size}, stride {stride}, offset {offset} reaches outside its storage")
+    check_count("tensor", int(np.prod(size, dtype=object)), MAX_VALUES, "tensor elements", MocapError)
+    need = offset + sum((s - 1) * st for s, st in zip(size, stride, strict=True)) + 1 if all(size) else 0
+    if need > storage.size:
         raise MocapError(f"tensor of size {size} at offset {offset} does not fit its storage of {storage.size}")
-    return np.lib.stride_tricks.as_strided(storage[offset:], shape=tuple(size),
-                                           strides=tuple(st * item for st in stride)).copy()
+    return np.lib.stride_tricks.as_strided(storage[offset:], shape=size,
+                                           strides=tuple(st * storage.itemsize for st in stride)).copy()
 
 
 class _RestrictedUnpickler(pickle.Unpickler):
@@ -74,10 +90,10 @@ class _RestrictedUnpickler(pickle.Unpickler):
         _, kind, key, _location, numel = pid
         try:
             raw = self.archive.read(f"{self.prefix}data/{key}")
-        except KeyError:
+        except (KeyError, TypeError):
             raise MocapError(f"{self.path}: storage {key!r} missing from the archive") from None
         arr = np.frombuffer(raw, dtype=np.dtype(STORAGE_DTYPES[kind.name]).newbyteorder("<"))
-        if arr.size < int(numel):
+        if not isinstance(numel, int) or arr.size < numel:
             raise MocapError(f"{self.path}: storage {key!r} has {arr.size} values, expected {numel}")
         return arr
 
@@ -85,22 +101,26 @@ class _RestrictedUnpickler(pickle.Unpickler):
 def load_tensor(path: str | Path) -> Any:
     """The object saved in a torch zip file, tensors as numpy arrays; refuses anything but tensors."""
     path = Path(path)
+    check_archive(path, MAX_RECORDING_BYTES, "torch file", MocapError)
     try:
         with zipfile.ZipFile(path) as archive:
             pkl = [n for n in archive.namelist() if n.endswith("data.pkl")]
             if len(pkl) != 1:
                 raise MocapError(f"{path}: not a torch zip file (no single data.pkl; legacy .pt files are not read)")
             prefix = pkl[0][: -len("data.pkl")]
-            order = archive.read(f"{prefix}byteorder").decode().strip() if f"{prefix}byteorder" in \
-                archive.namelist() else "little"
+            order = archive.read(f"{prefix}byteorder").decode(errors="replace").strip() \
+                if f"{prefix}byteorder" in archive.namelist() else "little"
             if order != "little":
                 raise MocapError(f"{path}: byte order {order!r} is not supported")
             with archive.open(pkl[0]) as fh:
                 return _RestrictedUnpickler(fh, archive, prefix, path).load()
-    except zipfile.BadZipFile:
+    except MocapError as exc:
+        raise MocapError(str(exc) if str(exc).startswith(str(path)) else f"{path}: {exc}") from None
+    except (zipfile.BadZipFile, zlib.error, NotImplementedError, RuntimeError):
         raise MocapError(f"{path}: not a torch zip file (legacy or corrupt .pt)") from None
-    except (pickle.UnpicklingError, EOFError, TypeError, AttributeError) as exc:
-        raise MocapError(f"{path}: unreadable pickle in the .pt file ({exc})") from None
+    except (pickle.UnpicklingError, EOFError, TypeError, AttributeError, ValueError, KeyError, IndexError,
+            OverflowError, UnicodeDecodeError, struct.error) as exc:
+        raise MocapError(f"{path}: unreadable pickle in the .pt file ({type(exc).__name__}: {exc})"[:300]) from None
 
 
 def load_torch_clip(path: str | Path, options: ImportOptions | None = None) -> MocapClip:
