@@ -14,8 +14,8 @@ from pathlib import Path
 
 from tqdm import tqdm
 
-from gwr_predictor.pipeline.bags import BagError
-from gwr_predictor.pipeline.video import VideoError, read_video_run, render_video
+from gwr_predictor.errors import GwrPredictorError
+from gwr_predictor.pipeline.video import read_video_run, render_video
 from gwr_predictor.pipeline.video_files import default_suffix
 
 
@@ -39,10 +39,12 @@ def run(args: argparse.Namespace) -> int:
                mininterval=0.5, leave=False)
     try:
         data = read_video_run(bag)
+        for warning in data.warnings:
+            bar.write(f"warning: {warning}", file=sys.stderr)
         stats = render_video(data, out, span=args.seconds, fps=fps, scale=args.scale,
                              progress=lambda n: bar.update(n - bar.n),
                              progress_total=lambda n: setattr(bar, "total", n))
-    except (BagError, VideoError) as exc:
+    except GwrPredictorError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 1
     finally:

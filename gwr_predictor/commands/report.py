@@ -11,8 +11,8 @@ import argparse
 import sys
 from pathlib import Path
 
-from gwr_predictor.pipeline.bags import BagError
-from gwr_predictor.pipeline.run_report import BagSummaryError, compute_report, plot_run, read_run
+from gwr_predictor.errors import GwrPredictorError
+from gwr_predictor.pipeline.run_report import compute_report, plot_run, read_run
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
@@ -27,8 +27,10 @@ def run(args: argparse.Namespace) -> int:
     out = args.out or (args.run if bag != args.run else args.run.parent)
     try:
         data = read_run(bag)
+        for warning in data.warnings:
+            print(f"warning: {warning}", file=sys.stderr)
         report = compute_report(data, max_lag_s=args.max_lag)
-    except (BagError, BagSummaryError) as exc:
+    except GwrPredictorError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 1
     out.mkdir(parents=True, exist_ok=True)

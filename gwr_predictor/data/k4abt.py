@@ -78,10 +78,21 @@ class TrackedBody(NamedTuple):
     unknown_markers: int
 
 
-def group_bodies(ids: np.ndarray, positions: np.ndarray) -> tuple[dict[int, np.ndarray], int]:
-    """Marker ids (n,) and positions (n, 3) -> ({body id: (32, 3) joints, NaN where absent}, unknown count).
+class _Slots(NamedTuple):
+    """One row per (body, joint) present, sorted by body then joint; the later marker of a duplicate wins."""
 
-    Markers whose joint index is 32..99 are not K4ABT joints: counted, not used. Negative ids are an error.
+    body: np.ndarray  # (m,) body ids
+    joint: np.ndarray  # (m,) K4ABT joint indices
+    positions: np.ndarray  # (m, 3)
+    group: np.ndarray  # (m,) index of the row's body in `bodies`
+    bodies: np.ndarray  # (b,) the distinct body ids, ascending
+
+
+def _slots(ids: np.ndarray, positions: np.ndarray) -> tuple[_Slots, int]:
+    """Markers -> their (body, joint) slots and the count of unknown joint indices, by one sort.
+
+    One sort instead of one scan of every marker per body: a message with many bodies costs
+    O(n log n), not O(n x bodies).
     """
     ids = np.asarray(ids, dtype=np.int64).ravel()
     positions = np.asarray(positions, dtype=np.float64)
@@ -91,13 +102,47 @@ def group_bodies(ids: np.ndarray, positions: np.ndarray) -> tuple[dict[int, np.n
         raise K4abtError(f"negative marker ids {ids[ids < 0][:5].tolist()}: expected body * {ID_STRIDE} + joint")
     body, joint = np.divmod(ids, ID_STRIDE)
     known = joint < N_JOINTS
-    bodies: dict[int, np.ndarray] = {}
-    for b in np.unique(body[known]):
-        sel = known & (body == b)
-        joints = np.full((N_JOINTS, 3), np.nan)
-        joints[joint[sel]] = positions[sel]
-        bodies[int(b)] = joints
-    return bodies, int(np.count_nonzero(~known))
+    order = np.flatnonzero(known)
+    order = order[np.lexsort((order, joint[order], body[order]))]
+    body, joint, positions = body[order], joint[order], positions[order]
+    last = np.ones(body.size, dtype=bool)  # the last marker of each (body, joint) run
+    last[:-1] = (body[1:] != body[:-1]) | (joint[1:] != joint[:-1])
+    body, joint, positions = body[last], joint[last], positions[last]
+    first_of_body = np.ones(body.size, dtype=bool)
+    first_of_body[1:] = body[1:] != body[:-1]
+    group = np.cumsum(first_of_body) - 1
+    return _Slots(body, joint, positions, group, body[first_of_body]), int(np.count_nonzero(~known))
+
+
+def _joints(slots: _Slots, index: int) -> np.ndarray:
+    """(32, 3) joints of the body at `index` of `slots.bodies`, NaN where absent."""
+    lo, hi = np.searchsorted(slots.group, [index, index + 1])
+    joints = np.full((N_JOINTS, 3), np.nan)
+    joints[slots.joint[lo:hi]] = slots.positions[lo:hi]
+    return joints
+
+
+def group_bodies(ids: np.ndarray, positions: np.ndarray) -> tuple[dict[int, np.ndarray], int]:
+    """Marker ids (n,) and positions (n, 3) -> ({body id: (32, 3) joints, NaN where absent}, unknown count).
+
+    Markers whose joint index is 32..99 are not K4ABT joints: counted, not used. Negative ids are an error.
+    """
+    slots, unknown = _slots(ids, positions)
+    return {int(b): _joints(slots, i) for i, b in enumerate(slots.bodies)}, unknown
+
+
+def _distances(slots: _Slots) -> np.ndarray:
+    """`body_distance` of every body at once: its pelvis, or the mean of its tracked joints; inf without."""
+    n = slots.bodies.size
+    tracked = np.all(np.isfinite(slots.positions), axis=1)
+    group = slots.group[tracked]
+    count = np.bincount(group, minlength=n)
+    sums = np.stack([np.bincount(group, weights=slots.positions[tracked, k], minlength=n) for k in range(3)], axis=1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        distance = np.where(count > 0, np.linalg.norm(sums / count[:, None], axis=1), np.inf)
+    pelvis = tracked & (slots.joint == _PELVIS)
+    distance[slots.group[pelvis]] = np.linalg.norm(slots.positions[pelvis], axis=1)
+    return distance
 
 
 def body_distance(joints: np.ndarray) -> float:
@@ -123,8 +168,9 @@ def from_skeleton(positions: np.ndarray) -> np.ndarray:
 
 def nearest_body(ids: np.ndarray, positions: np.ndarray) -> TrackedBody | None:
     """The body nearest to the sensor as a pipeline skeleton, or None when the message holds no body."""
-    bodies, unknown = group_bodies(ids, positions)
-    if not bodies:
+    slots, unknown = _slots(ids, positions)
+    if not slots.bodies.size:
         return None
-    body_id = min(bodies, key=lambda b: (body_distance(bodies[b]), b))
-    return TrackedBody(body_id, to_skeleton(bodies[body_id]), len(bodies), unknown)
+    nearest = int(np.lexsort((slots.bodies, _distances(slots)))[0])  # nearest, then the lowest id
+    return TrackedBody(int(slots.bodies[nearest]), to_skeleton(_joints(slots, nearest)), int(slots.bodies.size),
+                       unknown)

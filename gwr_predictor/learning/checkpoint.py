@@ -5,14 +5,21 @@ Layout: an uncompressed .npz whose member `__header__` holds UTF-8 JSON with `ma
 is a named array. Writing goes to a temporary file in the destination folder, is fsynced and then
 renamed over the target, so a crash leaves either the old or the new file, never half of one.
 Anything wrong on reading (missing, truncated, not a checkpoint, another kind or version, missing
-arrays) raises `CheckpointError` naming the file and the problem.
+arrays, and whatever else a hostile or damaged file makes the zip, npy or JSON readers raise) raises
+`CheckpointError` naming the file and the problem: every array's declared size is checked against the
+bytes the member holds, and the header's size and nesting are bounded, before anything is allocated.
+A checkpoint path that is a symlink is written through (the target is replaced, the link stays).
+`CheckpointLock` keeps one writer per checkpoint file.
 """
 
 from __future__ import annotations
 
 import contextlib
+import fcntl
 import json
 import os
+import re
+import stat
 import tempfile
 import zipfile
 from collections.abc import Iterable, Mapping
@@ -21,7 +28,15 @@ from typing import Any
 
 import numpy as np
 
-from gwr_predictor.data.file_limits import MAX_CHECKPOINT_BYTES, check_file_size, check_npz_members
+from gwr_predictor.data.file_limits import (
+    MAX_ARCHIVE_MEMBERS,
+    MAX_CHECKPOINT_BYTES,
+    check_count,
+    check_file_size,
+    check_npz_members,
+    npy_header,
+    zip_entry_count,
+)
 from gwr_predictor.errors import GwrPredictorError
 
 MAGIC = "gwr_predictor.checkpoint"
@@ -32,6 +47,10 @@ MAGIC = "gwr_predictor.checkpoint"
 #: `layers` take those values from the parameters, as they were written.
 FORMAT_VERSION = 2
 HEADER_KEY = "__header__"
+#: The JSON header holds parameters and small per-layer values (a few kB); arrays are members.
+MAX_HEADER_BYTES = 4 << 20
+#: Real headers nest about 4 deep; deeper ones are refused before parsing.
+MAX_HEADER_DEPTH = 32
 
 
 class CheckpointError(GwrPredictorError):
@@ -46,9 +65,64 @@ class KindMismatchError(CheckpointError):
         self.found, self.expected = found, expected
 
 
+class CheckpointLockedError(CheckpointError):
+    """Another process holds the checkpoint's lock: two writers would overwrite each other's learning."""
+
+
+class CheckpointLock:
+    """One writer per checkpoint file: an advisory `flock` on `.<name>.lock` beside the file (a
+    symlink's target), held until `release` or the process ends. The OS drops it when its holder
+    dies, so a SIGKILLed learner never blocks its restart. The lock file stays (removing it would
+    race with the next locker) and names its holder's pid for the message of the one refused."""
+
+    def __init__(self, path: str | os.PathLike[str]) -> None:
+        self._fd: int | None = None
+        real = Path(os.path.realpath(path))  # every name of one file gets one lock
+        self.lock_path = real.with_name(f".{real.name}.lock")
+        try:
+            fd = os.open(self.lock_path, os.O_RDWR | os.O_CREAT | os.O_CLOEXEC, 0o666)
+        except OSError as exc:
+            raise CheckpointError(f"{path}: cannot create its lock file {self.lock_path}: {exc}") from exc
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError as exc:
+            holder = _lock_holder(fd)
+            os.close(fd)
+            if isinstance(exc, BlockingIOError):
+                raise CheckpointLockedError(
+                    f"checkpoint {path} is in use by process {holder} (lock {self.lock_path}): two learners on one "
+                    "checkpoint overwrite each other's learning; stop the other one or give this one another "
+                    "path") from None
+            raise CheckpointError(f"{path}: cannot lock {self.lock_path}: {exc}") from exc
+        self._fd = fd
+        with contextlib.suppress(OSError):  # the pid only makes the refusal's message clearer (disk full: none)
+            os.ftruncate(fd, 0)
+            os.write(fd, f"{os.getpid()}\n".encode())
+
+    def release(self) -> None:
+        """Unlock (closing the descriptor drops the flock); safe to call twice."""
+        fd, self._fd = self._fd, None
+        if fd is not None:
+            os.close(fd)
+
+    __del__ = release
+
+
+def _lock_holder(fd: int) -> str:
+    """The pid the lock file names ('another process' while its holder has not written it yet)."""
+    with contextlib.suppress(OSError):
+        text = os.pread(fd, 32, 0).decode(errors="replace").strip()
+        if text.isdigit():
+            return text
+    return "another process"
+
+
 def write_checkpoint(path: str | os.PathLike[str], kind: str, header: Mapping[str, Any],
                      arrays: Mapping[str, np.ndarray]) -> None:
-    """Atomically write `arrays` and the JSON-able `header` as a checkpoint of `kind`."""
+    """Atomically write `arrays` and the JSON-able `header` as a checkpoint of `kind`.
+
+    The new file takes the mode of the one it replaces (umask default for a new one); a symlink at
+    `path` is written through: the temporary file goes beside its target, which it replaces."""
     path = Path(path)
     meta = {"magic": MAGIC, "kind": kind, "format_version": FORMAT_VERSION, **header}
     if HEADER_KEY in arrays:
@@ -58,17 +132,20 @@ def write_checkpoint(path: str | os.PathLike[str], kind: str, header: Mapping[st
     except (TypeError, ValueError) as exc:
         raise CheckpointError(f"{path}: header is not JSON-serialisable: {exc}") from exc
     members = {HEADER_KEY: np.frombuffer(blob, dtype=np.uint8), **arrays}
-    folder = path.parent if str(path.parent) else Path(".")
+    dest = destination(path)
+    folder = dest.parent
     try:
-        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=folder)
+        mode = _mode_for(dest)
+        fd, tmp = tempfile.mkstemp(prefix=f".{dest.name}.", suffix=".tmp", dir=folder)
     except OSError as exc:
         raise CheckpointError(f"{path}: cannot create a temporary file in {folder}: {exc}") from exc
     try:
         with os.fdopen(fd, "wb") as f:
             np.savez(f, **members)
+            os.fchmod(f.fileno(), mode)
             f.flush()
             os.fsync(f.fileno())
-        os.replace(tmp, path)
+        os.replace(tmp, dest)
     except BaseException as exc:
         with contextlib.suppress(OSError):
             os.unlink(tmp)
@@ -76,6 +153,33 @@ def write_checkpoint(path: str | os.PathLike[str], kind: str, header: Mapping[st
             raise CheckpointError(f"{path}: writing failed: {exc}") from exc
         raise
     _fsync_dir(folder)
+
+
+def destination(path: str | os.PathLike[str]) -> Path:
+    """The file a checkpoint path stands for: a symlink's final target (dangling or not), so that a
+    save updates the target instead of replacing the link; else the path itself."""
+    path = Path(path)
+    return Path(os.path.realpath(path)) if path.is_symlink() else path
+
+
+def _mode_for(dest: Path) -> int:
+    """Permission bits for the file that replaces `dest`: its own, or the umask default if new."""
+    try:
+        return stat.S_IMODE(dest.stat().st_mode)
+    except FileNotFoundError:
+        return 0o666 & ~_umask()
+
+
+def _umask() -> int:
+    """The process umask, read without changing it where Linux shows it (os.umask can only swap)."""
+    with contextlib.suppress(OSError, ValueError):
+        with open("/proc/self/status") as f:
+            for line in f:
+                if line.startswith("Umask:"):
+                    return int(line.split()[1], 8)
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
 
 
 def _fsync_dir(folder: Path) -> None:
@@ -114,10 +218,11 @@ def looks_like_checkpoint(path: str | os.PathLike[str]) -> bool:
 
 
 def stale_temp_files(path: str | os.PathLike[str]) -> list[Path]:
-    """Temporary files of interrupted saves of `path` (`.<name>.*.tmp` next to it)."""
-    path = Path(path)
-    folder = path.parent if str(path.parent) else Path(".")
-    return sorted(folder.glob(f".{glob_escape(path.name)}.*.tmp"))
+    """Temporary files of interrupted saves of `path` (`.<name>.*.tmp` next to it, or next to a
+    symlink's target, where saves write)."""
+    dest = destination(path)
+    folder = dest.parent if str(dest.parent) else Path(".")
+    return sorted(folder.glob(f".{glob_escape(dest.name)}.*.tmp"))
 
 
 def glob_escape(name: str) -> str:
@@ -126,25 +231,35 @@ def glob_escape(name: str) -> str:
 
 def prepare_checkpoint_place(path: str | os.PathLike[str]) -> list[Path]:
     """Check, before anything is learned, that a checkpoint can be kept at `path`; returns the stale
-    temporary files of interrupted saves that it removed.
+    temporary files of interrupted saves that it removed (`check_checkpoint_place`, then
+    `remove_stale_temp_files`; a node takes its `CheckpointLock` between the two)."""
+    check_checkpoint_place(path)
+    return remove_stale_temp_files(path)
 
-    Raises CheckpointError naming the path when it is a folder or a file that is not a checkpoint
-    (never moved or overwritten), or when its folder cannot be created or written to.
-    """
+
+def check_checkpoint_place(path: str | os.PathLike[str]) -> None:
+    """CheckpointError naming the path when it is a folder or a file that is not a checkpoint (never
+    moved or overwritten), or when its folder (a symlink's target's) cannot be created or written to."""
     path = Path(path)
     if path.is_dir():
         raise CheckpointError(f"{path} is an existing folder, not a checkpoint file: give a file path "
                               "such as <folder>/model.npz")
     if path.exists() and not looks_like_checkpoint(path):
         raise CheckpointError(f"{path} exists and is not a gwr_predictor checkpoint: refusing to move or overwrite it")
-    folder = path.parent if str(path.parent) else Path(".")
+    dest = destination(path)
+    folder = dest.parent if str(dest.parent) else Path(".")
     try:
         folder.mkdir(parents=True, exist_ok=True)
-        fd, probe = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=folder)
+        fd, probe = tempfile.mkstemp(prefix=f".{dest.name}.", suffix=".tmp", dir=folder)
         os.close(fd)
         os.unlink(probe)
     except OSError as exc:
         raise CheckpointError(f"{path}: the checkpoint cannot be written in {folder}: {exc}") from exc
+
+
+def remove_stale_temp_files(path: str | os.PathLike[str]) -> list[Path]:
+    """Remove the temporary files of interrupted saves of `path`; returns those removed. Only safe
+    while holding the path's `CheckpointLock` (another writer's save in progress looks the same)."""
     removed = []
     for stale in stale_temp_files(path):
         with contextlib.suppress(OSError):
@@ -160,19 +275,10 @@ def read_checkpoint(path: str | os.PathLike[str], kind: str,
     if not path.is_file():
         raise CheckpointError(f"{path}: no such checkpoint file")
     check_file_size(path, MAX_CHECKPOINT_BYTES, "checkpoint", CheckpointError)
+    check_count(path, zip_entry_count(path) or 0, MAX_ARCHIVE_MEMBERS, "archive members", CheckpointError)
     check_npz_members(path, MAX_CHECKPOINT_BYTES, "checkpoint", CheckpointError)
-    try:
-        with np.load(path, allow_pickle=False) as npz:
-            arrays = {name: npz[name] for name in npz.files}
-    except (zipfile.BadZipFile, ValueError, EOFError, OSError, KeyError) as exc:
-        raise CheckpointError(f"{path}: not a readable checkpoint (truncated or corrupt?): {exc}") from exc
-    blob = arrays.pop(HEADER_KEY, None)
-    if blob is None or blob.dtype != np.uint8 or blob.ndim != 1:
-        raise CheckpointError(f"{path}: no {HEADER_KEY!r} member: not a gwr_predictor checkpoint")
-    try:
-        header = json.loads(blob.tobytes().decode())
-    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise CheckpointError(f"{path}: header is not valid JSON: {exc}") from exc
+    arrays = _read_arrays(path)
+    header = _parse_header(arrays.pop(HEADER_KEY, None), path)
     if not isinstance(header, dict) or header.get("magic") != MAGIC:
         raise CheckpointError(f"{path}: wrong magic {header.get('magic') if isinstance(header, dict) else None!r}, "
                               f"expected {MAGIC!r}: not a gwr_predictor checkpoint")
@@ -189,6 +295,63 @@ def read_checkpoint(path: str | os.PathLike[str], kind: str,
     return header, arrays
 
 
+def _read_arrays(path: Path) -> dict[str, np.ndarray]:
+    """Every member as an array, each one's declared size checked first. Whatever a damaged or forged
+    zip, deflate stream or npy header makes the readers raise (zlib.error, MemoryError, ...) is a
+    CheckpointError: an unreadable checkpoint must be set aside, never crash its reader."""
+    try:
+        with zipfile.ZipFile(path) as zf:
+            for info in zf.infolist():
+                _check_member(zf, info, path)
+        with np.load(path, allow_pickle=False) as npz:
+            return {name: npz[name] for name in npz.files}
+    except CheckpointError:
+        raise
+    except Exception as exc:
+        raise CheckpointError(f"{path}: not a readable checkpoint (truncated or corrupt?): "
+                              f"{type(exc).__name__}: {exc}") from exc
+
+
+def _check_member(zf: zipfile.ZipFile, info: zipfile.ZipInfo, path: Path) -> None:
+    """A member must be an npy array whose declared shape x item size is exactly the data it holds
+    (so numpy never allocates more than the member's size, which `check_npz_members` bounded)."""
+    if not info.filename.endswith(".npy"):
+        raise CheckpointError(f"{path}: member {info.filename!r} is not an array: not a gwr_predictor checkpoint")
+    with zf.open(info) as f:
+        shape, dtype, header_len = npy_header(f)
+    declared = int(np.prod(shape, dtype=object)) * dtype.itemsize
+    stored = info.file_size - header_len
+    if dtype.hasobject or declared != stored:
+        raise CheckpointError(f"{path}: member {info.filename!r} declares shape {shape} of {dtype} "
+                              f"({declared:,} bytes) but holds {stored:,} bytes: corrupt or forged")
+
+
+_JSON_STRING = re.compile(r'"(?:[^"\\]|\\.)*+"')
+
+
+def json_depth(text: str) -> int:
+    """Deepest bracket nesting of JSON `text`, brackets inside strings not counted (linear time)."""
+    codes = np.frombuffer(_JSON_STRING.sub('""', text).encode(), dtype=np.uint8)
+    steps = np.isin(codes, (ord("["), ord("{"))).astype(np.int64) - np.isin(codes, (ord("]"), ord("}")))
+    return int(np.cumsum(steps).max(initial=0))
+
+
+def _parse_header(blob: np.ndarray | None, path: Path) -> Any:
+    """The JSON header, its size and nesting bounded before parsing."""
+    if blob is None or blob.dtype != np.uint8 or blob.ndim != 1:
+        raise CheckpointError(f"{path}: no {HEADER_KEY!r} member: not a gwr_predictor checkpoint")
+    if blob.size > MAX_HEADER_BYTES:
+        raise CheckpointError(f"{path}: header of {blob.size:,} bytes, over the limit of {MAX_HEADER_BYTES:,}")
+    try:
+        text = blob.tobytes().decode()
+        depth = json_depth(text)
+        if depth > MAX_HEADER_DEPTH:
+            raise CheckpointError(f"{path}: header nested {depth} deep (limit {MAX_HEADER_DEPTH}): corrupt or forged")
+        return json.loads(text)
+    except (UnicodeDecodeError, ValueError, RecursionError) as exc:
+        raise CheckpointError(f"{path}: header is not valid JSON: {type(exc).__name__}: {exc}") from exc
+
+
 def require_arrays(required: Iterable[str], arrays: Mapping[str, Any], source: str | os.PathLike[str]) -> None:
     """CheckpointError naming `source` and what is missing unless every `required` array is there."""
     missing = sorted(set(required) - arrays.keys())
@@ -199,10 +362,11 @@ def require_arrays(required: Iterable[str], arrays: Mapping[str, Any], source: s
 def set_aside(path: str | Path, when: str | None = None) -> Path:
     """The corrupt-checkpoint policy: an unreadable checkpoint is moved to `<name>.corrupt-<time>`
     (never deleted, never overwritten) so a fresh model can start; returns where it went. OSError
-    if it cannot be moved: then the caller must not start, or it would overwrite the file."""
+    if it cannot be moved: then the caller must not start, or it would overwrite the file. Through a
+    symlink it is the target that moves (beside itself): the link stays, and saves recreate the target."""
     import time
 
-    path = Path(path)
+    path = destination(path)
     aside = path.with_name(f"{path.name}.corrupt-{when or time.strftime('%Y%m%d-%H%M%S')}")
     os.replace(path, aside)
     return aside

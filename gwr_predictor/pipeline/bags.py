@@ -44,6 +44,9 @@ FLOAT64_MULTIARRAY = "std_msgs/msg/Float64MultiArray"
 DIAGNOSTIC_ARRAY = "diagnostic_msgs/msg/DiagnosticArray"
 _MCAP_MAGIC = b"\x89MCAP0\r\n"
 
+#: what rosbag2 writes as `ros_distro` into a bag's metadata on Jazzy; rosbags writes "rosbags"
+ROS_DISTRO = "jazzy"
+_ROSBAGS_DISTRO = "ros_distro: rosbags"
 #: The ROS 2 Jazzy message definitions (sensor_msgs, std_msgs, diagnostic_msgs, ...).
 TYPESTORE = get_typestore(Stores.ROS2_JAZZY)
 
@@ -194,6 +197,21 @@ def replay_qos(profiles: Iterable[Qos], default_depth: int) -> ReplayQos | None:
 # --- writing ------------------------------------------------------------------------------------
 
 
+def _close_as_rosbag2(writer: Writer) -> None:
+    """Close `writer` with rosbag2's `ros_distro` (rosbags writes its own name) in the MCAP's rosbag2
+    metadata record and in metadata.yaml, so tools that read it see a Jazzy bag."""
+    rosbag2_distro = f"ros_distro: {ROS_DISTRO}"
+    storage = writer.storage
+    if storage is not None:
+        close_storage = storage.close
+        storage.close = lambda version, text: close_storage(version, text.replace(_ROSBAGS_DISTRO, rosbag2_distro))
+    writer.close()
+    tmp = writer.metapath.with_suffix(".yaml.tmp")
+    tmp.write_text(writer.metapath.read_text(encoding="utf-8").replace(_ROSBAGS_DISTRO, rosbag2_distro),
+                   encoding="utf-8")
+    tmp.replace(writer.metapath)
+
+
 class BagWriter:
     """A rosbag2 (version 9, MCAP) bag writer for a fixed set of topics; use as a context manager.
 
@@ -303,7 +321,7 @@ class BagWriter:
             self._connection(topic)
         writer, self._writer = self._writer, None
         try:
-            writer.close()
+            _close_as_rosbag2(writer)
         except (OSError, WriterError) as err:
             writer.abort()
             raise BagError(f"{self.path}: closing the bag failed ({err}); recover with recover_bag") from err
@@ -478,7 +496,8 @@ def recover_bag(path: str | os.PathLike[str]) -> BagInfo:
     complete MCAP file plus metadata.yaml. The damaged file is kept as `<name>.mcap.damaged`.
     A bag with metadata.yaml and a complete MCAP file (it ends with the MCAP magic) is left
     untouched; with a truncated MCAP file its metadata.yaml is kept as `metadata.yaml.damaged` and
-    rewritten from what was recovered.
+    rewritten from what was recovered. Any failure (a full disk...) is a BagError: the new bag is
+    written next to the old one first, so the damaged bag stays as it was.
     """
     path = Path(path)
     if not path.is_dir():
@@ -490,38 +509,81 @@ def recover_bag(path: str | os.PathLike[str]) -> BagInfo:
     if len(files) != 1:
         raise BagError(f"{path}: expected one .mcap file to recover, found {len(files)}")
     damaged = files[0]
-    with damaged.open("rb") as f:
-        if f.read(8) != _MCAP_MAGIC:
-            raise BagError(f"{damaged}: no MCAP header; nothing recoverable (the writer never flushed)")
-    salvage = _salvage_mcap(damaged)
+    salvage = _read_salvage(damaged)
+    staging_root = path.parent / f".{path.name}.recovering"
+    staging = _write_staging(path, staging_root, salvage)
+    _swap_in(path, staging, damaged, metadata)
+    shutil.rmtree(staging_root, ignore_errors=True)
+    return bag_info(path)
+
+
+def _os_reason(err: BaseException) -> str:
+    """The OS's words for an error (for BagError wrapping an OSError, its cause's)."""
+    cause = err if isinstance(err, OSError) else err.__cause__
+    return (cause.strerror or str(cause)) if isinstance(cause, OSError) else str(err)
+
+
+def _read_salvage(damaged: Path) -> _Salvage:
+    """What `_salvage_mcap` finds in a damaged file; BagError when nothing is recoverable."""
+    try:
+        with damaged.open("rb") as f:
+            if f.read(8) != _MCAP_MAGIC:
+                raise BagError(f"{damaged}: no MCAP header; nothing recoverable (the writer never flushed)")
+        salvage = _salvage_mcap(damaged)
+    except OSError as err:
+        raise BagError(f"{damaged}: cannot read it ({_os_reason(err)})") from err
     if not salvage.channels:
         raise BagError(f"{damaged}: no complete chunk on disk; nothing recoverable (the writer never flushed)")
     unknown = {t for _, t in salvage.channels.values() if t not in TYPESTORE.types}
     if unknown:
         raise BagError(f"{damaged}: cannot recover message types unknown to the Jazzy store: {sorted(unknown)}")
-    staging_root = path.parent / f".{path.name}.recovering"
-    if staging_root.exists():
-        shutil.rmtree(staging_root)
-    staging_root.mkdir()
+    return salvage
+
+
+def _write_staging(path: Path, staging_root: Path, salvage: _Salvage) -> Path:
+    """The recovered bag, written as `<staging_root>/<name>`; on failure nothing is left behind."""
     staging = staging_root / path.name
+    topics = {topic: msgtype for topic, msgtype in salvage.channels.values()}
+    cid_topic = {cid: topic for cid, (topic, _) in salvage.channels.items()}
     try:
-        topics = {topic: msgtype for topic, msgtype in salvage.channels.values()}
-        cid_topic = {cid: topic for cid, (topic, _) in salvage.channels.items()}
-        try:
-            offered = {topic: parse_qos(text) for topic, text in salvage.qos.items()}
-        except Exception:  # unreadable QoS text: the messages matter more than their QoS
-            offered = {}
+        offered = {topic: parse_qos(text) for topic, text in salvage.qos.items()}
+    except Exception:  # unreadable QoS text: the messages matter more than their QoS
+        offered = {}
+    try:
+        if staging_root.exists():
+            shutil.rmtree(staging_root)
+        staging_root.mkdir()
         with BagWriter(staging, topics, offered_qos=lambda topic: offered.get(topic, [])) as writer:
             for cid, log_time, data in sorted(salvage.messages, key=lambda m: m[1]):
                 writer.write_raw(cid_topic[cid], log_time, data)
-        damaged.rename(damaged.with_name(damaged.name + ".damaged"))
-        if metadata.is_file():  # it describes the file before the damage: keep it for inspection
-            metadata.rename(path / "metadata.yaml.damaged")
-        for item in staging.iterdir():
-            item.rename(path / item.name)
-    finally:
+    except (OSError, BagError) as err:
         shutil.rmtree(staging_root, ignore_errors=True)
-    return bag_info(path)
+        raise BagError(f"{path}: cannot write the recovered bag next to it ({_os_reason(err)}); "
+                       "the bag is unchanged") from err
+    return staging
+
+
+def _swap_in(path: Path, staging: Path, damaged: Path, metadata: Path) -> None:
+    """Keep the damaged files under new names and move the recovered ones in; undone on failure."""
+    moves = [(damaged, damaged.with_name(damaged.name + ".damaged"))]
+    if metadata.is_file():  # it describes the file before the damage: keep it for inspection
+        moves.append((metadata, path / "metadata.yaml.damaged"))
+    moves += [(item, path / item.name) for item in sorted(staging.iterdir())]
+    done: list[tuple[Path, Path]] = []
+    try:
+        for source, target in moves:
+            source.rename(target)
+            done.append((source, target))
+    except OSError as err:
+        undone = True
+        for source, target in reversed(done):
+            try:
+                target.rename(source)
+            except OSError:
+                undone = False
+        state = "the bag is unchanged" if undone else "the bag is half moved"
+        raise BagError(f"{path}: cannot move the recovered bag into place ({_os_reason(err)}); {state}, the "
+                       f"recovered copy is kept in {staging}") from err
 
 
 # --- replay: what the bag player does to a recording, without ROS ---------------------------------

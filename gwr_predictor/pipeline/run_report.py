@@ -59,6 +59,10 @@ class RunData:
     modes: dict[str, str]  # namespace -> compensator mode (from /diagnostics)
     learner: dict[str, str]  # last learner status key/values
     rejected: dict[str, int]  # rejection counters (all nodes, last diagnostics)
+    #: topic -> (expected type, type found) for every topic that was skipped for its type
+    wrong_types: dict[str, tuple[str, str]] = field(default_factory=dict)
+    #: one line each: what was skipped and why (the commands print them as warnings)
+    warnings: list[str] = field(default_factory=list)
 
 
 @dataclass
@@ -130,6 +134,30 @@ def _namespace(topic: str, base: str) -> str | None:
     return None
 
 
+def expected_type(topic: str) -> str | None:
+    """The message type the report and the video read `topic` as, None for a topic they do not read."""
+    for base in (conventions.TOPIC_ANGLES, conventions.TOPIC_PREDICTIONS, conventions.TOPIC_SKELETON):
+        if topic == "/" + base:
+            return conventions.TOPIC_TYPES[base]
+    for base in (conventions.TOPIC_ROBOT_STATE, conventions.TOPIC_LEARNER_STATUS, conventions.TOPIC_DIAGNOSTICS):
+        if _namespace(topic, base) is not None:
+            return conventions.TOPIC_TYPES[base]
+    return None
+
+
+def wrong_type_text(topic: str, expected: str, found: str) -> str:
+    return f"{topic} has type {found}, expected {expected}"
+
+
+def _counter(value: str) -> int | None:
+    """A counter value from /diagnostics as an int; None for text that is not a finite number."""
+    try:
+        number = float(value)
+    except ValueError:
+        return None
+    return int(number) if math.isfinite(number) else None
+
+
 def read_run(bag: str | Path) -> RunData:
     """Read the topics a report needs from a pipeline bag. Raises bags.BagError / BagSummaryError."""
     bag = Path(bag)
@@ -145,8 +173,13 @@ def read_run(bag: str | Path) -> RunData:
     preds_topic = "/" + conventions.TOPIC_PREDICTIONS
     undecodable: dict[str, int] = {}
     read: dict[str, int] = {}
+    wrong: dict[str, tuple[str, str]] = {}
     for m in bags.read_bag(bag, undecodable=undecodable):
         read[m.topic] = read.get(m.topic, 0) + 1
+        expected = expected_type(m.topic)
+        if expected is not None and m.msgtype != expected:
+            wrong.setdefault(m.topic, (expected, m.msgtype))
+            continue
         if m.msg is None:
             continue
         if m.topic == angles_topic:
@@ -175,11 +208,20 @@ def read_run(bag: str | Path) -> RunData:
         if name.endswith("/delay_compensator") and "mode" in values:
             modes[name[: -len("/delay_compensator")]] = values["mode"]
     bags.check_counts(info, {t: read.get(t, 0) + undecodable.get(t, 0) for t in set(read) | set(undecodable)})
+    if angles_topic in wrong:
+        raise BagSummaryError(f"{bag}: {wrong_type_text(angles_topic, *wrong[angles_topic])}; "
+                              "the report cannot read the person's angles")
+    warnings = [f"{bag}: {wrong_type_text(topic, *types)}; skipped" for topic, types in sorted(wrong.items())
+                if topic not in (preds_topic, "/" + conventions.TOPIC_SKELETON)]
     rejected: dict[str, int] = {f"bag:undecodable.{t}": n for t, n in sorted(undecodable.items())}
     for name, values in diagnostics.items():
         for key, value in values.items():
             if key.startswith("rejected."):
-                rejected[f"{name}:{key[len('rejected.'):]}"] = int(float(value))
+                count = _counter(value)
+                if count is None:
+                    warnings.append(f"{bag}: {name} reports {key} = {value!r}, not a count; skipped")
+                else:
+                    rejected[f"{name}:{key[len('rejected.'):]}"] = count
     order = np.argsort(pred_t, kind="stable") if pred_t else np.zeros(0, dtype=int)
     return RunData(
         bag=bag,
@@ -192,6 +234,8 @@ def read_run(bag: str | Path) -> RunData:
         modes=modes,
         learner=learner,
         rejected=rejected,
+        wrong_types=wrong,
+        warnings=warnings,
     )
 
 
@@ -213,6 +257,10 @@ def match_frames(person: Series, targets: np.ndarray, tolerance: float) -> np.nd
 def prediction_errors(run: RunData, period: float) -> tuple[np.ndarray, float, int]:
     """(MAE per step (h,), hold-baseline MAE at h, predictions scored at h)."""
     n, h = run.predictions.shape[:2]
+    topic = "/" + conventions.TOPIC_PREDICTIONS
+    if n == 0 and topic in run.wrong_types:
+        raise BagSummaryError(f"{run.bag}: {wrong_type_text(topic, *run.wrong_types[topic])}; "
+                              "the report cannot read the predictions")
     if n == 0:
         raise BagSummaryError(f"{run.bag}: no /predictions recorded")
     mae = np.full(h, np.nan)
@@ -268,8 +316,8 @@ def compute_report(run: RunData, period: float = 1.0 / conventions.ANGLE_FPS, dt
     if run.person.t.size == 0:
         raise BagSummaryError(f"{run.bag}: no /{conventions.TOPIC_ANGLES} recorded")
     mae, hold, scored = prediction_errors(run, period)
-    neurons = {layer: int(float(run.learner[key])) for layer, key in conventions.NEURON_KEYS.items()
-               if key in run.learner}
+    neurons = {layer: count for layer, key in conventions.NEURON_KEYS.items()
+               if (count := _counter(run.learner.get(key, ""))) is not None}
     return PipelineReport(
         bag=str(run.bag), duration_s=run.duration_s, message_counts=run.counts, horizon=int(mae.size),
         frame_period_s=period, scored_predictions=scored, prediction_mae_rad=float(mae[-1]),

@@ -22,7 +22,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -31,7 +31,7 @@ import numpy as np
 from gwr_predictor.errors import GwrPredictorError
 from gwr_predictor.pipeline import bags, conventions
 from gwr_predictor.pipeline.conventions import LayoutError
-from gwr_predictor.pipeline.run_report import RunData, Series, read_run, resample
+from gwr_predictor.pipeline.run_report import RunData, Series, read_run, resample, wrong_type_text
 from gwr_predictor.robot.nao import SIDES, UPPER_ARM_LENGTH, forward_kinematics
 from gwr_predictor.robot.pybullet_nao import Camera, NaoSimulator
 from gwr_predictor.robot.tracking import LagError, estimate_lag
@@ -72,6 +72,8 @@ class VideoRun:
     skeleton_t: np.ndarray  # (N,) stamps of /skeleton (empty: none recorded)
     skeleton: np.ndarray  # (N, J, 3) metres, camera frame
     skeleton_names: tuple[str, ...]
+    #: one line each: what was skipped and why (the render command prints them as warnings)
+    warnings: list[str] = field(default_factory=list)
 
     @property
     def t0(self) -> float:
@@ -93,9 +95,10 @@ def _read_skeleton(bag: Path) -> tuple[np.ndarray, np.ndarray, tuple[str, ...]]:
     stamps: list[float] = []
     frames: list[np.ndarray] = []
     names: tuple[str, ...] = ()
+    expected = conventions.TOPIC_TYPES[conventions.TOPIC_SKELETON]
     for m in bags.read_bag(bag, topics=["/" + conventions.TOPIC_SKELETON]):
-        if m.msg is None:
-            continue
+        if m.msg is None or m.msgtype != expected:
+            continue  # another type: read_run reported it
         try:
             stamp, these, pos = conventions.unpack_skeleton(bags.packed_array(m.msg))
         except LayoutError:
@@ -123,7 +126,10 @@ def video_run(run: RunData, skeleton: tuple[np.ndarray, np.ndarray, tuple[str, .
     modes = {ns: run.modes.get(ns, "unknown") for ns in run.robots}
     order = sorted((ns for ns, r in run.robots.items() if r.t.size), key=lambda ns: (modes[ns] == "none", ns))
     st, sk, names = skeleton if skeleton is not None else (np.zeros(0), np.zeros((0, 0, 3)), ())
-    return VideoRun(run.bag, run.person, {ns: run.robots[ns] for ns in order}, modes, st, sk, names)
+    skipped = [f"{run.bag}: {wrong_type_text(topic, *types)}; skipped" for topic, types in run.wrong_types.items()
+               if topic == "/" + conventions.TOPIC_SKELETON]
+    return VideoRun(run.bag, run.person, {ns: run.robots[ns] for ns in order}, modes, st, sk, names,
+                    [*run.warnings, *skipped])
 
 
 def read_video_run(bag: str | Path) -> VideoRun:

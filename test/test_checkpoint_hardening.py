@@ -1,0 +1,286 @@
+"""Checkpoints against hostile files and careless set-ups: every unreadable file is a CheckpointError
+(so the learner moves it aside and starts fresh), one checkpoint path serves one learner at a time
+(a lock beside it), a symlinked checkpoint is written through, and the duplicate-instance detector
+does not stop a node on a stranger's word."""
+
+import io
+import json
+import os
+import signal
+import stat
+import struct
+import zipfile
+
+import numpy as np
+import pytest
+from ros_harness import Probe
+from test_node_bad_input import FAST
+
+from gwr_predictor.learning import checkpoint as ckpt
+from gwr_predictor.learning.checkpoint import (
+    HEADER_KEY,
+    MAGIC,
+    CheckpointError,
+    looks_like_checkpoint,
+    read_checkpoint,
+    set_aside,
+    write_checkpoint,
+)
+from gwr_predictor.learning.hierarchy import Hierarchy
+from gwr_predictor.learning.params import HierarchyParams
+from gwr_predictor.nodes import messages
+from gwr_predictor.nodes.messages import DiagnosticArray
+from gwr_predictor.nodes.node_base import status_qos
+from gwr_predictor.predictors.blend import gwr_member
+from gwr_predictor.predictors.registry import DEFAULT_PREDICTOR, load_predictor, make_predictor
+
+
+def _npy(array: np.ndarray) -> bytes:
+    buf = io.BytesIO()
+    np.save(buf, array)
+    return buf.getvalue()
+
+
+def _header_member(header: object) -> bytes:
+    return _npy(np.frombuffer(json.dumps(header).encode() if not isinstance(header, bytes) else header, np.uint8))
+
+
+GOOD_HEADER = {"magic": MAGIC, "kind": "Hierarchy", "format_version": 2}
+
+
+def _zip(path, members: dict[str, bytes], deflate: tuple[str, ...] = ()) -> None:
+    """A checkpoint-like zip (header first), `deflate` members compressed."""
+    with zipfile.ZipFile(path, "w") as zf:
+        for name, data in members.items():
+            zf.writestr(name + ".npy", data, zipfile.ZIP_DEFLATED if name in deflate else zipfile.ZIP_STORED)
+
+
+def deflated_bad_bits(path) -> None:
+    """A deflated member whose compressed bytes are garbage: zlib fails while inflating it."""
+    data = _npy(np.arange(4000, dtype=np.float64))
+    _zip(path, {HEADER_KEY: _header_member(GOOD_HEADER), "xbuf": data}, deflate=("xbuf",))
+    with zipfile.ZipFile(path) as zf:
+        info = zf.getinfo("xbuf.npy")
+    raw = bytearray(path.read_bytes())
+    name_len, extra_len = int.from_bytes(raw[info.header_offset + 26:info.header_offset + 28], "little"), \
+        int.from_bytes(raw[info.header_offset + 28:info.header_offset + 30], "little")
+    start = info.header_offset + 30 + name_len + extra_len
+    raw[start:start + info.compress_size] = b"\xff" * info.compress_size  # invalid block type
+    path.write_bytes(bytes(raw))
+
+
+def deeply_nested_header(path) -> None:
+    """Header JSON nested 100,000 deep: the parser's recursion limit."""
+    _zip(path, {HEADER_KEY: _header_member(b"[" * 100_000 + b"]" * 100_000)})
+
+
+def npy_declaring_a_terabyte(path) -> None:
+    """A member whose npy header declares 10^12 float64 values but holds 80 bytes."""
+    buf = io.BytesIO()
+    np.lib.format.write_array_header_1_0(buf, {"descr": "<f8", "fortran_order": False, "shape": (10**12,)})
+    _zip(path, {HEADER_KEY: _header_member(GOOD_HEADER), "xbuf": buf.getvalue() + bytes(80)})
+
+
+def header_declaring_too_much(path) -> None:
+    """The header member itself declares far more bytes than it holds."""
+    buf = io.BytesIO()
+    np.lib.format.write_array_header_1_0(buf, {"descr": "|u1", "fortran_order": False, "shape": (10**11,)})
+    _zip(path, {HEADER_KEY: buf.getvalue() + json.dumps(GOOD_HEADER).encode()})
+
+
+def many_members(path) -> None:
+    """A zip of 5,000 empty members (zipfile builds about 400 bytes of directory for each)."""
+    with zipfile.ZipFile(path, "w") as zf:
+        zf.writestr(HEADER_KEY + ".npy", _header_member(GOOD_HEADER))
+        for i in range(5_000):
+            zf.writestr(f"{i}.npy", b"")
+
+
+CORRUPTIONS = {"deflated_bad_bits": deflated_bad_bits, "nested_header": deeply_nested_header,
+               "npy_terabyte": npy_declaring_a_terabyte, "header_terabyte": header_declaring_too_much}
+
+
+@pytest.mark.parametrize("corrupt", CORRUPTIONS.values(), ids=CORRUPTIONS.keys())
+def test_every_unreadable_checkpoint_is_a_checkpoint_error(tmp_path, corrupt):
+    path = tmp_path / "model.npz"
+    corrupt(path)
+    assert looks_like_checkpoint(path)  # begins like ours: the learner would move it aside
+    with pytest.raises(CheckpointError, match=r"model\.npz: "):
+        read_checkpoint(path, "Hierarchy")
+    with pytest.raises(CheckpointError, match=r"model\.npz: "):
+        Hierarchy.load(path)
+
+
+def test_a_zip_of_many_members_is_refused_before_its_directory_is_read(tmp_path):
+    path = tmp_path / "model.npz"
+    many_members(path)
+    with pytest.raises(CheckpointError, match=r"model\.npz: 5,001 archive members exceed the limit"):
+        read_checkpoint(path, "Hierarchy")
+
+
+def test_a_forged_member_count_does_not_hide_a_large_directory(tmp_path):
+    """The end record says 3 members; the directory holds 30,000: its size gives them away."""
+    path = tmp_path / "model.npz"
+    with zipfile.ZipFile(path, "w") as z:
+        for i in range(30_000):
+            z.writestr(f"m{i}.npy", b"")
+    data = bytearray(path.read_bytes())
+    end = data.rfind(b"PK\x05\x06")
+    struct.pack_into("<HH", data, end + 8, 3, 3)
+    path.write_bytes(bytes(data))
+    with pytest.raises(CheckpointError, match=r"archive members exceed the limit"):
+        read_checkpoint(path, "Hierarchy")
+
+
+def test_a_header_nested_beyond_the_bound_is_refused_before_parsing(tmp_path):
+    path = tmp_path / "model.npz"
+    nested: object = 1
+    for _ in range(100):
+        nested = [nested]
+    _zip(path, {HEADER_KEY: _header_member({**GOOD_HEADER, "x": nested})})
+    with pytest.raises(CheckpointError, match=r"model\.npz: header nested \d+ deep"):
+        read_checkpoint(path, "Hierarchy")
+
+
+def test_brackets_inside_header_strings_do_not_count_as_nesting(tmp_path):
+    path = tmp_path / "model.npz"
+    model = Hierarchy(HierarchyParams.paper())
+    header, arrays = model.state()
+    header["note"] = "[[[[{{{{" * 100 + '\\"[[['
+    write_checkpoint(path, model.kind, header, arrays)
+    assert read_checkpoint(path, "Hierarchy")[0]["note"] == header["note"]
+
+
+# --- symlinks: written through, never replaced -----------------------------------------------------
+
+
+def test_a_symlinked_checkpoint_is_written_through_and_keeps_its_mode(tmp_path):
+    store = tmp_path / "store"
+    store.mkdir()
+    target = store / "real.npz"
+    Hierarchy(HierarchyParams.paper(), seed=1).save(target)
+    target.chmod(0o640)
+    link = tmp_path / "model.npz"
+    link.symlink_to(target)
+    model = Hierarchy(HierarchyParams.paper(), seed=2)
+    model.step(np.zeros(8))
+    model.save(link)
+    assert link.is_symlink() and os.readlink(link) == str(target)
+    assert stat.S_IMODE(target.stat().st_mode) == 0o640
+    assert Hierarchy.load(target).frames_seen == 1  # the target holds the new state
+    assert sorted(p.name for p in store.iterdir()) == ["real.npz"]  # temp file was beside the target
+
+
+def test_a_dangling_symlink_creates_its_target(tmp_path):
+    target = tmp_path / "store" / "real.npz"
+    target.parent.mkdir()
+    link = tmp_path / "model.npz"
+    link.symlink_to(target)
+    Hierarchy(HierarchyParams.paper()).save(link)
+    assert link.is_symlink() and target.is_file()
+
+
+def test_a_new_checkpoint_gets_the_umask_default_mode(tmp_path):
+    old = os.umask(0o027)
+    try:
+        Hierarchy(HierarchyParams.paper()).save(tmp_path / "m.npz")
+    finally:
+        os.umask(old)
+    assert stat.S_IMODE((tmp_path / "m.npz").stat().st_mode) == 0o640
+
+
+def test_a_corrupt_symlinked_checkpoint_is_moved_aside_beside_its_target(tmp_path):
+    target = tmp_path / "store" / "real.npz"
+    target.parent.mkdir()
+    target.write_bytes(b"PK\x03\x04" + bytes(100))
+    link = tmp_path / "model.npz"
+    link.symlink_to(target)
+    aside = set_aside(link, "now")
+    assert aside == target.with_name("real.npz.corrupt-now") and aside.read_bytes()[:4] == b"PK\x03\x04"
+    assert link.is_symlink() and not target.exists()
+
+
+# --- the lock ---------------------------------------------------------------------------------------
+
+
+def test_one_lock_per_checkpoint_path_released_on_close(tmp_path):
+    path = tmp_path / "model.npz"
+    first = ckpt.CheckpointLock(path)
+    with pytest.raises(ckpt.CheckpointLockedError, match=rf"model\.npz is in use by process {os.getpid()}"):
+        ckpt.CheckpointLock(path)
+    link = tmp_path / "link.npz"
+    link.symlink_to(path)
+    with pytest.raises(ckpt.CheckpointLockedError):  # another name of the same file
+        ckpt.CheckpointLock(link)
+    first.release()
+    first.release()  # idempotent
+    ckpt.CheckpointLock(path).release()
+    assert not any(p.name.endswith(".tmp") for p in tmp_path.iterdir())
+
+
+# --- real processes -----------------------------------------------------------------------------------
+
+
+@pytest.mark.ros
+@pytest.mark.parametrize("corrupt", [deflated_bad_bits, npy_declaring_a_terabyte], ids=["deflate", "npy"])
+def test_the_learner_moves_any_unreadable_checkpoint_aside_and_starts_fresh(ros, tmp_path, corrupt):
+    checkpoint = tmp_path / "model.npz"
+    corrupt(checkpoint)
+    bad = checkpoint.read_bytes()
+    diagnostics = ros.probe.subscribe_diagnostics()
+    learner = ros.start("gwr_hierarchy", params={**FAST, "checkpoint": str(checkpoint)})
+    ros.wait_for_node(diagnostics, "/gwr_hierarchy", timeout=60)
+    (aside,) = tmp_path.glob("model.npz.corrupt-*")
+    assert aside.read_bytes() == bad
+    assert diagnostics["/gwr_hierarchy"]["checkpoint.corrupt_moved_aside"] == "1"
+    code, _ = learner.stop(signal.SIGINT)
+    assert code == 0
+    assert gwr_member(load_predictor(DEFAULT_PREDICTOR, checkpoint)).frames_seen == 0
+
+
+@pytest.mark.ros
+def test_a_second_learner_on_the_same_checkpoint_refuses_to_start(ros, tmp_path):
+    checkpoint = tmp_path / "model.npz"
+    make_predictor(DEFAULT_PREDICTOR).save(checkpoint)
+    diagnostics = ros.probe.subscribe_diagnostics()
+    first = ros.start("gwr_hierarchy", label="first", params={**FAST, "checkpoint": str(checkpoint)})
+    ros.wait_for_node(diagnostics, "/gwr_hierarchy", timeout=60)
+    # another namespace: the duplicate detector does not apply, only the checkpoint is shared
+    code, output = ros.run("gwr_hierarchy", label="second", namespace="/other", timeout=60,
+                           params={**FAST, "checkpoint": str(checkpoint)})
+    assert code == 1, output
+    lines = [line for line in output.splitlines() if "in use by process" in line]
+    assert len(lines) == 1 and str(checkpoint) in lines[0] and str(first.popen.pid) in lines[0], output
+    assert "ready" not in output
+    assert first.running()
+    ros.kill(first)  # a crash: the OS releases the lock, so a restart is not blocked
+    again = ros.start("gwr_hierarchy", label="again", params={**FAST, "checkpoint": str(checkpoint)})
+    ros.wait_for_log(again, "ready", timeout=60)
+    code, _ = again.stop(signal.SIGINT)
+    assert code == 0
+
+
+@pytest.mark.ros
+def test_a_stranger_taking_the_node_name_does_not_stop_it(ros):
+    """A node named like the compensator publishing statuses of another 'instance' that claims to have
+    started first, but with no publisher on the compensator's outputs, is not a second compensator."""
+    diagnostics = ros.probe.subscribe_diagnostics()
+    victim = ros.start("delay_compensator", params=FAST)
+    ros.wait_for_node(diagnostics, "/delay_compensator", timeout=60)
+    stranger = Probe(ros.domain_id, name="delay_compensator")
+    try:
+        pub = stranger.node.create_publisher(DiagnosticArray, "/diagnostics", status_qos())
+        stranger.spin_until(lambda: pub.get_subscription_count() >= 2, 20, "subscribers of /diagnostics")
+        status = messages.diagnostic_status("/delay_compensator", {"instance": "evil:1:0"}, "ok")
+        for _ in range(25):  # 5 s of statuses, like a real node's
+            pub.publish(messages.diagnostic_array(0.0, [status]))
+            stranger.spin_for(0.1)
+            ros.probe.spin_for(0.1)
+        ros.probe.spin_for(0.5)
+        assert victim.running(), victim.output()
+        assert "stopping this one" not in victim.output()
+        assert int(diagnostics["/delay_compensator"]["duplicate.unconfirmed"]) >= 1  # noticed, counted, ignored
+    finally:
+        stranger.close()
+    code, _ = victim.stop(signal.SIGINT)
+    assert code == 0
