@@ -5,10 +5,12 @@ the paper: training never stops). Each step publishes P(t+1..t+h) on `prediction
 and the h-step prediction as a JointState on `predicted_angles` (stamped t + h * frame period);
 for standard tools also as a `trajectory_msgs/JointTrajectory` on `predicted_trajectory` (stamped t,
 points at t+1..t+h) and the predicted arm at t+h as a MarkerArray on `predicted_arm_markers`
-(frame `torso`, over the robot model).
+(frame `torso`, over the robot model, stamped with the node clock when published).
 Missing frames inside a sequence are fed as missing samples, a gap longer than `max_gap_s` ends
 the sequence. The model is loaded from `checkpoint` at start and saved there atomically every
 `checkpoint_interval_s` and at shutdown; an unreadable checkpoint is moved aside, never overwritten.
+The node locks its checkpoint (`.<name>.lock` beside it) while it runs: a second learner on the same
+file refuses to start instead of overwriting the first one's learning.
 
 `predictor` picks the model: `gated_llm_gwr` (the default: a P-GWR with local linear models and a
 global linear read-out, mixed per horizon step, behind a confidence gate that falls back to holding
@@ -27,7 +29,14 @@ from pathlib import Path
 
 import numpy as np
 
-from gwr_predictor.learning.checkpoint import CheckpointError, KindMismatchError, prepare_checkpoint_place, set_aside
+from gwr_predictor.learning.checkpoint import (
+    CheckpointError,
+    CheckpointLock,
+    KindMismatchError,
+    check_checkpoint_place,
+    remove_stale_temp_files,
+    set_aside,
+)
 from gwr_predictor.learning.hierarchy import Hierarchy
 from gwr_predictor.learning.params import HierarchyParams, hierarchy_parameter_specs
 from gwr_predictor.parameter_spec import ParamSpec
@@ -83,16 +92,12 @@ class GwrHierarchyNode(PipelineNode):
             raise ParameterError(f"parameter 'n_joints' = {params.n_joints}: this node learns the "
                                  f"{len(ARM_JOINTS)} arm joints {', '.join(ARM_JOINTS)}; it must be {len(ARM_JOINTS)}")
         self.checkpoint = Path(p["checkpoint"]) if p["checkpoint"] else None
-        if self.checkpoint is not None:
-            try:
-                removed = prepare_checkpoint_place(self.checkpoint)
-            except CheckpointError as exc:
-                raise NodeFatalError(f"parameter 'checkpoint': {exc}") from None
-            if removed:
-                self.counters.count("checkpoint.stale_temp_removed", len(removed))
-                self.get_logger().info(f"removed {len(removed)} temporary files of interrupted saves: "
-                                       + ", ".join(str(f) for f in removed))
-        self.model = self.load_or_create(params)
+        self.checkpoint_lock = self.claim_checkpoint(self.checkpoint) if self.checkpoint is not None else None
+        try:
+            self.model = self.load_or_create(params)
+        except BaseException:
+            self.release_checkpoint()
+            raise
         self.gwr = gwr_member(self.model)  # the GWR learner (the model itself, or the blend's GWR member)
         self.horizon = self.model.params.horizon
         self.gate = self.arm_gate("arm_angles")
@@ -112,6 +117,25 @@ class GwrHierarchyNode(PipelineNode):
         self.create_timer(p["status_period_s"], self.publish_status)
         self.checkpoint_timer = None
         self.schedule_checkpoints(p["checkpoint_interval_s"])
+
+    def claim_checkpoint(self, path: Path) -> CheckpointLock:
+        """Check the place, lock it for this node's life (a second learner on the path refuses to
+        start), then remove temporary files of interrupted saves (only ours to remove once locked)."""
+        try:
+            check_checkpoint_place(path)
+            lock = CheckpointLock(path)
+        except CheckpointError as exc:
+            raise NodeFatalError(f"parameter 'checkpoint': {exc}") from None
+        removed = remove_stale_temp_files(path)
+        if removed:
+            self.counters.count("checkpoint.stale_temp_removed", len(removed))
+            self.get_logger().info(f"removed {len(removed)} temporary files of interrupted saves: "
+                                   + ", ".join(str(f) for f in removed))
+        return lock
+
+    def release_checkpoint(self) -> None:
+        if self.checkpoint_lock is not None:
+            self.checkpoint_lock.release()
 
     def schedule_checkpoints(self, interval_s: float) -> None:
         """(Re)start the periodic save; 0 (or no checkpoint path): only at shutdown."""
@@ -143,7 +167,9 @@ class GwrHierarchyNode(PipelineNode):
             raise NodeFatalError(f"checkpoint {path} does not fit parameter predictor="
                                  f"{self.params['predictor']!r} ({exc}); set 'predictor' to match it or use "
                                  "another checkpoint path") from None
-        except CheckpointError as exc:
+        except Exception as exc:  # whatever an unreadable file raises: set it aside, start fresh
+            if not isinstance(exc, CheckpointError):
+                exc = CheckpointError(f"{path}: not a readable checkpoint: {type(exc).__name__}: {exc}")
             try:
                 aside = set_aside(path)
             except OSError as move_exc:
@@ -185,8 +211,9 @@ class GwrHierarchyNode(PipelineNode):
         if self.params["standard_outputs"]:
             trajectory = prediction_trajectory(predictions, self.params["frame_period_s"])
             self.trajectory_pub.publish(standard_messages.joint_trajectory(stamp, ARM_JOINTS, trajectory))
+            # stamped now, not at t+h: a viewer transforms markers with the TF at their stamp
             self.arm_markers_pub.publish(standard_messages.figure_markers(
-                stamp + self.horizon * self.params["frame_period_s"], ROBOT_FRAME, "predicted_arm",
+                self.now_s(), ROBOT_FRAME, "predicted_arm",
                 arm_figure(predictions[-1]), (1.0, 0.5, 0.1, 0.9), lifetime_s=1.0, joint_size=0.025,
                 line_width=0.015))
         self.counters.count("predictions.published")
@@ -242,8 +269,11 @@ class GwrHierarchyNode(PipelineNode):
     def on_shutdown(self) -> None:
         if self.checkpoint is None:
             return
-        if not self.save_checkpoint():
-            raise NodeFatalError(f"the final checkpoint could not be written to {self.checkpoint}")
+        try:
+            if not self.save_checkpoint():
+                raise NodeFatalError(f"the final checkpoint could not be written to {self.checkpoint}")
+        finally:
+            self.release_checkpoint()
         self.get_logger().info(f"checkpoint saved to {self.checkpoint} (neurons {self.model.neuron_counts})")
 
 

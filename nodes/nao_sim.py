@@ -5,6 +5,9 @@ kinematic model): commands reach its motors `delay_s` later (the paper's 600 ms 
 transport) plus `latency_s` of motor response. A timer advances it to the node clock in control
 periods (the physics runs at 240 Hz inside) and publishes what the robot reports on `joint_states`.
 `delay_amplitude_s` makes the delay vary as a sine (the variable-delay scenario of Sec. VI-D).
+A node-clock jump beyond `max_clock_jump_s` (a looping replay, a leaping /clock, a stopped process)
+restarts the robot's time base there, logged and counted as `clock_jumps.forward` / `clock_jumps.back`:
+the gap is never simulated, so every step stays short and the node answers signals throughout.
 Commands are checked by the input gate (layout, finite, stamps) and clipped into the joint limits
 once, at the robot's input (`SimulatedRobot.command`), counted as `joint_commands.clipped`.
 
@@ -22,6 +25,8 @@ from typing import Any
 
 from gwr_predictor.parameter_spec import ParamSpec
 from gwr_predictor.pipeline import conventions
+from gwr_predictor.pipeline.clock_jumps import CLOCK_JUMP_SPEC, RobotTimeBase
+from gwr_predictor.pipeline.gates import ArmAnglesGate
 from gwr_predictor.robot.delayed_arm import ROBOT_SPECS, RobotError, SimulatedRobot, sine_delay
 from gwr_predictor.robot.nao import ROBOT_ARM_JOINTS, robot_arm_positions
 from gwr_predictor.robot.urdf import default_urdf_path
@@ -38,6 +43,7 @@ PARAMS = (
     ParamSpec("delay_period_s", 20.0, "period of the delay variation (s)", 0.1, 3600.0),
     ROBOT_SPECS["latency_s"],
     ParamSpec("control_period_s", 0.01, "robot control period; physics steps at 240 Hz within it (s)", 0.001, 0.1),
+    CLOCK_JUMP_SPEC,
     ParamSpec("state_rate_hz", 50.0, "rate of joint_states", 1.0, 1000.0),
     ParamSpec("render_dir", "", "write offscreen PNG pictures of the robot here (pybullet backend); empty: none"),
     ParamSpec("render_period_s", 1.0, "one picture every this many seconds", 0.05, 3600.0),
@@ -74,9 +80,9 @@ class NaoSimNode(PipelineNode):
                                         simulator=self.sim)
         except RobotError as exc:
             raise ParameterError(str(exc)) from None
-        self.t0: float | None = None  # node-clock time of robot time 0: the first tick (under sim time, /clock)
-        # no limit rule at the gate: the robot's input clips every command, once (SimulatedRobot.command)
-        self.gate = self.arm_gate("joint_commands", limit_margin=None)
+        # robot time 0 is the first tick's node-clock time (under sim time, /clock)
+        self.time_base = RobotTimeBase(p["max_clock_jump_s"])
+        self.gate = self.command_gate()
         self.state_pub = self.create_publisher(messages.JointState, conventions.TOPIC_ROBOT_STATE, stream_qos())
         self.publish_robot_description()
         self.create_subscription(messages.JointState, conventions.TOPIC_COMMAND, self.on_command, stream_qos())
@@ -92,20 +98,34 @@ class NaoSimNode(PipelineNode):
                                f"motor latency {p['latency_s']} s")
 
     def advance(self) -> None:
-        """Step the robot up to the node clock (whole control periods), with the delay in force."""
+        """Step the robot up to the node clock (whole control periods, at most `max_clock_jump_s`), with the
+        delay in force."""
         p = self.params
         now = self.now_s()
         if now == 0.0:
             return  # use_sim_time and no /clock yet: no time has passed
-        if self.t0 is None or now - self.t0 < self.robot.t - 1.0:
-            if self.t0 is not None:  # the clock jumped back (a looping replay): carry on from here
-                self.get_logger().info(f"node clock jumped back to {now:.3f} s: robot time continues")
-            self.t0 = now - self.robot.t
-        t = now - self.t0
+        t, jump = self.time_base.target(now, self.robot.t)
+        if jump:
+            self.on_clock_jump(now, jump)
         if p["delay_amplitude_s"] > 0.0:
             self.robot.delay_s = sine_delay(t, p["delay_s"], p["delay_amplitude_s"], p["delay_period_s"])
         if t > self.robot.t:
             self.robot.advance(t - self.robot.t)
+
+    def on_clock_jump(self, now: float, jump: float) -> None:
+        """Say so; after a jump back the command stamps start over too (the clock source's new time line)."""
+        direction = "forward" if jump > 0.0 else "back"
+        self.counters.count(f"clock_jumps.{direction}")
+        self.counters.warn_throttled(
+            f"clock_jumps.{direction}",
+            f"node clock jumped {direction} by {abs(jump):.3f} s to {now:.3f} s (more than max_clock_jump_s "
+            f"{self.params['max_clock_jump_s']} s): the robot's time continues from here, the gap is not simulated")
+        if jump < 0.0:
+            self.gate = self.command_gate()
+
+    def command_gate(self) -> ArmAnglesGate:
+        """No limit rule at the gate: the robot's input clips every command, once (SimulatedRobot.command)."""
+        return self.arm_gate("joint_commands", limit_margin=None)
 
     def on_live_parameter(self, name: str, value: Any) -> None:
         """A new delay applies to commands sent from now on (with a sine, `advance` uses it next step)."""
@@ -113,10 +133,10 @@ class NaoSimNode(PipelineNode):
             self.robot.delay_s = float(value)
 
     def on_command(self, msg: messages.JointState) -> None:
+        self.advance()  # first: a clock jump back renews the gate's stamp rule for the new time line
         accepted = self.gate.accept(*messages.joint_state_fields(msg))
         if accepted is None:
             return
-        self.advance()
         if self.robot.command(accepted[1]):
             self.counters.count("joint_commands.clipped")
         self.counters.count("commands.accepted")

@@ -9,6 +9,8 @@
   `bag_player clock:=true rate:=2.0`) runs the node on simulated time, faster than real time too;
   without /clock that clock stands at 0 and nothing timed happens, so the node warns
   (`SimClockWatch`). Diagnostics run on the wall clock: a node reports even while its clock stands.
+  `use_sim_time` is read at start only: a live change is refused with the reason (and counted as
+  `parameters.refused`), since every timer, stamp and staleness check holds times of the start clock.
 - `run_node`: init, build, spin, quiet exit on Ctrl-C / SIGTERM, final hook, destroy, shutdown;
   params files and ROS arguments are checked first (exit 2 with a message), unknown parameter names
   warned about (`gwr_predictor.pipeline.params_file`).
@@ -55,6 +57,8 @@ EXIT_FATAL = 1
 EXIT_BAD_PARAMETER = 2
 #: /diagnostics value naming the node process (host:pid:start ns): restarts and duplicates show.
 INSTANCE_KEY = conventions.INSTANCE_KEY
+#: rclpy's own parameter choosing the node clock (declared by rclpy's time source, not by a ParamSpec).
+USE_SIM_TIME = "use_sim_time"
 
 
 class NodeFatalError(GwrPredictorError):
@@ -230,9 +234,10 @@ class PipelineNode(Node):
         self._diag_pub = self.create_publisher(messages.DiagnosticArray, conventions.DIAGNOSTICS_TOPIC, status_qos())
         self._diag_timer = self.create_timer(self.params["diagnostics_period_s"], self.publish_diagnostics,
                                              clock=Clock(clock_type=ClockType.STEADY_TIME))
-        self.uses_sim_time = bool(self.get_parameter("use_sim_time").value)
+        self.uses_sim_time = bool(self.get_parameter(USE_SIM_TIME).value)
         self._sim_clock_watch = SimClockWatch(self, self.counters) if self.uses_sim_time else None
         if self.params["stop_if_duplicate"]:
+            self._sightings = InstanceSightings()
             self.create_subscription(messages.DiagnosticArray, conventions.DIAGNOSTICS_TOPIC,
                                      self._check_duplicate, status_qos())
 
@@ -255,8 +260,13 @@ class PipelineNode(Node):
         return check_stamp(self.counters, check, input_name, stamp, self.now_s())
 
     def _check_duplicate(self, msg: messages.DiagnosticArray) -> None:
-        """Another process with this node's name publishes counters: if it is also in the ROS graph
-        (a bag replaying old /diagnostics is not) and started first, this one stops."""
+        """Stop if a second instance of this node (name and namespace) that started first really runs.
+
+        One status is a stranger's word, so three kinds of evidence are needed: statuses of that
+        instance repeated over `DUPLICATE_MIN_SPAN_S`; a second node of this name in the ROS graph (a
+        bag replaying old /diagnostics adds none); and that second node on this node's own topics.
+        A convenience against two pipelines on one domain, not security: a hostile peer can fake all
+        three (SROS2 is the answer to those)."""
         me = self.get_fully_qualified_name()
         for status in msg.status:
             if status.name != me:
@@ -267,8 +277,12 @@ class PipelineNode(Node):
             other = started_ns(instance)
             if other is None or (other, instance) > (self.started_ns, self.instance_id):
                 continue  # the other one is the newcomer: it stops
-            same = [n for n, ns in self.get_node_names_and_namespaces() if (ns.rstrip("/") + "/" + n) == me]
-            if len(same) < 2:
+            if not self._sightings.add(instance, time.monotonic()):
+                continue
+            if not self._second_instance_on_own_topics(me):
+                self.counters.count("duplicate.unconfirmed")
+                self.counters.warn_throttled("duplicate.unconfirmed", f"statuses of another {me} (instance "
+                                             f"{instance}) but no second {me} on this node's topics: ignored")
                 continue
             self.error = (f"another {me} (instance {instance}) runs on ROS_DOMAIN_ID="
                           f"{os.environ.get('ROS_DOMAIN_ID', '0')}: two pipelines on one domain mix their "
@@ -277,20 +291,55 @@ class PipelineNode(Node):
             self.finish(EXIT_FATAL)
             return
 
+    def _second_instance_on_own_topics(self, me: str) -> bool:
+        """True if the graph holds two nodes named `me` and, on a topic this node publishes (or, for a
+        node that only listens, subscribes to), two endpoints of nodes named `me`."""
+        if sum(1 for n, ns in self.get_node_names_and_namespaces() if _qualified(ns, n) == me) < 2:
+            return False
+        topics = {p.topic_name for p in self.publishers} - _COMMON_TOPICS
+        endpoints = self.get_publishers_info_by_topic
+        if not topics:
+            topics = {s.topic_name for s in self.subscriptions} - _COMMON_TOPICS
+            endpoints = self.get_subscriptions_info_by_topic
+        return any(sum(1 for e in endpoints(t) if _qualified(e.node_namespace, e.node_name) == me) >= 2
+                   for t in topics)
+
     # --- live parameters: checked like at start, then applied by the node -------------------------
 
     def _check_live_parameters(self, parameters: list[Parameter]) -> SetParametersResult:
         """set_parameters on a `live` spec: the spec's check, then the node's own (`check_live`).
-        Read-only ones never get here (rclpy refuses them; their descriptor says why)."""
+        Read-only ones never get here (rclpy refuses them; their descriptor says why); rclpy's own
+        `use_sim_time` is refused here (called before rclpy's time source, which would switch at once)."""
         for parameter in parameters:
+            if parameter.name == USE_SIM_TIME:
+                refused = self._refuse_clock_switch(parameter.value)
+                if refused is not None:
+                    return refused
+                continue
             spec = self._specs.get(parameter.name)
-            if spec is None:  # not ours (e.g. use_sim_time): rclpy's business
+            if spec is None:  # not ours: rclpy's business
                 continue
             try:
                 self.check_live(parameter.name, spec.check(parameter.value))
             except ParameterError as exc:
                 return SetParametersResult(successful=False, reason=str(exc))
         return SetParametersResult(successful=True)
+
+    def _refuse_clock_switch(self, value: Any) -> SetParametersResult | None:
+        """A refusal for a live `use_sim_time` that differs from the running value, else None.
+
+        Why: timers, stamps, the stamp rules, staleness checks and the robot's time base all hold
+        times of the clock chosen at start; switched live, a node on sim time without /clock stands
+        at 0 and silently stops (nao_sim publishes nothing, the compensator's fallback never fires)."""
+        current = self.get_parameter(USE_SIM_TIME).value
+        if value == current:
+            return None
+        reason = (f"parameter '{USE_SIM_TIME}' is read once at start (every timer, stamp and staleness check "
+                  f"follows the clock chosen then): restart the node with {USE_SIM_TIME}:={str(value).lower()} "
+                  "to change it")
+        self.counters.count("parameters.refused")
+        self.get_logger().warning(f"refused a live change of '{USE_SIM_TIME}' to {value!r}: {reason}")
+        return SetParametersResult(successful=False, reason=reason)
 
     def _apply_live_parameters(self, parameters: list[Parameter]) -> None:
         for parameter in parameters:
@@ -354,6 +403,34 @@ def started_ns(instance_id: str) -> int | None:
         return int(instance_id.rsplit(":", 1)[1])
     except (IndexError, ValueError):
         return None
+
+
+def _qualified(namespace: str, name: str) -> str:
+    return namespace.rstrip("/") + "/" + name
+
+
+#: A second instance must send this many statuses, over at least this long, before this one stops.
+DUPLICATE_MIN_STATUSES = 3
+DUPLICATE_MIN_SPAN_S = 2.0
+#: Topics every node may have: an endpoint on them says nothing about which node it is.
+_COMMON_TOPICS = frozenset({conventions.DIAGNOSTICS_TOPIC, "/rosout", "/parameter_events", "/clock"})
+
+
+class InstanceSightings:
+    """First sighting and count of the statuses of each other instance id (at most `limit` ids, the
+    oldest forgotten first, so that a flood of made-up ids costs no memory)."""
+
+    def __init__(self, limit: int = 32) -> None:
+        self._seen: dict[str, tuple[float, int]] = {}
+        self._limit = limit
+
+    def add(self, instance: str, now: float) -> bool:
+        """Count one status of `instance` at `now`; True once it has been seen repeatedly over a period."""
+        first, count = self._seen.pop(instance, (now, 0))
+        self._seen[instance] = (first, count + 1)
+        while len(self._seen) > self._limit:
+            del self._seen[next(iter(self._seen))]
+        return count + 1 >= DUPLICATE_MIN_STATUSES and now - first >= DUPLICATE_MIN_SPAN_S
 
 
 class _StopSignals:

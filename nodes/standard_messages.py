@@ -73,7 +73,9 @@ def figure_markers(stamp: float, frame_id: str, ns: str, figure: Figure,
 
 def read_body_markers(msg: MarkerArray) -> tuple[float | None, str, np.ndarray, np.ndarray]:
     """A body-tracking MarkerArray -> (stamp of its first joint marker or None, its frame, ids (n,),
-    positions (n, 3)). Only ADD markers count: DELETE / DELETEALL markers carry no joint."""
+    positions (n, 3)). Only ADD markers count: DELETE / DELETEALL markers carry no joint. More than
+    `conventions.MAX_MARKERS` markers raise TooLargeError before any is read."""
+    conventions.check_size("markers", len(msg.markers), conventions.MAX_MARKERS)
     adds = [m for m in msg.markers if m.action == Marker.ADD]
     if not adds:
         return None, "", np.zeros(0, dtype=np.int64), np.zeros((0, 3))

@@ -114,3 +114,38 @@ def test_one_huge_prediction_does_not_stop_the_compensator(ros):
     preds_pub.publish(messages.predictions_msg(ros_now(probe), np.tile(POSE, (6, 1))))
     probe.spin_until(lambda: len(commands) > before, 10, "a command after the huge predictions", [proc])
     assert proc.running()
+
+
+def test_a_body_tracking_message_with_too_many_markers_is_refused_before_it_is_read():
+    from gwr_predictor.nodes import standard_messages
+
+    n = conventions.MAX_MARKERS + 1
+    msg = standard_messages.body_markers(1.0, "depth_camera_link", range(n), np.zeros((n, 3)))
+    with pytest.raises(TooLargeError, match="markers"):
+        standard_messages.read_body_markers(msg)
+    msg.markers = msg.markers[:32]
+    assert standard_messages.read_body_markers(msg)[2].shape == (32,)
+
+
+@pytest.mark.ros
+def test_a_skeleton_with_too_many_joints_is_counted_and_the_extractor_keeps_working(ros):
+    from test_node_bad_input import FAST, skeleton, wait_counters
+
+    from gwr_predictor.data.demonstrator import default_subjects, demonstrate_one
+    from gwr_predictor.nodes.messages import Float64MultiArray, JointState
+
+    probe = ros.probe
+    diagnostics = probe.subscribe_diagnostics()
+    proc = ros.start("angle_extractor", params=FAST)
+    ros.wait_for_node(diagnostics, "/angle_extractor", timeout=60)
+    out = probe.subscribe("/arm_angles", JointState)
+    pub = probe.publisher("/skeleton", Float64MultiArray)
+    probe.wait_for_subscribers(pub)
+    frames = demonstrate_one("wave_both", default_subjects(1)[0], 1).positions[:6]
+    many = (*conventions.SKELETON_JOINTS, *(f"extra{i}" for i in range(conventions.MAX_JOINTS)))
+    pub.publish(skeleton(10.0, np.zeros((len(many), 3)), many))
+    for k, frame in enumerate(frames):
+        pub.publish(skeleton(10.1 + k / 30, frame))
+    wait_counters(ros, diagnostics, "/angle_extractor", {"rejected.skeleton.too_large": 1}, [proc])
+    probe.spin_until(lambda: len(out) >= 2, 10, "angles after the oversized skeleton", [proc])
+    assert proc.running()

@@ -2,6 +2,7 @@
 joint, /diagnostics from a namespace, K4ABT body-tracking input, skeleton / predicted-arm markers,
 predictions as JointTrajectory and the compensator's joint_trajectory_controller output."""
 
+import time
 import xml.etree.ElementTree as ET
 
 import numpy as np
@@ -124,7 +125,8 @@ def test_learner_publishes_its_predictions_as_a_joint_trajectory_and_the_predict
         np.testing.assert_allclose(traj.positions, p)
     joints, segments = arm[-1].markers
     assert joints.header.frame_id == "torso" and len(joints.points) == 6 and len(segments.points) == 8
-    assert messages.from_time(joints.header.stamp) == pytest.approx(stamp + 0.6, abs=1e-6)
+    # stamped when drawn (the node clock), not at t+h: a viewer transforms it with the TF of now, not of the future
+    assert abs(messages.from_time(joints.header.stamp) - time.time()) < 10.0
 
 
 @pytest.mark.ros
@@ -145,14 +147,20 @@ def test_compensator_commands_a_joint_trajectory_controller(ros):
     for k, pose in enumerate(sent):
         pub.publish(messages.joint_state(10.0 + 0.1 * k, ARM_JOINTS, pose))
         probe.spin_for(0.02)
-    probe.spin_until(lambda: len(trajectories) == len(sent) and len(commands) == len(sent), 20,
-                     "a trajectory and a JointState per observation", [both])
-    for msg, command, pose in zip(trajectories, commands, sent, strict=True):
+    def newest_commanded() -> bool:
+        return bool(commands) and len(trajectories) == len(commands) and np.allclose(
+            messages.read_joint_state(commands[-1])[2], sent[-1])
+
+    # a command per observation, but only the newest of what queued behind a busy callback
+    probe.spin_until(newest_commanded, 20, "a trajectory and a JointState per handled observation", [both])
+    order = [int(np.argmin([np.abs(messages.read_joint_state(c)[2] - p).max() for p in sent])) for c in commands]
+    assert order == sorted(set(order))  # in order, none twice
+    for msg, command, k in zip(trajectories, commands, order, strict=True):
         stamp, names, traj = standard_messages.read_joint_trajectory(msg)
         assert stamp == 0.0 and names == ARM_JOINTS  # 0: the controller starts it on arrival
         assert traj.times_from_start.tolist() == [pytest.approx(0.2)]
-        np.testing.assert_allclose(traj.positions[0], pose)
-        np.testing.assert_allclose(messages.read_joint_state(command)[2], pose)
+        np.testing.assert_allclose(traj.positions[0], sent[k])
+        np.testing.assert_allclose(messages.read_joint_state(command)[2], sent[k])
     # output joint_trajectory alone: no JointState command publisher at all
     assert probe.node.count_publishers("/real/joint_trajectory_controller/joint_trajectory") == 1
     assert probe.node.count_publishers("/real/joint_commands") == 0
