@@ -16,6 +16,7 @@ NODES = [
     "nao_sim",
     "bag_recorder",
     "bag_player",
+    "hri_bodies",
 ]
 
 
@@ -40,6 +41,7 @@ setup(
         (f"share/{PACKAGE}", ["package.xml"]),
         (f"share/{PACKAGE}/config", glob("config/*.yaml")),
         (f"share/{PACKAGE}/launch", glob("launch/*.launch.py")),
+        (f"share/{PACKAGE}/rviz", glob("rviz/*.rviz")),
         (f"share/{PACKAGE}/urdf", ["gwr_predictor/robot/nao.urdf"]),
     ]
     + tree_data_files("bags", f"share/{PACKAGE}/bags"),

@@ -11,6 +11,7 @@ accept `set_parameters` for the parameters that may change while it runs.
 
 from __future__ import annotations
 
+import json
 import math
 from collections.abc import Iterable
 from dataclasses import dataclass
@@ -152,3 +153,13 @@ def check_fields(instance: Any, specs: Iterable[ParamSpec], error: type[Exceptio
             if error is ParameterError:
                 raise
             raise error(str(exc)) from None
+
+
+def markdown_table(specs: Iterable[ParamSpec]) -> str:
+    """The docs' parameter table of `specs` (docs/pipeline.md shows these, and a test keeps them equal)."""
+    rows = ["| parameter | default | allowed | what |", "|---|---|---|---|"]
+    for s in specs:
+        default = json.dumps(s.default)
+        what = " ".join(s.description.split()).replace("|", "\\|")
+        rows.append(f"| `{s.name}` | `{default}` | {s.allowed()} | {what} |")
+    return "\n".join(rows)

@@ -2,13 +2,21 @@
 
     ros2 launch gwr_predictor pipeline.launch.py out:=/tmp/run1 [baseline:=false] [render:=true]
         [scenario:=/path/to/scenario.yaml] [checkpoint:=model.npz] [predictor:=NAME] [params_dir:=/path/to/config]
-        [use_sim_time:=true]
+        [use_sim_time:=true] [namespace:=robot1] [tf:=false] [camera_pose:="x y z roll pitch yaw"]
+        [uncompensated_pose:="x y z roll pitch yaw"] [rviz:=true]
 
 Same nodes, the same <node>.yaml files (from share/gwr_predictor/config unless params_dir is
 given), the same remaps and overrides as the script: bag_recorder (out/bag), nao_sim,
-delay_compensator, the uncompensated nao_sim + delay_compensator (mode none) in /uncompensated
-fed by the same angles, gwr_hierarchy (checkpoint out/model.npz), angle_extractor and
-skeleton_source (waits for its 2 subscribers, the extractor and the recorder, so nothing is lost).
+delay_compensator, the uncompensated nao_sim + delay_compensator (mode none) in <ns>/uncompensated
+fed by the same angles (<ns>/arm_angles, <ns>/predictions), gwr_hierarchy (checkpoint out/model.npz),
+angle_extractor and skeleton_source (waits for its 2 subscribers, the extractor and the recorder, so
+nothing is lost). <ns> is the namespace of an enclosing PushRosNamespace, then `namespace:=`.
+
+For viewers (tf:=true, the default): a robot_state_publisher per robot from the installed URDF (the
+uncompensated one with frame_prefix `uncompensated/`), static transforms torso -> skeleton_camera
+(`camera_pose`) and torso -> uncompensated/torso (`uncompensated_pose`), all on <ns>/tf and
+<ns>/tf_static, so pipelines in different namespaces keep separate TF trees; rviz:=true opens
+share/gwr_predictor/rviz/pipeline.rviz in <ns>.
 Launch has no PyPI wheel, so test/test_launch_file.py checks this file statically against the
 script; the shell scripts remain the main way to run the pipeline.
 """
@@ -21,10 +29,21 @@ from launch import LaunchDescription
 from launch.actions import DeclareLaunchArgument, OpaqueFunction
 from launch_ros.actions import Node
 
+from gwr_predictor.errors import GwrPredictorError
+from gwr_predictor.pipeline.markers import ROBOT_FRAME
+from gwr_predictor.pipeline.markers import SKELETON_FRAME as CAMERA_FRAME
+
 PACKAGE = "gwr_predictor"
-BASELINE_NAMESPACE = "/uncompensated"
-# the uncompensated pair reads the shared topics, not its namespace's
-BASELINE_REMAPS = [("arm_angles", "/arm_angles"), ("predictions", "/predictions")]
+#: the uncompensated pair's namespace, inside the pipeline's; its TF frames carry this prefix
+BASELINE_NAMESPACE = "uncompensated"
+BASELINE_FRAME_PREFIX = f"{BASELINE_NAMESPACE}/"
+#: the skeleton camera above the robot looking forward: camera z (into the scene) along the robot's x, camera
+#: y (up) along its z, 1 m above the floor (the demonstrator's sensor height; the Nao's torso is 0.333 m
+#: above its soles), so the person stands on the robot's floor, 2-2.4 m in front of it, facing it
+CAMERA_POSE = "0 0 0.667 1.5708 0 1.5708"
+#: the uncompensated robot stands 0.5 m to the compensated robot's right
+UNCOMPENSATED_POSE = "0 -0.5 0 0 0 0"
+POSE_KEYS = ("--x", "--y", "--z", "--roll", "--pitch", "--yaw")
 
 ARGUMENTS = {
     "out": ("results/launch_run", "run folder: bag/ (recording) and model.npz (learner) go here"),
@@ -32,47 +51,120 @@ ARGUMENTS = {
     "predictor": ("", "the learner's model (gwr_hierarchy's `predictor`), after the params files; empty: theirs"),
     "checkpoint": ("", "start the learner from this model (copied to out/model.npz, which it then updates)"),
     "scenario": ("", "extra params file applied to every node after its own (e.g. config/scenario_*.yaml)"),
-    "baseline": ("true", "also run the uncompensated robot in /uncompensated"),
+    "baseline": ("true", "also run the uncompensated robot in <namespace>/uncompensated"),
     "render": ("false", "the compensated robot writes PNG pictures to out/frames"),
     "use_sim_time": ("false", "every node on /clock (e.g. from bag_player clock:=true)"),
+    "namespace": ("", "run the pipeline in this namespace (inside an enclosing PushRosNamespace's)"),
+    "tf": ("true", "robot_state_publisher per robot and the static transforms, on <namespace>/tf"),
+    "camera_pose": (CAMERA_POSE, f"'x y z roll pitch yaw' (m, rad) of {CAMERA_FRAME} in {ROBOT_FRAME}; "
+                    "empty: no transform (your camera driver publishes it)"),
+    "uncompensated_pose": (UNCOMPENSATED_POSE, f"'x y z roll pitch yaw' (m, rad) of {BASELINE_FRAME_PREFIX}"
+                           f"{ROBOT_FRAME} in {ROBOT_FRAME}"),
+    "rviz": ("false", "open rviz2 with share/gwr_predictor/rviz/pipeline.rviz in the pipeline's namespace"),
 }
+
+
+class LaunchArgumentError(GwrPredictorError, ValueError):
+    """A launch argument that cannot be used; the message names it."""
 
 
 def _true(text: str) -> bool:
     return text.strip().lower() in ("true", "1", "yes")
 
 
+def pipeline_namespace(pushed: str | None, argument: str) -> str:
+    """The absolute namespace of the pipeline: `argument` inside the pushed one (an absolute `argument` wins)."""
+    outer = "" if argument.startswith("/") else (pushed or "")
+    parts = [p for ns in (outer, argument) for p in ns.split("/") if p]
+    return "/" + "/".join(parts)
+
+
+def in_namespace(namespace: str, name: str) -> str:
+    """`name` resolved in the absolute `namespace` (the root included)."""
+    return f"{namespace.rstrip('/')}/{name}"
+
+
+def pose_arguments(name: str, text: str) -> list[str]:
+    """'x y z roll pitch yaw' -> static_transform_publisher's --x ... --yaw arguments."""
+    values = text.split()
+    try:
+        numbers = [float(v) for v in values]
+    except ValueError:
+        numbers = []
+    if len(numbers) != len(POSE_KEYS):
+        raise LaunchArgumentError(f"launch argument {name}:={text!r}: expected 6 numbers 'x y z roll pitch yaw'")
+    return [item for key, value in zip(POSE_KEYS, values, strict=True) for item in (key, value)]
+
+
+def tf_nodes(arg: dict, share: str, namespace: str, sim: dict, baseline: bool) -> list:
+    """robot_state_publisher per robot and the static transforms; every TF topic in the pipeline's namespace."""
+    tf_remaps = [("/tf", in_namespace(namespace, "tf")), ("/tf_static", in_namespace(namespace, "tf_static"))]
+    with open(os.path.join(share, "urdf", "nao.urdf"), encoding="utf-8") as f:
+        urdf = f.read()
+
+    def state_publisher(robot_namespace: str, prefix: str) -> Node:
+        return Node(package="robot_state_publisher", executable="robot_state_publisher", name="robot_state_publisher",
+                    namespace=robot_namespace, remappings=tf_remaps, output="screen",
+                    parameters=[{**sim, "robot_description": urdf, "frame_prefix": prefix}])
+
+    def static_transform(name: str, pose: str, parent: str, child: str) -> Node:
+        return Node(package="tf2_ros", executable="static_transform_publisher", name=name, namespace=namespace,
+                    arguments=[*pose_arguments(name, pose), "--frame-id", parent, "--child-frame-id", child],
+                    remappings=tf_remaps, parameters=[sim], output="screen")
+
+    nodes = [state_publisher(namespace, "")]
+    if arg["camera_pose"].strip():
+        nodes.append(static_transform("camera_pose", arg["camera_pose"], ROBOT_FRAME, CAMERA_FRAME))
+    if baseline:
+        nodes += [state_publisher(in_namespace(namespace, BASELINE_NAMESPACE), BASELINE_FRAME_PREFIX),
+                  static_transform("uncompensated_pose", arg["uncompensated_pose"], ROBOT_FRAME,
+                                   BASELINE_FRAME_PREFIX + ROBOT_FRAME)]
+    if _true(arg["rviz"]):
+        nodes.append(Node(package="rviz2", executable="rviz2", name="rviz2", namespace=namespace,
+                          arguments=["-d", os.path.join(share, "rviz", "pipeline.rviz")],
+                          remappings=tf_remaps, parameters=[sim], output="screen"))
+    return nodes
+
+
 def pipeline_nodes(context, *_args, **_kwargs) -> list:
     """The nodes, built from the resolved launch arguments (so plain Python decides, as the script does)."""
     arg = context.launch_configurations
     out = os.path.abspath(arg["out"])
-    params_dir = arg["params_dir"] or os.path.join(get_package_share_directory(PACKAGE), "config")
+    share = get_package_share_directory(PACKAGE)
+    params_dir = arg["params_dir"] or os.path.join(share, "config")
     scenario = [arg["scenario"]] if arg["scenario"] else []
     sim = {"use_sim_time": _true(arg["use_sim_time"])}
+    namespace = pipeline_namespace(arg.get("ros_namespace"), arg["namespace"])
+    baseline = _true(arg["baseline"])
     os.makedirs(out, exist_ok=True)
     if os.path.exists(os.path.join(out, "bag")):
         raise RuntimeError(f"{out}/bag exists already: choose another out:=")
     if arg["checkpoint"]:
         shutil.copyfile(arg["checkpoint"], os.path.join(out, "model.npz"))
 
-    def node(executable: str, name: str | None = None, namespace: str = "", remappings=(), **overrides) -> Node:
+    def node(executable: str, name: str | None = None, node_namespace: str = namespace, remappings=(),
+             **overrides) -> Node:
         params = [os.path.join(params_dir, f"{executable}.yaml"), *scenario, {**sim, **overrides}]
-        return Node(package=PACKAGE, executable=executable, name=name or executable, namespace=namespace,
+        return Node(package=PACKAGE, executable=executable, name=name or executable, namespace=node_namespace,
                     parameters=params, remappings=list(remappings), output="screen")
 
     nodes = [node("bag_recorder", path=os.path.join(out, "bag"))]
     frames = {"render_dir": os.path.join(out, "frames")} if _true(arg["render"]) else {}
     nodes += [node("nao_sim", **frames), node("delay_compensator")]
-    if _true(arg["baseline"]):
-        nodes += [node("nao_sim", namespace=BASELINE_NAMESPACE, remappings=BASELINE_REMAPS),
-                  node("delay_compensator", namespace=BASELINE_NAMESPACE, remappings=BASELINE_REMAPS,
-                       mode="none")]
+    if baseline:
+        # the uncompensated pair reads the pipeline's shared topics, not its own namespace's
+        uncompensated = in_namespace(namespace, BASELINE_NAMESPACE)
+        shared = [(topic, in_namespace(namespace, topic)) for topic in ("arm_angles", "predictions")]
+        nodes += [node("nao_sim", node_namespace=uncompensated, remappings=shared),
+                  node("delay_compensator", node_namespace=uncompensated, remappings=shared, mode="none")]
     learner = {"checkpoint": os.path.join(out, "model.npz")}
     if arg["predictor"]:
         learner["predictor"] = arg["predictor"]
     nodes += [node("gwr_hierarchy", **learner),
               node("angle_extractor"),
               node("skeleton_source", wait_for_subscribers=2)]
+    if _true(arg["tf"]):
+        nodes += tf_nodes(arg, share, namespace, sim, baseline)
     return nodes
 
 

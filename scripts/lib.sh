@@ -169,3 +169,14 @@ gwr_wait_exit() {
     done
     return 1
 }
+
+# gwr_namespace NS: NS as an absolute ROS namespace without a trailing slash ("" for the root), or a
+# clear error for a name ROS would refuse (tokens of letters, digits and _, not starting with a digit).
+gwr_namespace() {
+    local ns="${1#/}"
+    ns="${ns%/}"
+    [ -n "$ns" ] || return 0
+    [[ "$ns" =~ ^[A-Za-z_][A-Za-z0-9_]*(/[A-Za-z_][A-Za-z0-9_]*)*$ ]] \
+        || gwr_die "--namespace $1 is not a ROS namespace (tokens of letters, digits and _, separated by /)"
+    printf '/%s' "$ns"
+}

@@ -2,10 +2,12 @@
 # Run the live pipeline for a while and record it:
 #   skeleton_source -> angle_extractor -> gwr_hierarchy -> delay_compensator -> nao_sim
 # plus, unless --no-baseline, an uncompensated delay_compensator (mode none) + nao_sim pair in the
-# /uncompensated namespace fed by the same angles, and a bag_recorder started first.
+# NS/uncompensated namespace (/uncompensated without --namespace) fed by the same angles, and a
+# bag_recorder started first.
 #
 # usage: scripts/run_pipeline.sh [--seconds N] [--out DIR] [--params-dir DIR] [--scenario YAML]
 #                                [--checkpoint FILE] [--predictor NAME] [--no-baseline] [--render]
+#                                [--namespace NS]
 #   --seconds N        how long the source runs (default 60)
 #   --out DIR          run folder: bag/, model.npz, one log per node, ros_log/ (default results/run_<time>)
 #   --params-dir DIR   folder with <node>.yaml (default config/)
@@ -14,6 +16,8 @@
 #   --predictor NAME   the learner's model (gwr_hierarchy's `predictor` parameter), after the params files
 #   --no-baseline      no uncompensated robot
 #   --render           the compensated robot writes PNG pictures to DIR/frames/
+#   --namespace NS     run every node in namespace NS (e.g. robot1: /robot1/arm_angles, /robot1/uncompensated/...);
+#                      pipelines in different namespaces share one ROS domain without crossing
 set -euo pipefail
 HERE="$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)"
 # shellcheck source=env.sh
@@ -29,6 +33,7 @@ checkpoint=""
 predictor=""
 baseline=1
 render=0
+namespace=""
 while [ $# -gt 0 ]; do
     case "$1" in
         --seconds) seconds="$(gwr_value "$@")"; shift 2 ;;
@@ -39,6 +44,7 @@ while [ $# -gt 0 ]; do
         --predictor) predictor="$(gwr_value "$@")"; shift 2 ;;
         --no-baseline) baseline=0; shift ;;
         --render) render=1; shift ;;
+        --namespace) namespace="$(gwr_value "$@")"; shift 2 ;;
         -h|--help) gwr_usage "$0"; exit 0 ;;
         *) gwr_die "unknown argument $1 (see --help)" ;;
     esac
@@ -47,6 +53,7 @@ done
 [ -d "$params_dir" ] || gwr_die "--params-dir $params_dir is not a folder"
 [ -z "$scenario" ] || [ -f "$scenario" ] || gwr_die "--scenario $scenario not found"
 [ -z "$checkpoint" ] || [ -f "$checkpoint" ] || gwr_die "--checkpoint $checkpoint not found"
+namespace="$(gwr_namespace "$namespace")" || exit 1
 out="$(gwr_run_folder "$out" run)"
 [ ! -e "$out/bag" ] || gwr_die "$out/bag exists already: choose another --out"
 export ROS_LOG_DIR="$out/ros_log"
@@ -66,29 +73,33 @@ start_node() {  # start_node LABEL NODE [extra ROS args...]
     gwr_start "$label" "$out" "$node" "${a[@]}" "$@"
 }
 
-gwr_log "run folder $out (ROS_DOMAIN_ID=$ROS_DOMAIN_ID)"
-start_node bag_recorder bag_recorder -p "path:=$out/bag"
+gwr_log "run folder $out (ROS_DOMAIN_ID=$ROS_DOMAIN_ID, namespace ${namespace:-/})"
+# every node runs in the pipeline's namespace (none: the root)
+here=()
+[ -z "$namespace" ] || here+=(-r "__ns:=$namespace")
+start_node bag_recorder bag_recorder "${here[@]}" -p "path:=$out/bag"
 gwr_wait_ready bag_recorder 60
 frames=()
 if [ "$render" = 1 ]; then frames=(-p "render_dir:=$out/frames"); fi
-start_node nao_sim nao_sim "${frames[@]}"
-start_node delay_compensator delay_compensator
+start_node nao_sim nao_sim "${here[@]}" "${frames[@]}"
+start_node delay_compensator delay_compensator "${here[@]}"
 if [ "$baseline" = 1 ]; then
-    ns=(-r "__ns:=/uncompensated" -r "arm_angles:=/arm_angles" -r "predictions:=/predictions")
+    # the uncompensated pair reads the pipeline's shared topics, not its own namespace's
+    ns=(-r "__ns:=$namespace/uncompensated" -r "arm_angles:=$namespace/arm_angles" -r "predictions:=$namespace/predictions")
     start_node nao_sim_uncompensated nao_sim "${ns[@]}"
     start_node delay_compensator_uncompensated delay_compensator "${ns[@]}" -p mode:=none
 fi
 learner=(-p "checkpoint:=$out/model.npz")
 [ -z "$predictor" ] || learner+=(-p "predictor:=$predictor")
-start_node gwr_hierarchy gwr_hierarchy "${learner[@]}"
-start_node angle_extractor angle_extractor
+start_node gwr_hierarchy gwr_hierarchy "${here[@]}" "${learner[@]}"
+start_node angle_extractor angle_extractor "${here[@]}"
 for n in nao_sim delay_compensator gwr_hierarchy angle_extractor; do gwr_wait_ready "$n" 60; done
 if [ "$baseline" = 1 ]; then
     gwr_wait_ready nao_sim_uncompensated 60
     gwr_wait_ready delay_compensator_uncompensated 60
 fi
 # the first frame goes out once angle_extractor and the recorder are matched
-start_node skeleton_source skeleton_source -p wait_for_subscribers:=2
+start_node skeleton_source skeleton_source "${here[@]}" -p wait_for_subscribers:=2
 gwr_wait_ready skeleton_source 60
 gwr_log "pipeline running for $seconds s"
 status=0

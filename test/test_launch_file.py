@@ -3,18 +3,24 @@
 `launch` and `launch_ros` have no PyPI wheels, so the launch file is imported with stand-ins for
 them that record what it builds; the graph is compared with what the script starts, parsed from
 the script itself: the same executables, node names, namespaces, remaps, parameter files and
-overrides, for each combination of baseline/render/scenario.
+overrides, for each combination of baseline/render/scenario/namespace. The package's share/ is built
+from setup.py's data_files, so the launch file reads what colcon would install (URDF, configs, RViz).
 """
 
 import ast
 import importlib.util
+import os
 import re
 import shlex
+import subprocess
 import sys
 import types
+import xml.etree.ElementTree as ET
 from pathlib import Path
 
+import numpy as np
 import pytest
+import yaml
 
 ROOT = Path(__file__).resolve().parents[1]
 LAUNCH_FILE = ROOT / "launch" / "pipeline.launch.py"
@@ -29,8 +35,37 @@ class Recorded:
         self.args, self.kwargs = args, kwargs
 
 
+def installed_data_files() -> list[tuple[str, list[str]]]:
+    """setup.py's data_files (setup() replaced by a recorder, run in the repository like colcon does)."""
+    import setuptools
+
+    captured: dict = {}
+    cwd = os.getcwd()
+    original = setuptools.setup
+    try:
+        os.chdir(ROOT)
+        setuptools.setup = lambda **kw: captured.update(kw)
+        exec(compile((ROOT / "setup.py").read_text(), str(ROOT / "setup.py"), "exec"), {"__name__": "setup"})
+    finally:
+        setuptools.setup = original
+        os.chdir(cwd)
+    return captured["data_files"]
+
+
+@pytest.fixture(scope="module")
+def share_dir(tmp_path_factory) -> Path:
+    """share/gwr_predictor as setup.py installs it: links to the repository's files."""
+    prefix = tmp_path_factory.mktemp("install")
+    for dest, files in installed_data_files():
+        for f in files:
+            target = prefix / dest / Path(f).name
+            target.parent.mkdir(parents=True, exist_ok=True)
+            target.symlink_to(ROOT / f)
+    return prefix / "share" / "gwr_predictor"
+
+
 @pytest.fixture
-def launch_module(monkeypatch):
+def launch_module(monkeypatch, share_dir):
     """The launch file, imported with recording stand-ins for launch, launch_ros and ament_index_python."""
     stubs = {
         "launch": {"LaunchDescription": type("LaunchDescription", (Recorded,), {})},
@@ -39,7 +74,7 @@ def launch_module(monkeypatch):
         "launch_ros": {},
         "launch_ros.actions": {"Node": type("Node", (Recorded,), {})},
         "ament_index_python": {},
-        "ament_index_python.packages": {"get_package_share_directory": lambda pkg: str(ROOT)},
+        "ament_index_python.packages": {"get_package_share_directory": lambda pkg: str(share_dir)},
     }
     for name, attrs in stubs.items():
         module = types.ModuleType(name)
@@ -51,29 +86,54 @@ def launch_module(monkeypatch):
     return module
 
 
-def launched_nodes(module, **arguments: str) -> list[dict]:
-    """Run the launch description with `arguments` over the declared defaults; the nodes it starts."""
+def launched_nodes(module, pushed_namespace: str | None = None, **arguments: str) -> list[dict]:
+    """Run the launch description with `arguments` over the declared defaults (inside a PushRosNamespace
+    of `pushed_namespace`, which launch_ros keeps absolute in the `ros_namespace` configuration); the
+    nodes it starts."""
     description = module.generate_launch_description()
     (actions,) = description.args
     declared = {a.args[0]: a.kwargs["default_value"] for a in actions if type(a).__name__ == "DeclareLaunchArgument"}
     assert set(arguments) <= set(declared), f"undeclared launch arguments {set(arguments) - set(declared)}"
     (opaque,) = [a for a in actions if type(a).__name__ == "OpaqueFunction"]
-    context = types.SimpleNamespace(launch_configurations={**declared, **arguments})
+    configurations = {**declared, **arguments}
+    if pushed_namespace is not None:
+        configurations["ros_namespace"] = pushed_namespace
+    context = types.SimpleNamespace(launch_configurations=configurations)
     nodes = []
     for node in opaque.kwargs["function"](context):
         kw = node.kwargs
         *files, overrides = kw["parameters"]
-        nodes.append({"executable": kw["executable"], "name": kw["name"], "namespace": kw["namespace"] or "/",
-                      "remaps": sorted(kw["remappings"]), "files": files,
+        nodes.append({"executable": kw["executable"], "name": kw["name"],
+                      "namespace": node_namespace(pushed_namespace, kw["namespace"]),
+                      "remaps": sorted(kw.get("remappings", [])), "files": files,
                       "overrides": {k: v for k, v in overrides.items() if k != "use_sim_time"},
-                      "use_sim_time": overrides["use_sim_time"], "package": kw["package"]})
+                      "use_sim_time": overrides["use_sim_time"], "package": kw["package"],
+                      "arguments": kw.get("arguments", [])})
     return nodes
 
 
+def node_namespace(pushed: str | None, namespace: str) -> str:
+    """What launch_ros makes of a Node's namespace inside a PushRosNamespace: relative ones are prefixed."""
+    if namespace.startswith("/"):
+        return namespace.rstrip("/") or "/"
+    joined = "/".join(p for p in ((pushed or "").strip("/"), namespace.strip("/")) if p)
+    return "/" + joined
+
+
+def pipeline_only(nodes: list[dict]) -> list[dict]:
+    """The package's own nodes (what run_pipeline.sh starts), without the TF and viewer nodes."""
+    return [n for n in nodes if n["package"] == "gwr_predictor"]
+
+
 def script_nodes(out: str, params_dir: str, baseline: bool, render: bool, scenario: str,
-                 predictor: str = "") -> list[dict]:
-    """The nodes run_pipeline.sh starts (its start_node lines), with its arrays and if-blocks evaluated."""
-    variables = {"predictor": predictor}
+                 predictor: str = "", namespace: str = "") -> list[dict]:
+    """The nodes run_pipeline.sh starts (its start_node lines), with its arrays and if-blocks evaluated.
+    `namespace` is the script's normalised --namespace: "" (the root) or "/a/b"."""
+    variables = {"predictor": predictor, "namespace": namespace, "out": out}
+
+    def expand(text: str) -> str:
+        return re.sub(r"\$(\w+)", lambda m: variables[m.group(1)], text)
+
     arrays: dict[str, list[str]] = {"frames": []}
     nodes = []
     active = [True]
@@ -96,21 +156,20 @@ def script_nodes(out: str, params_dir: str, baseline: bool, render: bool, scenar
             continue
         assign = re.match(r"(\w+)=\((.*)\)$", line)
         if assign:
-            arrays[assign.group(1)] = shlex.split(assign.group(2).replace("$out", out))
+            arrays[assign.group(1)] = [expand(w) for w in shlex.split(assign.group(2))]
             continue
         append = re.match(r'\[ -z "\$(\w+)" \] \|\| (\w+)\+=\((.*)\)$', line)  # [ -z "$v" ] || arr+=(...)
         if append:
             if variables[append.group(1)]:
-                arrays[append.group(2)] += shlex.split(append.group(3).replace(f"${append.group(1)}",
-                                                                               variables[append.group(1)]))
+                arrays[append.group(2)] += [expand(w) for w in shlex.split(append.group(3))]
             continue
         assert not re.search(r"\w\+?=\(", line), f"run_pipeline.sh line not understood by this parser: {line}"
         if not line.startswith("start_node ") or line.startswith("start_node()"):
             continue
         words = []
-        for word in shlex.split(line.replace("$out", out))[1:]:
+        for word in shlex.split(line)[1:]:
             array = re.fullmatch(r"\$\{(\w+)\[@\]\}", word)
-            words += arrays[array.group(1)] if array else [word]
+            words += arrays[array.group(1)] if array else [expand(word)]
         label, executable, *extra = words
         remaps, overrides, namespace = [], {}, "/"
         for flag, value in zip(extra[::2], extra[1::2], strict=True):
@@ -146,9 +205,8 @@ def test_launch_file_starts_the_graph_of_run_pipeline(launch_module, tmp_path, b
                                                       predictor):
     out = str(tmp_path / "run")
     launched = launched_nodes(launch_module, out=out, baseline=str(baseline).lower(), render=str(render).lower(),
-                              scenario=scenario, predictor=predictor)
-    same_graph(launched, script_nodes(out, str(CONFIG), baseline, render, scenario, predictor))
-    assert {n["package"] for n in launched} == {"gwr_predictor"}
+                              scenario=scenario, predictor=predictor, params_dir=str(CONFIG))
+    same_graph(pipeline_only(launched), script_nodes(out, str(CONFIG), baseline, render, scenario, predictor))
     assert not any(n["use_sim_time"] for n in launched)
 
 
@@ -157,8 +215,11 @@ def test_launch_file_names_only_existing_executables_and_parameter_files(launch_
     (nodes_list,) = [n.value for n in ast.walk(setup) if isinstance(n, ast.Assign)
                      and any(getattr(t, "id", "") == "NODES" for t in n.targets)]
     console_scripts = set(ast.literal_eval(nodes_list))
-    launched = launched_nodes(launch_module, out=str(tmp_path / "run"), use_sim_time="true")
-    assert {n["executable"] for n in launched} <= console_scripts
+    launched = launched_nodes(launch_module, out=str(tmp_path / "run"), use_sim_time="true", rviz="true")
+    assert {n["executable"] for n in pipeline_only(launched)} <= console_scripts
+    # other packages' nodes (TF, RViz) come from packages package.xml declares, so rosdep installs them
+    root = ET.parse(ROOT / "package.xml").getroot()
+    assert {n["package"] for n in launched} - {"gwr_predictor"} <= {e.text for e in root.findall("exec_depend")}
     for node in launched:
         for path in node["files"]:
             assert Path(path).is_file(), f"{node['executable']}: parameter file {path} missing"
@@ -179,3 +240,119 @@ def test_script_parser_sees_every_node_of_the_script():
     assert ("arm_angles", "/arm_angles") in uncompensated["remaps"]
     (learner,) = [n for n in script_nodes("/o", "/c", True, False, "", "rls_ar") if n["label"] == "gwr_hierarchy"]
     assert learner["overrides"] == {"checkpoint": "/o/model.npz", "predictor": "rls_ar"}
+
+
+@pytest.mark.parametrize("pushed,argument,expected", [
+    ("/robot1", "", "/robot1"),          # PushRosNamespace('robot1') around the include
+    (None, "robot1", "/robot1"),         # namespace:=robot1
+    ("/lab", "robot1/", "/lab/robot1"),  # both: the argument inside the pushed namespace
+])
+def test_launch_file_runs_under_any_namespace_like_run_pipeline(launch_module, tmp_path, pushed, argument, expected):
+    out = str(tmp_path / "run")
+    launched = launched_nodes(launch_module, pushed_namespace=pushed, out=out, params_dir=str(CONFIG),
+                              **({"namespace": argument} if argument else {}))
+    same_graph(pipeline_only(launched), script_nodes(out, str(CONFIG), True, False, "", namespace=expected))
+    # nothing of the pipeline is left in the root namespace, and the baseline reads its own pipeline's topics
+    assert {n["namespace"] for n in launched} == {expected, f"{expected}/uncompensated"}
+    for node in (n for n in pipeline_only(launched) if n["namespace"] == f"{expected}/uncompensated"):
+        assert node["remaps"] == [("arm_angles", f"{expected}/arm_angles"), ("predictions", f"{expected}/predictions")]
+
+
+def test_script_takes_a_namespace_and_refuses_a_bad_one():
+    text = SCRIPT.read_text()
+    assert "--namespace NS" in text
+    scripted = script_nodes("/o", "/c", baseline=True, render=False, scenario="", namespace="/robot2")
+    assert {n["namespace"] for n in scripted} == {"/robot2", "/robot2/uncompensated"}
+    lib = ROOT / "scripts" / "lib.sh"
+    for given, normalised in (("robot2", "/robot2"), ("/a/b/", "/a/b"), ("", "")):
+        result = subprocess.run(["bash", "-c", f'source "{lib}"; gwr_namespace "$1"', "_", given],
+                                capture_output=True, text=True, timeout=10)
+        assert (result.returncode, result.stdout) == (0, normalised)
+    bad = subprocess.run(["bash", "-c", f'source "{lib}"; gwr_namespace "$1"', "_", "2robots"],
+                         capture_output=True, text=True, timeout=10)
+    assert bad.returncode == 1 and "is not a ROS namespace" in bad.stderr
+
+
+def rotation(roll: float, pitch: float, yaw: float) -> np.ndarray:
+    """tf2's fixed-axis roll, pitch, yaw as a matrix (columns: the child's axes in the parent)."""
+    cr, sr, cp, sp, cy, sy = np.cos(roll), np.sin(roll), np.cos(pitch), np.sin(pitch), np.cos(yaw), np.sin(yaw)
+    rz = np.array([[cy, -sy, 0], [sy, cy, 0], [0, 0, 1]])
+    ry = np.array([[cp, 0, sp], [0, 1, 0], [-sp, 0, cp]])
+    rx = np.array([[1, 0, 0], [0, cr, -sr], [0, sr, cr]])
+    return rz @ ry @ rx
+
+
+def static_transforms(nodes: list[dict]) -> dict[str, tuple[str, np.ndarray, np.ndarray]]:
+    """child frame -> (parent, translation, rotation) of every static_transform_publisher."""
+    found = {}
+    for node in (n for n in nodes if n["executable"] == "static_transform_publisher"):
+        args = dict(zip(node["arguments"][::2], node["arguments"][1::2], strict=True))
+        pose = [float(args[k]) for k in ("--x", "--y", "--z", "--roll", "--pitch", "--yaw")]
+        found[args["--child-frame-id"]] = (args["--frame-id"], np.array(pose[:3]), rotation(*pose[3:]))
+    return found
+
+
+@pytest.mark.parametrize("pushed", [None, "/robot1"])
+def test_launch_file_publishes_tf_for_both_robots_and_the_camera(launch_module, share_dir, tmp_path, pushed):
+    launched = launched_nodes(launch_module, pushed_namespace=pushed, out=str(tmp_path / "run"))
+    ns = pushed or ""
+    state_publishers = {n["namespace"]: n for n in launched if n["executable"] == "robot_state_publisher"}
+    sims = {n["namespace"] for n in launched if n["executable"] == "nao_sim"}
+    # one per robot, next to its nao_sim: robot_state_publisher's relative joint_states is that robot's
+    assert set(state_publishers) == sims == {ns or "/", f"{ns}/uncompensated"}
+    urdf = (ROOT / "gwr_predictor" / "robot" / "nao.urdf").read_text()
+    for namespace, node in state_publishers.items():
+        assert node["package"] == "robot_state_publisher" and node["overrides"]["robot_description"] == urdf
+        prefix = "uncompensated/" if namespace.endswith("/uncompensated") else ""
+        assert node["overrides"]["frame_prefix"] == prefix
+    # every TF publisher writes the pipeline's own tf / tf_static, so two pipelines keep two trees
+    tf_nodes = [n for n in launched if n["package"] in ("robot_state_publisher", "tf2_ros")]
+    assert len(tf_nodes) == 4
+    for node in tf_nodes:
+        assert node["remaps"] == [("/tf", f"{ns}/tf"), ("/tf_static", f"{ns}/tf_static")]
+    transforms = static_transforms(launched)
+    # the skeleton markers' frame hangs off the robot; by default the camera looks forward from the torso
+    parent, xyz, rot = transforms["skeleton_camera"]
+    assert parent == "torso"
+    np.testing.assert_allclose(rot @ [0, 0, 1], [1, 0, 0], atol=1e-4)  # into the scene = the robot's forward
+    np.testing.assert_allclose(rot @ [0, 1, 0], [0, 0, 1], atol=1e-4)  # camera up = the robot's up
+    parent, xyz, rot = transforms["uncompensated/torso"]
+    assert parent == "torso" and np.linalg.norm(xyz) > 0.3  # the two robots side by side, not inside each other
+    assert not any(n["executable"] == "rviz2" for n in launched)
+
+
+def test_launch_file_camera_pose_rviz_and_tf_arguments(launch_module, share_dir, tmp_path):
+    launched = launched_nodes(launch_module, out=str(tmp_path / "a"), camera_pose="1.5 0 0.3 1.5708 0 -1.5708",
+                              rviz="true", baseline="false")
+    _, xyz, rot = static_transforms(launched)["skeleton_camera"]
+    np.testing.assert_allclose(xyz, [1.5, 0, 0.3])
+    np.testing.assert_allclose(rot @ [0, 0, 1], [-1, 0, 0], atol=1e-4)  # a sensor ahead, looking back
+    np.testing.assert_allclose(rot @ [0, 1, 0], [0, 0, 1], atol=1e-4)
+    assert set(static_transforms(launched)) == {"skeleton_camera"}  # no baseline robot to place
+    (rviz,) = [n for n in launched if n["executable"] == "rviz2"]
+    config = Path(rviz["arguments"][rviz["arguments"].index("-d") + 1])
+    assert config.is_file() and config.parent.parent == share_dir
+    assert rviz["remaps"] == [("/tf", "/tf"), ("/tf_static", "/tf_static")]
+    no_camera = launched_nodes(launch_module, out=str(tmp_path / "b"), camera_pose="")
+    assert "skeleton_camera" not in static_transforms(no_camera)
+    no_tf = launched_nodes(launch_module, out=str(tmp_path / "c"), tf="false")
+    assert {n["package"] for n in no_tf} == {"gwr_predictor"}
+    with pytest.raises(ValueError, match="camera_pose"):
+        launched_nodes(launch_module, out=str(tmp_path / "d"), camera_pose="1 2 3")
+
+
+def test_rviz_config_shows_the_person_the_prediction_and_both_robots():
+    (path,) = [ROOT / f for dest, files in installed_data_files() if dest.endswith("/rviz") for f in files]
+    config = yaml.safe_load(path.read_text())
+    manager = config["Visualization Manager"]
+    topic = lambda d: d.get("Topic", d.get("Description Topic", {})).get("Value")  # noqa: E731
+    displays = {d["Class"].rsplit("/", 1)[-1] + ":" + str(topic(d)): d for d in manager["Displays"] if d.get("Enabled")}
+    # relative topics: they resolve in RViz's namespace, the pipeline's
+    assert {"MarkerArray:skeleton_markers", "MarkerArray:predicted_arm_markers", "RobotModel:robot_description",
+            "RobotModel:uncompensated/robot_description"} <= set(displays)
+    assert displays["RobotModel:robot_description"]["TF Prefix"] == ""
+    # RViz joins prefix and link with "/": the frames robot_state_publisher's frame_prefix makes
+    assert displays["RobotModel:uncompensated/robot_description"]["TF Prefix"] + "/" == "uncompensated/"
+    for key in ("RobotModel:robot_description", "RobotModel:uncompensated/robot_description"):
+        assert displays[key]["Description Topic"]["Durability Policy"] == "Transient Local"  # latched URDF
+    assert manager["Global Options"]["Fixed Frame"] == "torso"

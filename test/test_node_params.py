@@ -13,7 +13,7 @@ from gwr_predictor.nodes.node_base import COMMON_PARAMS, ParameterError
 from gwr_predictor.pipeline.params_file import flatten
 
 NODES = ["skeleton_source", "angle_extractor", "gwr_hierarchy", "delay_compensator", "nao_sim", "bag_recorder",
-         "bag_player"]
+         "bag_player", "hri_bodies"]
 
 
 def declared_specs(node: str) -> dict:

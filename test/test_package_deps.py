@@ -41,6 +41,17 @@ def runtime_imports() -> set[str]:
     return {m for m in found if m not in sys.stdlib_module_names and m != "gwr_predictor"}
 
 
+def launched_packages() -> set[str]:
+    """Packages whose nodes a launch file starts (`package="..."` of its calls), other than this one."""
+    found: set[str] = set()
+    for path in (ROOT / "launch").glob("*.py"):
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            if isinstance(node, ast.Call):
+                found |= {k.value.value for k in node.keywords if k.arg == "package"
+                          and isinstance(k.value, ast.Constant) and isinstance(k.value.value, str)}
+    return found - {"gwr_predictor"}
+
+
 def exec_depends() -> set[str]:
     root = ET.parse(ROOT / "package.xml").getroot()
     return {e.text.strip() for e in root.findall("exec_depend")}
@@ -58,8 +69,16 @@ def test_every_runtime_import_has_its_exec_depend():
     assert needed - deps == set(), f"missing <exec_depend> in package.xml: {sorted(needed - deps)}"
 
 
+def test_every_launched_package_has_its_exec_depend():
+    """robot_state_publisher, tf2_ros and rviz2 are started, not imported: rosdep must still install them."""
+    launched = launched_packages()
+    assert {"robot_state_publisher", "tf2_ros", "rviz2"} <= launched
+    assert launched - exec_depends() == set(), f"missing <exec_depend>: {sorted(launched - exec_depends())}"
+
+
 def test_no_exec_depend_without_a_use():
-    used = {PYTHON_KEYS[m] for m in runtime_imports() if m in PYTHON_KEYS} | (runtime_imports() & ROS_PACKAGES)
+    used = ({PYTHON_KEYS[m] for m in runtime_imports() if m in PYTHON_KEYS} | (runtime_imports() & ROS_PACKAGES)
+            | launched_packages())
     assert exec_depends() - used == set(), f"stale <exec_depend>: {sorted(exec_depends() - used)}"
 
 

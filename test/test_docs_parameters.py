@@ -1,0 +1,42 @@
+"""docs/pipeline.md's parameter tables are the nodes' declared parameters: a renamed parameter, a new
+default or a new range breaks this test, not a reader."""
+
+import importlib
+import re
+from pathlib import Path
+
+import pytest
+
+from gwr_predictor.parameter_spec import markdown_table
+
+ROOT = Path(__file__).resolve().parents[1]
+DOC = ROOT / "docs" / "pipeline.md"
+NODES = ["skeleton_source", "angle_extractor", "gwr_hierarchy", "delay_compensator", "nao_sim", "bag_recorder",
+         "bag_player", "hri_bodies"]
+
+
+def documented_table(node: str) -> str:
+    """The table right below the '#### <node>' heading."""
+    text = DOC.read_text(encoding="utf-8")
+    match = re.search(rf"^#### {node}\n\n((?:\|.*\n)+)", text, re.MULTILINE)
+    assert match, f"docs/pipeline.md has no '#### {node}' heading followed by a table"
+    return match.group(1).rstrip("\n")
+
+
+def node_table(node: str) -> str:
+    return markdown_table(importlib.import_module(f"gwr_predictor.nodes.{node}").PARAMS)
+
+
+@pytest.mark.parametrize("node", NODES)
+def test_the_documented_parameters_are_the_declared_ones(node):
+    expected = node_table(node)
+    documented = documented_table(node)
+    if node == "gwr_hierarchy":  # the learning constants are summarised in one row (Table I of the paper)
+        documented = "\n".join(line for line in documented.splitlines() if "Table I" not in line)
+    assert documented == expected, f"replace the table under '#### {node}' in docs/pipeline.md with:\n{expected}"
+
+
+def test_the_parameters_every_node_declares_are_documented():
+    from gwr_predictor.nodes.node_base import COMMON_PARAMS
+
+    assert documented_table("every node") == markdown_table(COMMON_PARAMS)
