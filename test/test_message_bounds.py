@@ -28,7 +28,7 @@ def test_a_prediction_longer_than_the_horizon_limit_is_refused_on_unpacking():
     packed = conventions.pack_predictions(1.0, np.zeros((MAX_HORIZON + 1, 8)))
     with pytest.raises(TooLargeError, match="horizon"):
         conventions.unpack_predictions(packed)
-    stamp, names, preds = conventions.unpack_predictions(conventions.pack_predictions(1.0, np.zeros((MAX_HORIZON, 8))))
+    _, names, preds = conventions.unpack_predictions(conventions.pack_predictions(1.0, np.zeros((MAX_HORIZON, 8))))
     assert preds.shape == (MAX_HORIZON, 8) and names == ARM_JOINTS
 
 
@@ -67,7 +67,7 @@ def test_joint_names_are_bounded_and_unique_in_every_layout():
     twice = (*conventions.SKELETON_JOINTS[:-1], "head")
     with pytest.raises(LayoutError, match="'head' appears twice"):
         conventions.unpack_skeleton(conventions.pack_skeleton(0.5, np.zeros((15, 3)), twice))
-    stamp, names, pos = conventions.unpack_skeleton(conventions.pack_skeleton(0.5, np.ones((15, 3))))
+    _, names, pos = conventions.unpack_skeleton(conventions.pack_skeleton(0.5, np.ones((15, 3))))
     assert names == conventions.SKELETON_JOINTS and pos.shape == (15, 3)
 
 
@@ -91,9 +91,10 @@ def test_the_default_predictor_takes_every_horizon_the_learner_declares():
 
 @pytest.mark.ros
 def test_one_huge_prediction_does_not_stop_the_compensator(ros):
+    from test_node_bad_input import FAST, joint_state, ros_now, wait_counters
+
     from gwr_predictor.nodes import messages
     from gwr_predictor.nodes.messages import Float64MultiArray, JointState
-    from test_node_bad_input import FAST, joint_state, ros_now, wait_counters
 
     probe = ros.probe
     diagnostics = probe.subscribe_diagnostics()
