@@ -4,11 +4,14 @@ The library is pure Python + numpy (no rclpy), one subpackage per concern, in th
 
 - `data`: demonstrator, skeleton files, median of 3, the 8 Nao arm angles;
 - `learning`: the paper's GWR -> Predictive GWR -> hierarchy, parameters, checkpoints;
-- `predictors`: baselines, blends and the one registry of predictors by name (`make_predictor`);
-- `evaluation`: the online evaluation loop, metrics and the paper's experiments;
+- `predictors`: baselines, the default's confidence gate and the one registry of predictors by name (`make_predictor`);
+- `evaluation`: the online evaluation loop, metrics and result tables;
 - `robot`: Nao kinematics/URDF, PyBullet simulator, delayed arm, delay compensator;
 - `pipeline`: message conventions, MCAP bags, run reports and latency (ROS-free);
 - `commands`: the `gwr-predictor` command line over all of the above.
+
+Experiments, ablations, blends and benchmarks live in the repository's research/ folder, which is
+not installed: `gwr-predictor experiment|bench|soak` run them from a source checkout.
 
 ROS nodes live in `gwr_predictor.nodes` and only convert messages. Every predictor follows
 `Predictor` (`protocol.py`); every error the package raises derives from `GwrPredictorError`.

@@ -15,10 +15,9 @@ file refuses to start instead of overwriting the first one's learning.
 `predictor` picks the model: `gated_llm_gwr` (the default: a P-GWR with local linear models and a
 global linear read-out, mixed per horizon step, behind a confidence gate that falls back to holding
 the pose, see learning/local_linear.py and predictors/gate.py; its status carries the read-outs'
-mixing weights at the last step, `mix_weight_local_h6` / `mix_weight_global_h6`), `hierarchy` (the
-paper) or a per-step inverse-MSE blend of a GWR predictor with RLS-AR (`blend_hierarchy_rls`,
-`blend_flat_rls`; beyond the paper, see predictors/blend.py). The hierarchy parameters below apply
-to `hierarchy` and the blends; `gated_llm_gwr` takes only `horizon` from them.
+mixing weights at the last step, `mix_weight_local_h6` / `mix_weight_global_h6`) or `hierarchy` (the
+paper). The hierarchy parameters below apply to `hierarchy`; `gated_llm_gwr` takes only `horizon`
+from them.
 A checkpoint of another kind than `predictor` stops the node (it is neither used nor moved aside).
 """
 
@@ -44,7 +43,7 @@ from gwr_predictor.pipeline import conventions
 from gwr_predictor.pipeline.gates import missing_frames
 from gwr_predictor.pipeline.markers import ROBOT_FRAME, arm_figure
 from gwr_predictor.pipeline.trajectory import prediction_trajectory
-from gwr_predictor.predictors.blend import BlendedPredictor, gwr_member
+from gwr_predictor.predictors.gate import GatedPredictor, inner_model
 from gwr_predictor.predictors.registry import DEFAULT_PREDICTOR, learner_names, load_predictor, make_predictor
 from gwr_predictor.robot.nao import ARM_JOINTS
 
@@ -60,9 +59,8 @@ from .node_base import (
 
 PARAMS = (
     ParamSpec("predictor", DEFAULT_PREDICTOR, "model: 'gated_llm_gwr' (local-linear P-GWR with a global linear "
-              "read-out behind a confidence gate, never worse than holding the pose; default), 'hierarchy' (GWR1 -> "
-              "GWR2 -> P-GWR, the paper), an online per-step inverse-MSE blend with RLS-AR ('blend_hierarchy_rls', "
-              "'blend_flat_rls') or another saveable registry name", choices=learner_names()),
+              "read-out behind a confidence gate, never worse than holding the pose; default) or 'hierarchy' (GWR1 "
+              "-> GWR2 -> P-GWR, the paper)", choices=learner_names()),
     ParamSpec("seed", 0, "seed of the networks' initial random neurons", 0, 2**31 - 1),
     ParamSpec("learn", True, "learn from every frame (false: predict with the networks as they are)", live=True),
     ParamSpec("frame_period_s", 1.0 / conventions.ANGLE_FPS, "spacing of the angle frames (s)", 0.001, 10.0),
@@ -98,7 +96,7 @@ class GwrHierarchyNode(PipelineNode):
         except BaseException:
             self.release_checkpoint()
             raise
-        self.gwr = gwr_member(self.model)  # the GWR learner (the model itself, or the blend's GWR member)
+        self.gwr = inner_model(self.model)  # the GWR learner (behind the gate, if any)
         self.horizon = self.model.params.horizon
         self.gate = self.arm_gate("arm_angles")
         self.step_times: list[float] = []
@@ -150,13 +148,13 @@ class GwrHierarchyNode(PipelineNode):
         if name == "checkpoint_interval_s":
             self.schedule_checkpoints(float(value))
 
-    def create(self, params: HierarchyParams) -> Hierarchy | BlendedPredictor:
+    def create(self, params: HierarchyParams) -> Hierarchy | GatedPredictor:
         try:
             return make_predictor(self.params["predictor"], params, seed=self.params["seed"])
         except ValueError as exc:  # a setting this predictor cannot take (ParameterError and the like)
             raise ParameterError(f"predictor {self.params['predictor']!r}: {exc}") from None
 
-    def load_or_create(self, params: HierarchyParams) -> Hierarchy | BlendedPredictor:
+    def load_or_create(self, params: HierarchyParams) -> Hierarchy | GatedPredictor:
         """The checkpoint's model if there is a readable one, else a fresh one with `params`."""
         path = self.checkpoint
         if path is None or not path.exists():
@@ -178,7 +176,7 @@ class GwrHierarchyNode(PipelineNode):
             self.get_logger().error(f"unreadable checkpoint moved to {aside}; starting a fresh model: {exc}")
             self.counters.count("checkpoint.corrupt_moved_aside")
             return self.create(params)
-        learner = gwr_member(model)
+        learner = inner_model(model)
         saved = learner.params.to_flat() if isinstance(learner.params, HierarchyParams) else {}
         differ = {k: (v, saved[k]) for k, v in params.to_flat().items() if k in saved and saved[k] != v}
         if differ:
@@ -241,9 +239,6 @@ class GwrHierarchyNode(PipelineNode):
         values["pe_mean_mse"] = float(errors["pe_mean"])
         values["cpe_mean_mse"] = float(errors["cpe_mean"])
         values[f"cpe_h{self.horizon}_mse"] = float(errors["cpe"][-1])
-        if isinstance(self.model, BlendedPredictor):  # blend weights at the last horizon step
-            for name, w in self.model.weights().items():
-                values[f"blend_weight_{name}_h{self.horizon}"] = float(w[-1])
         for name, w in errors.get("mix_weights", {}).items():  # the default's local / global read-outs
             values[f"mix_weight_{name}_h{self.horizon}"] = float(w[-1])
         times = self.step_times or [0.0]

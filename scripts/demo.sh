@@ -12,7 +12,7 @@
 #
 # usage: scripts/demo.sh [--seconds N] [--out DIR] [--epochs N] [--scenario YAML] [--predictor NAME] [--render]
 #                        [--no-video]
-#   --predictor NAME   gated_llm_gwr (default), hierarchy (the paper), blend_hierarchy_rls or blend_flat_rls
+#   --predictor NAME   gated_llm_gwr (default) or hierarchy (the paper)
 #   --no-video         skip step 4
 set -euo pipefail
 HERE="$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)"

@@ -31,7 +31,7 @@ from gwr_predictor.learning.params import HierarchyParams
 from gwr_predictor.nodes import messages
 from gwr_predictor.nodes.messages import DiagnosticArray
 from gwr_predictor.nodes.node_base import status_qos
-from gwr_predictor.predictors.blend import gwr_member
+from gwr_predictor.predictors.gate import inner_model
 from gwr_predictor.predictors.registry import DEFAULT_PREDICTOR, load_predictor, make_predictor
 
 
@@ -235,7 +235,7 @@ def test_the_learner_moves_any_unreadable_checkpoint_aside_and_starts_fresh(ros,
     assert diagnostics["/gwr_hierarchy"]["checkpoint.corrupt_moved_aside"] == "1"
     code, _ = learner.stop(signal.SIGINT)
     assert code == 0
-    assert gwr_member(load_predictor(DEFAULT_PREDICTOR, checkpoint)).frames_seen == 0
+    assert inner_model(load_predictor(DEFAULT_PREDICTOR, checkpoint)).frames_seen == 0
 
 
 @pytest.mark.ros

@@ -7,9 +7,6 @@ import numpy as np
 import pytest
 from fakes import damped_oscillation
 
-from gwr_predictor.evaluation.experiments import common
-from gwr_predictor.evaluation.experiments.delay import Oracle
-from gwr_predictor.evaluation.experiments.splits import make_splits
 from gwr_predictor.evaluation.online import compare_online
 from gwr_predictor.learning.checkpoint import CheckpointError
 from gwr_predictor.learning.local_linear import LocalLinearError, LocalLinearParams, LocalLinearPredictor
@@ -18,6 +15,9 @@ from gwr_predictor.predictors.gate import GatedPredictor, GateError, GateParams,
 from gwr_predictor.predictors.registry import DEFAULT_PREDICTOR, load_predictor, make_predictor
 from gwr_predictor.robot.closed_loop import run_closed_loop
 from gwr_predictor.robot.compensator import DelayCompensator
+from research.experiments import common
+from research.experiments.delay import Oracle
+from research.experiments.splits import make_splits
 
 
 def _walk(n: int = 600, seed: int = 0) -> np.ndarray:
@@ -369,7 +369,7 @@ def test_guarded_default_tracks_well_below_uncompensated_on_the_demonstrator():
     """Quick-size closed loop of `experiment delay` (3 patterns, pretrained twice, a held-out person,
     600 ms): the full run gives -21 %; this size measured -21 % (0.189 vs 0.239 rad; -27 % with the
     gate before its confidence bound and short memory)."""
-    from gwr_predictor.evaluation.experiments import delay
+    from research.experiments import delay
 
     cfg = delay.Config(delays=(0.6,), rules=("none", "guarded_true"), predictors=(common.DEFAULT,),
                        patterns=("wave_one", "raise_front_both", "rotate_cw_both"), subjects=3, repetitions=3,
@@ -381,7 +381,7 @@ def test_guarded_default_tracks_well_below_uncompensated_on_the_demonstrator():
 def test_data_loss_does_not_hurt_what_is_learned():
     """30 % of the training frames lost in 1 s chunks: the error on complete unseen repetitions stays
     within 10 % of the loss-free one (the flat data-loss curve)."""
-    from gwr_predictor.evaluation.experiments import dataloss
+    from research.experiments import dataloss
 
     cfg = dataloss.Config(losses=(0.0, 0.3), patterns=("wave_one", "raise_front_both"), subjects=2,
                           train_repetitions=2, epochs=6, methods=("hold", common.DEFAULT))

@@ -9,11 +9,11 @@ import numpy as np
 import pytest
 
 from gwr_predictor.commands.cli import main
-from gwr_predictor.evaluation.experiments import EXPERIMENTS, UnknownExperiment, load
-from gwr_predictor.evaluation.experiments.gate import DEFAULT as GATE_DEFAULT
-from gwr_predictor.evaluation.experiments.output import ExperimentOutputError, markdown_table, to_jsonable
-from gwr_predictor.evaluation.experiments.splits import SplitError, key, make_splits
+from gwr_predictor.evaluation.output import ExperimentOutputError, markdown_table, to_jsonable
 from gwr_predictor.learning.local_linear import LocalLinearParams
+from research.experiments import EXPERIMENTS, UnknownExperiment, load
+from research.experiments.gate import DEFAULT as GATE_DEFAULT
+from research.experiments.splits import SplitError, key, make_splits
 
 
 def _seqs(patterns=("a", "b"), subjects=("s1", "s2", "s3"), reps=4):
@@ -83,7 +83,7 @@ def test_experiment_compare(tmp_path):
         assert len({v["scored_frames"] for v in cond.values()}) == 1
     assert len(r["neurons"]["hierarchy"]) == 3
     # a new user's first pass over each pattern, from scratch: the default never far above holding still
-    from gwr_predictor.evaluation.experiments.common import DEFAULT, worst_ratio_to_hold
+    from research.experiments.common import DEFAULT, worst_ratio_to_hold
 
     assert set(r["from_scratch"]) == set(cfg["patterns"])
     assert all(worst_ratio_to_hold(stats, DEFAULT) <= 1.02 for stats in r["from_scratch"].values())
@@ -143,7 +143,7 @@ def test_experiment_incremental(tmp_path):
         assert c["sequential"] == r["cpe_mean"][r["evaluated_at"].index(c["patterns"] * cfg["epochs_per_pattern"])]
         assert 0 < c["together"] < 1
     # the first reference, recomputed: a fresh model on the order's first k patterns, scored on those only
-    from gwr_predictor.evaluation.experiments import common, incremental
+    from research.experiments import common, incremental
     config = incremental.QUICK
     groups = common.by_pattern(common.demo_data(config.patterns, config.subjects, config.repetitions, 0))
     k, order = cfg["together_at"][0], r["runs"][0]["order"]
@@ -233,7 +233,7 @@ def test_experiment_tune(tmp_path):
 
 
 def test_tune_choice_breaks_near_ties_towards_the_finer_insertion_threshold():
-    from gwr_predictor.evaluation.experiments.tune import choose
+    from research.experiments.tune import choose
 
     rows = [{"settings": {"insertion_scale": i, "rate": r}, "heldout_repetitions": {"mae": m}}
             for i, r, m in ((1.5, 0.1, 0.1278), (1.0, 0.1, 0.1281), (1.0, 0.2, 0.1284), (0.5, 0.1, 0.1300))]
@@ -243,7 +243,7 @@ def test_tune_choice_breaks_near_ties_towards_the_finer_insertion_threshold():
 
 
 def test_tune_recruitment_stage_takes_the_most_eager_recruitment_within_the_tie():
-    from gwr_predictor.evaluation.experiments.tune import _most_eager_recruitment, choose
+    from research.experiments.tune import _most_eager_recruitment, choose
 
     rows = [{"settings": {"recruit_surprise": v}, "heldout_repetitions": {"mae": m}}
             for v, m in ((0.0, 0.1280), (6.0, 0.1300), (9.0, 0.1283), (12.0, 0.1279), (16.0, 0.1280))]

@@ -13,7 +13,7 @@ from gwr_predictor.nodes import messages
 from gwr_predictor.nodes.messages import DiagnosticArray, Float64MultiArray, JointState
 from gwr_predictor.pipeline import bags
 from gwr_predictor.pipeline.conventions import NEURON_KEYS
-from gwr_predictor.predictors.blend import gwr_member
+from gwr_predictor.predictors.gate import inner_model
 from gwr_predictor.predictors.registry import DEFAULT_PREDICTOR, load_predictor
 
 FAST = {"diagnostics_period_s": 0.5}
@@ -81,7 +81,7 @@ def test_each_node_killed_and_restarted_the_pipeline_recovers_and_keeps_what_it_
     frames_at_kill = int(learner_values(statuses[-1])["frames"])
     ros.kill(procs["gwr_hierarchy"])
     saved = load_predictor(DEFAULT_PREDICTOR, checkpoint)  # a SIGKILL never leaves a half-written checkpoint
-    saved_frames = gwr_member(saved).frames_seen
+    saved_frames = inner_model(saved).frames_seen
     assert frames_well_before <= saved_frames <= frames_at_kill + 10
     n_status = len(statuses)
     restart("gwr_hierarchy", ("predictions", "learner_status"))
@@ -127,7 +127,7 @@ def test_each_node_killed_and_restarted_the_pipeline_recovers_and_keeps_what_it_
                  "bag_recorder"):
         code, killed = procs[name].stop(signal.SIGINT)
         assert code == 0 and not killed, procs[name].output()[-2000:]
-    final = gwr_member(load_predictor(DEFAULT_PREDICTOR, checkpoint))
+    final = inner_model(load_predictor(DEFAULT_PREDICTOR, checkpoint))
     assert final.frames_seen >= saved_frames + learned_before_stop
     info = bags.bag_info(tmp_path / "bag2")  # closed properly: no recovery needed
     assert all(info.topics[f"/{t}"][1] >= FLOW for t in STREAMS), info.topics

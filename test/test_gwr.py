@@ -5,8 +5,8 @@ import math
 import numpy as np
 import pytest
 
-from gwr_predictor.commands.loop_gwr import LoopGWR
 from gwr_predictor.learning.gwr import GWR, InputError
+from gwr_predictor.learning.gwr_loop import LoopGWR
 from gwr_predictor.learning.params import GWRParams
 
 P = GWRParams()

@@ -199,7 +199,7 @@ def same_graph(launched: list[dict], scripted: list[dict]) -> None:
 
 @pytest.mark.parametrize("baseline,render,scenario,predictor", [
     (True, False, "", ""), (False, False, "", ""),
-    (True, True, "config/scenario_variable_delay.yaml", "blend_flat_rls"),
+    (True, True, "config/scenario_variable_delay.yaml", "hierarchy"),
 ])
 def test_launch_file_starts_the_graph_of_run_pipeline(launch_module, tmp_path, baseline, render, scenario,
                                                       predictor):

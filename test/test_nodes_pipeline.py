@@ -19,7 +19,7 @@ from gwr_predictor.nodes.messages import DiagnosticArray, Float64MultiArray, Joi
 from gwr_predictor.pipeline import bags
 from gwr_predictor.pipeline.conventions import NEURON_KEYS, SKELETON_JOINTS, TOPIC_TYPES
 from gwr_predictor.pipeline.run_report import compute_report, read_run
-from gwr_predictor.predictors.blend import gwr_member
+from gwr_predictor.predictors.gate import inner_model
 from gwr_predictor.predictors.registry import DEFAULT_PREDICTOR, load_predictor
 from gwr_predictor.robot.nao import ARM_JOINTS
 
@@ -105,7 +105,7 @@ def test_pipeline_flows_learns_moves_the_robot_and_records(ros, tmp_path):
     assert learner.wait(30) == 0, learner.output()
     assert "SIGTERM received" in learner.output()
     model = load_predictor(DEFAULT_PREDICTOR, checkpoint)
-    assert gwr_member(model).frames_seen >= learned
+    assert inner_model(model).frames_seen >= learned
     assert model.neuron_counts[-1] >= counts[-1]["pgwr"]
 
     for proc in reversed(procs):
@@ -149,7 +149,7 @@ def test_corrupt_checkpoint_is_moved_aside_not_overwritten(ros, tmp_path):
     assert diagnostics["/gwr_hierarchy"]["checkpoint.corrupt_moved_aside"] == "1"
     code, _ = learner.stop(signal.SIGINT)
     assert code == 0
-    fresh = gwr_member(load_predictor(DEFAULT_PREDICTOR, checkpoint))
+    fresh = inner_model(load_predictor(DEFAULT_PREDICTOR, checkpoint))
     assert fresh.frames_seen == 0  # the fresh model, saved at shutdown
 
 

@@ -16,7 +16,7 @@ from gwr_predictor.data.mocap import load_any_skeleton
 from gwr_predictor.nodes import messages
 from gwr_predictor.nodes.messages import Float64MultiArray
 from gwr_predictor.pipeline.conventions import SKELETON_JOINTS
-from gwr_predictor.predictors.knn import KnnPredictor
+from research.knn import KnnPredictor
 
 
 def test_knn_reference_predicts_a_repeated_motion_and_needs_enough_windows():

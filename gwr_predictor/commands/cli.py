@@ -14,13 +14,15 @@ import sys
 
 from gwr_predictor.errors import GwrPredictorError
 
+#: The research part of the repository (experiments, bench, soak): not installed, run from a checkout.
+RESEARCH = "research"
 # name -> (module, one-line help)
 COMMANDS: dict[str, tuple[str, str]] = {
     "demonstrate": ("gwr_predictor.commands.demonstrate", "write the demonstrator's skeleton sequences to files"),
     "angles": ("gwr_predictor.commands.angles", "extract the 8 Nao arm angles from a skeleton file"),
-    "bench": ("gwr_predictor.commands.bench", "benchmark learn+predict through the hierarchy"),
-    "soak": ("gwr_predictor.commands.soak", "long offline run: memory and throughput over 1M frames"),
-    "experiment": ("gwr_predictor.commands.experiment", "reproduce one of the paper's experiments"),
+    "bench": ("research.bench", "benchmark learn+predict through the hierarchy (from a checkout)"),
+    "soak": ("research.soak", "long offline run: memory and throughput over 1M frames (from a checkout)"),
+    "experiment": ("research.experiment_command", "reproduce one of the paper's experiments (from a checkout)"),
     "evaluate": ("gwr_predictor.commands.evaluate", "online evaluation of recordings against baselines"),
     "pretrain": ("gwr_predictor.commands.pretrain", "train a hierarchy offline and save a checkpoint"),
     "report": ("gwr_predictor.commands.report", "summarise a recorded pipeline bag: errors, lag, plot"),
@@ -43,7 +45,15 @@ def main(argv: list[str] | None = None) -> int:
         build_parser().parse_args(argv)  # prints usage / the error and exits
         return 2
     name, rest = argv[0], argv[1:]
-    module = importlib.import_module(COMMANDS[name][0])
+    try:
+        module = importlib.import_module(COMMANDS[name][0])
+    except ModuleNotFoundError as exc:
+        if (exc.name or "").partition(".")[0] != RESEARCH:
+            raise
+        print(f"gwr-predictor {name}: error: '{name}' is research code, which runs from a source checkout of "
+              "gwr_predictor (its research/ folder is not installed): source scripts/env.sh in the checkout "
+              "and run it there", file=sys.stderr)
+        return 2
     parser = argparse.ArgumentParser(prog=f"gwr-predictor {name}", description=COMMANDS[name][1])
     module.configure(parser)
     args = parser.parse_args(rest)

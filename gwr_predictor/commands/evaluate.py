@@ -17,17 +17,17 @@ from pathlib import Path
 
 import numpy as np
 
-from gwr_predictor.commands.experiment import parse_overrides
 from gwr_predictor.commands.import_options import add_import_options, import_options
+from gwr_predictor.commands.param_overrides import parse_overrides
 from gwr_predictor.data.mocap import ImportOptions, load_any_skeleton
 from gwr_predictor.errors import GwrPredictorError
-from gwr_predictor.evaluation.experiments import common
-from gwr_predictor.evaluation.experiments.output import markdown_table, to_jsonable
 from gwr_predictor.evaluation.online import EvaluationError, compare_online
+from gwr_predictor.evaluation.output import markdown_table, to_jsonable
+from gwr_predictor.learning.params import HierarchyParams
 from gwr_predictor.predictors import registry
 from gwr_predictor.robot.nao import ARM_JOINTS
 
-DEFAULT_METHODS = ("hold", "const_velocity", "rls_ar", common.HIERARCHY)
+DEFAULT_METHODS = ("hold", "const_velocity", "rls_ar", "hierarchy")
 
 
 class RecordingError(GwrPredictorError, ValueError):
@@ -41,9 +41,8 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--passes", type=int, default=1, help="times the recordings are presented (default 1)")
     parser.add_argument("--horizon", type=int, default=None, help="frames ahead (default: the model's, 6)")
     parser.add_argument("--methods", default=",".join(DEFAULT_METHODS),
-                        help=f"comma-separated subset of {','.join(common.all_methods())}")
-    parser.add_argument("--checkpoint", type=Path, default=None,
-                        help="start the hierarchy (also the one inside blend_hierarchy_rls) from this checkpoint")
+                        help=f"comma-separated subset of {','.join(registry.names())}")
+    parser.add_argument("--checkpoint", type=Path, default=None, help="start the hierarchy from this checkpoint")
     parser.add_argument("--param", action="append", default=[], metavar="KEY=VALUE",
                         help="hierarchy parameter override in flat form (repeatable)")
     parser.add_argument("--seed", type=int, default=0)
@@ -85,27 +84,17 @@ def load_recording(path: Path, options: ImportOptions | None = None) -> np.ndarr
 def run(args: argparse.Namespace) -> int:
     try:
         methods = tuple(m.strip() for m in args.methods.split(",") if m.strip())
-        if unknown := [m for m in methods if m not in common.all_methods()]:
-            raise ValueError(f"unknown methods {unknown}; choose from {', '.join(common.all_methods())}")
+        if unknown := [m for m in methods if m not in registry.names()]:
+            raise ValueError(f"unknown methods {unknown}; choose from {', '.join(registry.names())}")
         if args.passes < 1:
             raise ValueError(f"--passes must be >= 1, got {args.passes}")
         if default_method() not in methods:
             methods = (*methods, default_method())
         options = import_options(args)
         recordings = [load_recording(p, options) for p in args.files]
-        params = common.make_params(tuple(parse_overrides(args.param).items()))
-        models = {}
-        for m in methods:
-            if m == common.HIERARCHY and args.checkpoint is not None:
-                models[m] = registry.load_predictor(common.HIERARCHY, args.checkpoint)
-            elif m == common.BLEND and args.checkpoint is not None:
-                from gwr_predictor.predictors.blend import BlendedPredictor
-
-                blend = common.make_model(m, params, args.seed)
-                hierarchy = registry.load_predictor(common.HIERARCHY, args.checkpoint)
-                models[m] = BlendedPredictor({**blend.members, "hierarchy": hierarchy}, blend.params)
-            else:
-                models[m] = common.make_model(m, params, args.seed)
+        params = HierarchyParams.from_flat(parse_overrides(args.param))
+        models = {m: (registry.load_predictor(m, args.checkpoint) if m == "hierarchy" and args.checkpoint
+                      else registry.make_predictor(m, params, args.seed)) for m in methods}
         horizon = args.horizon or params.horizon
         results = compare_online(models, recordings, horizon=horizon, passes=args.passes,
                                  progress=not args.no_progress, desc="evaluate")
@@ -114,7 +103,7 @@ def run(args: argparse.Namespace) -> int:
         print(f"error ({kind}): {exc}", file=sys.stderr)
         return 2
     steps = sorted({1, *range(2, horizon + 1, max(1, horizon // 6)), horizon})
-    rows = [[common.label(m), *[r.stats.mae[k - 1] for k in steps], r.coverage] for m, r in results.items()]
+    rows = [[registry.label(m), *[r.stats.mae[k - 1] for k in steps], r.coverage] for m, r in results.items()]
     first = next(iter(results.values()))
     print(f"{len(recordings)} recording(s), {first.frames} frames fed ({args.passes} pass(es)), "
           f"{first.scored_frames} scored on the same frames by every method. MAE (rad) per horizon step:")
@@ -123,6 +112,7 @@ def run(args: argparse.Namespace) -> int:
                "mse_rad2": {m: r.stats.mse for m, r in results.items()},
                "default_method": default_method(),
                "frames": first.frames, "scored_frames": first.scored_frames, "passes": args.passes,
-               "neurons": {m: common.neuron_counts(models[m]) for m in methods if common.neuron_counts(models[m])}}
+               "neurons": {m: [int(c) for c in models[m].neuron_counts] for m in methods
+                           if getattr(models[m], "neuron_counts", None)}}
     print(json.dumps(to_jsonable(summary)))
     return 0

@@ -3,7 +3,7 @@
 The live pipeline then starts from this checkpoint (gwr_hierarchy's `checkpoint` parameter) and
 keeps learning: pretraining only front-loads what the paper's online training would learn over
 many demonstrations. The learning parameters and the `predictor` (the default gated local-linear
-P-GWR, the paper's hierarchy or a blend with RLS-AR) come from the node's YAML (`--params-file`)
+P-GWR or the paper's hierarchy) come from the node's YAML (`--params-file`)
 unless `--predictor` is given, so the
 checkpoint and the node agree. Each epoch presents every sequence once, in a shuffled order, with
 a sequence reset between them; the summary line per epoch is neurons and C.P.E. per horizon step.
@@ -23,7 +23,7 @@ import numpy as np
 from gwr_predictor.data.datasets import demo_angle_sequences
 from gwr_predictor.data.demonstrator import PATTERNS, DemonstratorError
 from gwr_predictor.learning.params import HierarchyParams, hierarchy_parameter_specs
-from gwr_predictor.predictors.blend import gwr_member
+from gwr_predictor.predictors.gate import inner_model
 from gwr_predictor.predictors.registry import DEFAULT_PREDICTOR, learner_names, make_predictor
 
 NODE_NAME = "gwr_hierarchy"
@@ -90,7 +90,7 @@ def run(args: argparse.Namespace) -> int:
         print(f"error: predictor {predictor!r} is not one of {', '.join(learner_names())}", file=sys.stderr)
         return 2
     model = make_predictor(predictor, params, seed=seed)
-    learner = gwr_member(model)  # neurons and C.P.E. of the GWR learner (the model, or the blend's member)
+    learner = inner_model(model)  # neurons and C.P.E. of the GWR learner (behind the gate, if any)
     rng = np.random.default_rng(seed)
     frames = sum(len(s) for s in seqs)
     print(f"pretraining a {predictor} on {len(seqs)} sequences ({frames} frames at 10 fps) x {args.epochs} epochs",

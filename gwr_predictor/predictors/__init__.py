@@ -1,5 +1,5 @@
-"""Online predictors beside the paper's hierarchy: the baselines it must beat and the blend; the
-offline k-NN reference of `experiment real`.
+"""Online predictors beside the paper's hierarchy: the baselines it must beat, the confidence gate of
+the default, and the one registry of predictors by name.
 """
 
 from gwr_predictor._exports import lazy_exports
@@ -10,17 +10,13 @@ _EXPORTS = {
     "RLSAutoregressive": "baselines",
     "RLSParams": "baselines",
     "make_baselines": "baselines",
-    "BlendedPredictor": "blend",
-    "BlendParams": "blend",
-    "BlendError": "blend",
-    "make_blend": "blend",
     "make_predictor": "registry",
     "load_predictor": "registry",
     "register": "registry",
     "learner_names": "registry",
     "UnknownPredictorError": "registry",
-    "KnnPredictor": "knn",
-    "KnnError": "knn",
+    "GatedPredictor": "gate",
+    "GateParams": "gate",
 }
 __all__ = sorted(_EXPORTS)
 __getattr__, __dir__ = lazy_exports(__name__, _EXPORTS)

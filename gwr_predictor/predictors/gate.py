@@ -335,6 +335,11 @@ class GatedPredictor:
         return cls.from_state(header, arrays, path)
 
 
+def inner_model(model: Any) -> Any:
+    """The learner behind a gate, or the model itself: what has neurons, errors and `frames_seen`."""
+    return model.model if isinstance(model, GatedPredictor) else model
+
+
 def _model_classes() -> dict[str, type]:
     from gwr_predictor.learning.hierarchy import FlatPredictor, Hierarchy
     from gwr_predictor.learning.local_linear import LocalLinearPredictor

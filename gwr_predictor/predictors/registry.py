@@ -7,9 +7,9 @@ predictor` (the `Predictor` protocol), a label for tables and, for the predictor
 a checkpoint loader; those are the `learner_names()` the node and `pretrain` accept.
 
 Built in: the baselines `hold`, `const_velocity`, `rls_ar`, `linear` (direct multi-step linear
-model); the paper's `hierarchy` (GWR1 -> GWR2 -> P-GWR); its ablation `pgwr_flat` (the P-GWR alone
-on raw frames); the per-step blends `blend_hierarchy_rls` and `blend_flat_rls` (beyond the paper);
-the default `gated_llm_gwr` and its ablation variants. `register` adds one.
+model), the paper's `hierarchy` (GWR1 -> GWR2 -> P-GWR) and the default `gated_llm_gwr`.
+`register` adds one: the research part of the repository (research/, not installed) registers its
+ablations and blends this way.
 """
 
 from __future__ import annotations
@@ -81,8 +81,8 @@ def default_name() -> str:
 
 
 def learner_names() -> tuple[str, ...]:
-    """The names that can be saved and loaded: what the learner node and `pretrain` accept."""
-    return tuple(n for n, e in _REGISTRY.items() if e.loader is not None)
+    """The product's predictors that can be saved and loaded: what the learner node and `pretrain` accept."""
+    return tuple(n for n in PRODUCT if _REGISTRY[n].loader is not None)
 
 
 def label(name: str) -> str:
@@ -129,26 +129,6 @@ def _load_hierarchy(path: str | os.PathLike[str]) -> Predictor:
     return Hierarchy.load(path)
 
 
-def _flat(params: Any, seed: int) -> Predictor:
-    from gwr_predictor.learning.hierarchy import FlatPredictor
-
-    return FlatPredictor(params, seed=seed)
-
-
-def _blend(name: str) -> tuple[Factory, Loader]:
-    def make(params: Any, seed: int) -> Predictor:
-        from gwr_predictor.predictors.blend import make_blend
-
-        return make_blend(name, params, seed=seed)
-
-    def load(path: str | os.PathLike[str]) -> Predictor:
-        from gwr_predictor.predictors.blend import load_blend
-
-        return load_blend(name, path)
-
-    return make, load
-
-
 register("hold", _baseline("hold"), "hold last")
 register("const_velocity", _baseline("const_velocity"), "constant velocity")
 register("rls_ar", _baseline("rls_ar"), "RLS-AR")
@@ -161,23 +141,19 @@ def _linear(params: Any, seed: int) -> Predictor:
 
 
 register("linear", _linear, "direct linear (RLS)")
-register("pgwr_flat", _flat, "P-GWR alone")
 register("hierarchy", _hierarchy, "GWR hierarchy", _load_hierarchy)
-for _name, _label in (("blend_hierarchy_rls", "blend hierarchy + RLS-AR"),
-                      ("blend_flat_rls", "blend P-GWR alone + RLS-AR")):
-    _make, _load = _blend(_name)
-    register(_name, _make, _label, _load)
 
 
-# --- the default predictor (beyond the paper) and its ablation variants ------------------------------
-def _local_linear_params(params: Any, **changes: Any) -> Any:
+# --- the default predictor (beyond the paper) ------------------------------------------------------
+def local_linear_params(params: Any, **changes: Any) -> Any:
     """The default's own settings (`LocalLinearParams()`); only horizon and joints come from `params`."""
     from gwr_predictor.learning.local_linear import LocalLinearParams
 
     return LocalLinearParams(horizon=params.horizon, n_joints=params.n_joints).replace(**changes)
 
 
-def _gated(model: Any, params: Any) -> Predictor:
+def gated(model: Any, params: Any) -> Predictor:
+    """`model` behind the confidence gate that falls back to holding the pose."""
     from gwr_predictor.predictors.gate import GatedPredictor, GateParams
 
     return GatedPredictor(model, GateParams(horizon=params.horizon, joints=params.n_joints))
@@ -186,43 +162,11 @@ def _gated(model: Any, params: Any) -> Predictor:
 def _gated_llm(params: Any, seed: int) -> Predictor:
     from gwr_predictor.learning.local_linear import LocalLinearPredictor
 
-    return _gated(LocalLinearPredictor(_local_linear_params(params), seed=seed), params)
+    return gated(LocalLinearPredictor(local_linear_params(params), seed=seed), params)
 
 
-def _llm(params: Any, seed: int) -> Predictor:
-    from gwr_predictor.learning.local_linear import LocalLinearPredictor
-
-    return LocalLinearPredictor(_local_linear_params(params), seed=seed)
-
-
-def _gated_vqtam(params: Any, seed: int) -> Predictor:
-    from gwr_predictor.learning.local_linear import LocalLinearPredictor
-
-    lp = _local_linear_params(params, rate=0.0, neighbour_rate=0.0, readout_k=1, global_order=0)
-    return _gated(LocalLinearPredictor(lp, seed=seed), params)
-
-
-def _gated_llm_local(params: Any, seed: int) -> Predictor:
-    from gwr_predictor.learning.local_linear import LocalLinearPredictor
-
-    return _gated(LocalLinearPredictor(_local_linear_params(params, global_order=0), seed=seed), params)
-
-
-def _gated_linear(params: Any, seed: int) -> Predictor:
-    from gwr_predictor.predictors.direct_linear import DirectLinear, DirectLinearParams
-
-    lp = _local_linear_params(params)  # the default's own global read-out, alone
-    return _gated(DirectLinear(DirectLinearParams(order=lp.global_order, horizon=lp.horizon, joints=lp.n_joints)),
-                  params)
-
-
-def _gated_hierarchy(params: Any, seed: int) -> Predictor:
-    from gwr_predictor.learning.hierarchy import Hierarchy
-
-    return _gated(Hierarchy(params, seed=seed), params)
-
-
-def _gate_loader(wraps: str) -> Loader:
+def gate_loader(wraps: str) -> Loader:
+    """A loader of gated checkpoints that refuses a gate around another kind of model."""
     def load(path: str | os.PathLike[str]) -> Predictor:
         from gwr_predictor.learning.checkpoint import KindMismatchError
         from gwr_predictor.predictors.gate import GatedPredictor
@@ -236,15 +180,7 @@ def _gate_loader(wraps: str) -> Loader:
     return load
 
 
-def _load_llm(path: str | os.PathLike[str]) -> Predictor:
-    from gwr_predictor.learning.local_linear import LocalLinearPredictor
+register(DEFAULT_PREDICTOR, _gated_llm, "gated local-linear P-GWR (default)", gate_loader("LocalLinearPredictor"))
 
-    return LocalLinearPredictor.load(path)
-
-
-register("llm_gwr", _llm, "local-linear P-GWR (ungated)", _load_llm)
-register(DEFAULT_PREDICTOR, _gated_llm, "gated local-linear P-GWR (default)", _gate_loader("LocalLinearPredictor"))
-register("gated_hierarchy", _gated_hierarchy, "gate around the GWR hierarchy", _gate_loader("Hierarchy"))
-register("gated_vqtam", _gated_vqtam, "gated P-GWR, displacements, no local models")
-register("gated_llm_local", _gated_llm_local, "gated local-linear P-GWR, local read-outs only")
-register("gated_linear", _gated_linear, "gated global linear read-out alone")
+#: The product's predictors: the ones registered above, whatever registers itself later (research/).
+PRODUCT: tuple[str, ...] = tuple(_REGISTRY)

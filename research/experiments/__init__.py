@@ -11,7 +11,7 @@ from types import ModuleType
 
 from gwr_predictor.errors import GwrPredictorError
 
-#: name -> one-line description (the module is gwr_predictor.evaluation.experiments.<name>).
+#: name -> one-line description (the module is research.experiments.<name>).
 EXPERIMENTS: dict[str, str] = {
     "incremental": "Sec. VI-B: patterns learned one after another; C.P.E., P.E. and neurons per epoch",
     "threshold": "Sec. VI-B3: P-GWR retrained with a_T 0.5..0.99 on frozen lower layers; neurons vs MSE",
@@ -35,4 +35,4 @@ class UnknownExperiment(GwrPredictorError, KeyError):
 def load(name: str) -> ModuleType:
     if name not in EXPERIMENTS:
         raise UnknownExperiment(f"unknown experiment {name!r}; choose from {', '.join(EXPERIMENTS)}")
-    return importlib.import_module(f"gwr_predictor.evaluation.experiments.{name}")
+    return importlib.import_module(f"research.experiments.{name}")

@@ -17,10 +17,10 @@ from typing import Any
 import numpy as np
 
 from gwr_predictor.data.faults import CHUNK_FRAMES, drop_chunks
-from gwr_predictor.evaluation.experiments import common
-from gwr_predictor.evaluation.experiments.output import ExperimentOutput, figure, markdown_table, save_figure
 from gwr_predictor.evaluation.metrics import HorizonStats
 from gwr_predictor.evaluation.online import compare_online
+from gwr_predictor.evaluation.output import ExperimentOutput, figure, markdown_table, save_figure
+from research.experiments import common
 
 NAME = "dataloss"
 

@@ -8,8 +8,9 @@ import sys
 import time
 from pathlib import Path
 
-from gwr_predictor.evaluation.experiments import EXPERIMENTS, load
-from gwr_predictor.evaluation.experiments.output import write_output
+from gwr_predictor.commands.param_overrides import parse_overrides
+from gwr_predictor.evaluation.output import write_output
+from research.experiments import EXPERIMENTS, load
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
@@ -27,28 +28,6 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--no-progress", action="store_true", help="no progress bars")
 
 
-def parse_overrides(items: list[str]) -> dict[str, object]:
-    """'key=value' strings -> {key: int | float | bool | str}."""
-    out: dict[str, object] = {}
-    for item in items:
-        k, sep, v = item.partition("=")
-        if not sep or not k:
-            raise ValueError(f"--param needs KEY=VALUE, got {item!r}")
-        value: object
-        if v.lower() in ("true", "false"):
-            value = v.lower() == "true"
-        else:
-            try:
-                value = int(v)
-            except ValueError:
-                try:
-                    value = float(v)
-                except ValueError:
-                    value = v
-        out[k.strip()] = value
-    return out
-
-
 def run(args: argparse.Namespace) -> int:
     module = load(args.name)
     config = module.QUICK if args.quick else module.FULL
@@ -62,7 +41,7 @@ def run(args: argparse.Namespace) -> int:
                 return 2
             config = dataclasses.replace(config, orders=args.orders)
         if args.method is not None:
-            from gwr_predictor.evaluation.experiments.common import all_methods
+            from research.experiments.common import all_methods
 
             if not hasattr(config, "method") or args.method not in all_methods():
                 print(f"experiment {args.name} has no --method {args.method!r} (methods: {', '.join(all_methods())})",

@@ -28,10 +28,10 @@ from typing import Any
 
 import numpy as np
 
-from gwr_predictor.evaluation.experiments import common
-from gwr_predictor.evaluation.experiments.output import ExperimentOutput, markdown_table
-from gwr_predictor.evaluation.experiments.splits import make_splits
 from gwr_predictor.evaluation.online import compare_online
+from gwr_predictor.evaluation.output import ExperimentOutput, markdown_table
+from research.experiments import common
+from research.experiments.splits import make_splits
 
 NAME = "tune"
 RECRUIT = f"{common.GATED}:recruitment"  # the default predictor's second stage

@@ -20,10 +20,10 @@ from typing import Any
 import numpy as np
 from tqdm import tqdm
 
-from gwr_predictor.commands.bench import peak_rss_mb
 from gwr_predictor.data.synthetic import synthetic_demonstrations
 from gwr_predictor.learning.hierarchy import Hierarchy
 from gwr_predictor.learning.params import HierarchyParams
+from research.bench import peak_rss_mb
 
 
 def current_rss_mb() -> float:

@@ -17,8 +17,8 @@ from typing import Any
 
 import numpy as np
 
-from gwr_predictor.evaluation.experiments import common, compare
-from gwr_predictor.evaluation.experiments.output import ExperimentOutput, figure, markdown_table, save_figure
+from gwr_predictor.evaluation.output import ExperimentOutput, figure, markdown_table, save_figure
+from research.experiments import common, compare
 
 NAME = "scale"
 SHOWN = ("train/frozen", "heldout_repetitions/frozen", "heldout_subjects/online")

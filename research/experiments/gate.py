@@ -21,12 +21,12 @@ from typing import Any
 
 import numpy as np
 
-from gwr_predictor.evaluation.experiments import common
-from gwr_predictor.evaluation.experiments.delay import person_sequence
-from gwr_predictor.evaluation.experiments.output import ExperimentOutput, markdown_table
-from gwr_predictor.evaluation.experiments.splits import make_splits
 from gwr_predictor.evaluation.metrics import HorizonStats
 from gwr_predictor.evaluation.online import compare_online, train_online
+from gwr_predictor.evaluation.output import ExperimentOutput, markdown_table
+from research.experiments import common
+from research.experiments.delay import person_sequence
+from research.experiments.splits import make_splits
 
 NAME = "gate"
 
@@ -106,7 +106,7 @@ class _Replay:
 
 def _conditions(config: Config, seed: int) -> dict[str, tuple[list[Any], list[Any]]]:
     """name -> (sequences learned first, sequences scored)."""
-    from gwr_predictor.evaluation.experiments import real
+    from research.experiments import real
 
     out: dict[str, tuple[list[Any], list[Any]]] = {}
     if config.clips != ():

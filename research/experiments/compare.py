@@ -1,7 +1,7 @@
 """Baselines and ablation side by side, on the same frames, on trained and held-out data.
 
 Every method (hold, constant velocity, RLS-AR, P-GWR alone, hierarchy, and the per-step inverse-MSE
-blends of hierarchy or P-GWR alone with RLS-AR, `gwr_predictor.predictors.blend`) is trained online on the
+blends of hierarchy or P-GWR alone with RLS-AR, `research.blend`) is trained online on the
 training split for `epochs` passes in random order; the online error of every pass is the learning
 curve. Then each trained model is copied and evaluated on the training split, held-out repetitions
 and held-out subjects, once frozen and once still learning (the paper's continual setting).
@@ -15,10 +15,10 @@ from typing import Any
 
 import numpy as np
 
-from gwr_predictor.evaluation.experiments import common
-from gwr_predictor.evaluation.experiments.output import ExperimentOutput, figure, markdown_table, save_figure
-from gwr_predictor.evaluation.experiments.splits import make_splits
 from gwr_predictor.evaluation.online import compare_online
+from gwr_predictor.evaluation.output import ExperimentOutput, figure, markdown_table, save_figure
+from research.experiments import common
+from research.experiments.splits import make_splits
 
 NAME = "compare"
 CONDITIONS = ("train", "heldout_repetitions", "heldout_subjects")

@@ -14,10 +14,10 @@ from typing import Any
 
 import numpy as np
 
-from gwr_predictor.evaluation.experiments import common
-from gwr_predictor.evaluation.experiments.output import ExperimentOutput, figure, markdown_table, save_figure
-from gwr_predictor.evaluation.experiments.splits import make_splits
 from gwr_predictor.evaluation.online import compare_online
+from gwr_predictor.evaluation.output import ExperimentOutput, figure, markdown_table, save_figure
+from research.experiments import common
+from research.experiments.splits import make_splits
 
 NAME = "horizon"
 RECURSIVE, VECTOR = "hierarchy_recursive", "hierarchy_vector"

@@ -23,9 +23,9 @@ from typing import Any
 
 import numpy as np
 
-from gwr_predictor.evaluation.experiments import common
-from gwr_predictor.evaluation.experiments.output import ExperimentOutput, figure, markdown_table, save_figure
 from gwr_predictor.evaluation.online import compare_online
+from gwr_predictor.evaluation.output import ExperimentOutput, figure, markdown_table, save_figure
+from research.experiments import common
 
 NAME = "incremental"
 LAYER_LABELS = {"gwr1": "GWR1", "gwr2": "GWR2", "pgwr": "P-GWR"}
@@ -55,7 +55,7 @@ FULL = Config()
 
 def one_order(config: Config, order: list[str], by_pattern: dict[str, list[Any]], seed: int,
               progress: bool) -> dict[str, Any]:
-    from gwr_predictor.predictors.blend import gwr_member
+    from research.blend import gwr_member
 
     params = common.make_params(config.overrides)
     model = common.make_model(config.method, params, seed)

@@ -17,8 +17,8 @@ from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
-from gwr_predictor.evaluation.experiments import common, compare
-from gwr_predictor.evaluation.experiments.output import ExperimentOutput, markdown_table
+from gwr_predictor.evaluation.output import ExperimentOutput, markdown_table
+from research.experiments import common, compare
 
 NAME = "ablation"
 METHODS = ("hold", common.FLAT, common.HIERARCHY, common.GATED_HIERARCHY, common.GATED_VQTAM, common.GATED_LINEAR,

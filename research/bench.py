@@ -36,9 +36,9 @@ from typing import Any
 import numpy as np
 from tqdm import tqdm
 
-from gwr_predictor.commands.loop_gwr import LoopGWR
 from gwr_predictor.data.synthetic import synthetic_arm_stream
 from gwr_predictor.learning.gwr import GWR
+from gwr_predictor.learning.gwr_loop import LoopGWR
 from gwr_predictor.learning.hierarchy import Hierarchy
 from gwr_predictor.learning.params import GWRParams, HierarchyParams
 

@@ -19,11 +19,11 @@ from typing import Any
 
 import numpy as np
 
-from gwr_predictor.evaluation.experiments import common
-from gwr_predictor.evaluation.experiments.output import ExperimentOutput, figure, markdown_table, save_figure
 from gwr_predictor.evaluation.metrics import HorizonStats
 from gwr_predictor.evaluation.online import compare_online, train_online
+from gwr_predictor.evaluation.output import ExperimentOutput, figure, markdown_table, save_figure
 from gwr_predictor.predictors import registry
+from research.experiments import common
 
 NAME = "real"
 KNN = "knn"
@@ -99,7 +99,7 @@ def one_pass(clips: list[dict[str, Any]], methods: tuple[str, ...], params: Any,
 def leave_one_out(clips: list[dict[str, Any]], methods: tuple[str, ...], params: Any, config: Config, seed: int,
                   progress: bool) -> tuple[dict[str, dict[str, Any]], dict[str, HorizonStats]]:
     """Per held-out take of a group: learn the others online, then go on learning on it; + k-NN."""
-    from gwr_predictor.predictors.knn import KnnPredictor
+    from research.knn import KnnPredictor
 
     per_take: dict[str, dict[str, Any]] = {}
     names = (*methods, KNN)

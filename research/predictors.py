@@ -1,0 +1,93 @@
+"""The research predictors, registered beside the product's: the paper's P-GWR alone on raw frames,
+the per-step blends with RLS-AR, the default's ungated model and the ablations of the default.
+
+Each is a name in `gwr_predictor.predictors.registry`, so experiments, `evaluate` run from a checkout
+and the tables use them like the product's; the learner node offers only the product's names.
+"""
+
+from __future__ import annotations
+
+import os
+from typing import Any
+
+from gwr_predictor.predictors import registry
+from gwr_predictor.predictors.registry import Factory, Loader, gate_loader, gated, local_linear_params
+from gwr_predictor.protocol import Predictor
+
+
+def _flat(params: Any, seed: int) -> Predictor:
+    from gwr_predictor.learning.hierarchy import FlatPredictor
+
+    return FlatPredictor(params, seed=seed)
+
+
+def _blend(name: str) -> tuple[Factory, Loader]:
+    def make(params: Any, seed: int) -> Predictor:
+        from research.blend import make_blend
+
+        return make_blend(name, params, seed=seed)
+
+    def load(path: str | os.PathLike[str]) -> Predictor:
+        from research.blend import load_blend
+
+        return load_blend(name, path)
+
+    return make, load
+
+
+def _llm(params: Any, seed: int) -> Predictor:
+    from gwr_predictor.learning.local_linear import LocalLinearPredictor
+
+    return LocalLinearPredictor(local_linear_params(params), seed=seed)
+
+
+def _load_llm(path: str | os.PathLike[str]) -> Predictor:
+    from gwr_predictor.learning.local_linear import LocalLinearPredictor
+
+    return LocalLinearPredictor.load(path)
+
+
+def _gated_vqtam(params: Any, seed: int) -> Predictor:
+    from gwr_predictor.learning.local_linear import LocalLinearPredictor
+
+    lp = local_linear_params(params, rate=0.0, neighbour_rate=0.0, readout_k=1, global_order=0)
+    return gated(LocalLinearPredictor(lp, seed=seed), params)
+
+
+def _gated_llm_local(params: Any, seed: int) -> Predictor:
+    from gwr_predictor.learning.local_linear import LocalLinearPredictor
+
+    return gated(LocalLinearPredictor(local_linear_params(params, global_order=0), seed=seed), params)
+
+
+def _gated_linear(params: Any, seed: int) -> Predictor:
+    from gwr_predictor.predictors.direct_linear import DirectLinear, DirectLinearParams
+
+    lp = local_linear_params(params)  # the default's own global read-out, alone
+    return gated(DirectLinear(DirectLinearParams(order=lp.global_order, horizon=lp.horizon, joints=lp.n_joints)),
+                 params)
+
+
+def _gated_hierarchy(params: Any, seed: int) -> Predictor:
+    from gwr_predictor.learning.hierarchy import Hierarchy
+
+    return gated(Hierarchy(params, seed=seed), params)
+
+
+def register_all() -> None:
+    """Register every research predictor once (importing `research` does)."""
+    if "pgwr_flat" in registry.names():
+        return
+    registry.register("pgwr_flat", _flat, "P-GWR alone")
+    for name, label in (("blend_hierarchy_rls", "blend hierarchy + RLS-AR"),
+                        ("blend_flat_rls", "blend P-GWR alone + RLS-AR")):
+        make, load = _blend(name)
+        registry.register(name, make, label, load)
+    registry.register("llm_gwr", _llm, "local-linear P-GWR (ungated)", _load_llm)
+    registry.register("gated_hierarchy", _gated_hierarchy, "gate around the GWR hierarchy", gate_loader("Hierarchy"))
+    registry.register("gated_vqtam", _gated_vqtam, "gated P-GWR, displacements, no local models")
+    registry.register("gated_llm_local", _gated_llm_local, "gated local-linear P-GWR, local read-outs only")
+    registry.register("gated_linear", _gated_linear, "gated global linear read-out alone")
+
+
+register_all()
