@@ -4,7 +4,8 @@ The library is pure Python + numpy (no rclpy), one subpackage per concern, in th
 
 - `data`: demonstrator, skeleton files, median of 3, the 8 Nao arm angles;
 - `learning`: the paper's GWR -> Predictive GWR -> hierarchy, parameters, checkpoints;
-- `predictors`: baselines, the default's confidence gate and the one registry of predictors by name (`make_predictor`);
+- `default_predictor`: the default predictor, beyond the paper (`make_default`);
+- `predictors`: the baselines and the one registry of predictors by name (`make_predictor`);
 - `evaluation`: the online evaluation loop, metrics and result tables;
 - `robot`: Nao kinematics/URDF, PyBullet simulator, delayed arm, delay compensator;
 - `pipeline`: message conventions, MCAP bags, run reports and latency (ROS-free);
@@ -31,6 +32,9 @@ _EXPORTS = {
     "GWR": "learning.gwr",
     "PredictiveGWR": "learning.predictive_gwr",
     "HoldLast": "predictors.baselines",
+    "make_default": "default_predictor",
+    "GatedPredictor": "default_predictor.gate",
+    "LocalLinearPredictor": "default_predictor.predictor",
     "make_predictor": "predictors.registry",
     "load_predictor": "predictors.registry",
     "compare_online": "evaluation.online",

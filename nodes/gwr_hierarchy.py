@@ -14,7 +14,7 @@ file refuses to start instead of overwriting the first one's learning.
 
 `predictor` picks the model: `gated_llm_gwr` (the default: a P-GWR with local linear models and a
 global linear read-out, mixed per horizon step, behind a confidence gate that falls back to holding
-the pose, see learning/local_linear.py and predictors/gate.py; its status carries the read-outs'
+the pose, see gwr_predictor/default_predictor/; its status carries the read-outs'
 mixing weights at the last step, `mix_weight_local_h6` / `mix_weight_global_h6`) or `hierarchy` (the
 paper). The hierarchy parameters below apply to `hierarchy`; `gated_llm_gwr` takes only `horizon`
 from them.
@@ -28,6 +28,7 @@ from pathlib import Path
 
 import numpy as np
 
+from gwr_predictor.default_predictor.gate import GatedPredictor, inner_model
 from gwr_predictor.learning.checkpoint import (
     CheckpointError,
     CheckpointLock,
@@ -43,7 +44,6 @@ from gwr_predictor.pipeline import conventions
 from gwr_predictor.pipeline.gates import missing_frames
 from gwr_predictor.pipeline.markers import ROBOT_FRAME, arm_figure
 from gwr_predictor.pipeline.trajectory import prediction_trajectory
-from gwr_predictor.predictors.gate import GatedPredictor, inner_model
 from gwr_predictor.predictors.registry import DEFAULT_PREDICTOR, learner_names, load_predictor, make_predictor
 from gwr_predictor.robot.nao import ARM_JOINTS
 

@@ -392,7 +392,7 @@ def load_blend(kind: str, path: str | os.PathLike[str]) -> BlendedPredictor:
 def gwr_member(model: Any) -> Any:
     """The GWR learner inside `model`: the model itself, the gate's model, or the blend's member that
     has neurons."""
-    from gwr_predictor.predictors.gate import inner_model
+    from gwr_predictor.default_predictor.gate import inner_model
 
     if isinstance(model, BlendedPredictor):
         return next(m for m in model.members.values() if getattr(m, "neuron_counts", None) is not None)

@@ -11,8 +11,22 @@ import os
 from typing import Any
 
 from gwr_predictor.predictors import registry
-from gwr_predictor.predictors.registry import Factory, Loader, gate_loader, gated, local_linear_params
+from gwr_predictor.predictors.registry import Factory, Loader, gate_loader
 from gwr_predictor.protocol import Predictor
+
+
+def local_linear_params(params: Any, **changes: Any) -> Any:
+    """The default's own settings (`LocalLinearParams()`) with `changes`; only horizon and joints come from `params`."""
+    from gwr_predictor.default_predictor import LocalLinearParams
+
+    return LocalLinearParams(horizon=params.horizon, n_joints=params.n_joints).replace(**changes)
+
+
+def gated(model: Any, params: Any) -> Predictor:
+    """`model` behind the default's confidence gate."""
+    from gwr_predictor.default_predictor.gate import GatedPredictor, GateParams
+
+    return GatedPredictor(model, GateParams(horizon=params.horizon, joints=params.n_joints))
 
 
 def _flat(params: Any, seed: int) -> Predictor:
@@ -36,26 +50,26 @@ def _blend(name: str) -> tuple[Factory, Loader]:
 
 
 def _llm(params: Any, seed: int) -> Predictor:
-    from gwr_predictor.learning.local_linear import LocalLinearPredictor
+    from gwr_predictor.default_predictor import LocalLinearPredictor
 
     return LocalLinearPredictor(local_linear_params(params), seed=seed)
 
 
 def _load_llm(path: str | os.PathLike[str]) -> Predictor:
-    from gwr_predictor.learning.local_linear import LocalLinearPredictor
+    from gwr_predictor.default_predictor import LocalLinearPredictor
 
     return LocalLinearPredictor.load(path)
 
 
 def _gated_vqtam(params: Any, seed: int) -> Predictor:
-    from gwr_predictor.learning.local_linear import LocalLinearPredictor
+    from gwr_predictor.default_predictor import LocalLinearPredictor
 
     lp = local_linear_params(params, rate=0.0, neighbour_rate=0.0, readout_k=1, global_order=0)
     return gated(LocalLinearPredictor(lp, seed=seed), params)
 
 
 def _gated_llm_local(params: Any, seed: int) -> Predictor:
-    from gwr_predictor.learning.local_linear import LocalLinearPredictor
+    from gwr_predictor.default_predictor import LocalLinearPredictor
 
     return gated(LocalLinearPredictor(local_linear_params(params, global_order=0), seed=seed), params)
 

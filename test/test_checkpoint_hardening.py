@@ -16,6 +16,7 @@ import pytest
 from ros_harness import Probe
 from test_node_bad_input import FAST
 
+from gwr_predictor.default_predictor.gate import inner_model
 from gwr_predictor.learning import checkpoint as ckpt
 from gwr_predictor.learning.checkpoint import (
     HEADER_KEY,
@@ -31,7 +32,6 @@ from gwr_predictor.learning.params import HierarchyParams
 from gwr_predictor.nodes import messages
 from gwr_predictor.nodes.messages import DiagnosticArray
 from gwr_predictor.nodes.node_base import status_qos
-from gwr_predictor.predictors.gate import inner_model
 from gwr_predictor.predictors.registry import DEFAULT_PREDICTOR, load_predictor, make_predictor
 
 

@@ -7,17 +7,25 @@ import numpy as np
 import pytest
 from fakes import damped_oscillation
 
+from gwr_predictor.default_predictor import LocalLinearError, LocalLinearParams, LocalLinearPredictor, make_default
+from gwr_predictor.default_predictor.gate import GatedPredictor, GateError, GateParams
 from gwr_predictor.evaluation.online import compare_online
 from gwr_predictor.learning.checkpoint import CheckpointError
-from gwr_predictor.learning.local_linear import LocalLinearError, LocalLinearParams, LocalLinearPredictor
 from gwr_predictor.predictors.baselines import HoldLast
-from gwr_predictor.predictors.gate import GatedPredictor, GateError, GateParams, make_gated_llm
 from gwr_predictor.predictors.registry import DEFAULT_PREDICTOR, load_predictor, make_predictor
 from gwr_predictor.robot.closed_loop import run_closed_loop
 from gwr_predictor.robot.compensator import DelayCompensator
 from research.experiments import common
 from research.experiments.delay import Oracle
 from research.experiments.splits import make_splits
+
+
+def make_gated_llm(params=None, gate=None):
+    """The default (`make_default`), or the same composition with other settings."""
+    if params is None and gate is None:
+        return make_default()
+    lp = params or LocalLinearParams()
+    return GatedPredictor(LocalLinearPredictor(lp, seed=0), gate or GateParams(horizon=lp.horizon, joints=lp.n_joints))
 
 
 def _walk(n: int = 600, seed: int = 0) -> np.ndarray:

@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 from gwr_predictor.commands.cli import main
+from gwr_predictor.default_predictor import LocalLinearParams
 from gwr_predictor.evaluation.output import ExperimentOutputError, markdown_table, to_jsonable
-from gwr_predictor.learning.local_linear import LocalLinearParams
 from research.experiments import EXPERIMENTS, UnknownExperiment, load
 from research.experiments.gate import DEFAULT as GATE_DEFAULT
 from research.experiments.splits import SplitError, key, make_splits

@@ -9,11 +9,11 @@ import signal
 import numpy as np
 import pytest
 
+from gwr_predictor.default_predictor.gate import inner_model
 from gwr_predictor.nodes import messages
 from gwr_predictor.nodes.messages import DiagnosticArray, Float64MultiArray, JointState
 from gwr_predictor.pipeline import bags
 from gwr_predictor.pipeline.conventions import NEURON_KEYS
-from gwr_predictor.predictors.gate import inner_model
 from gwr_predictor.predictors.registry import DEFAULT_PREDICTOR, load_predictor
 
 FAST = {"diagnostics_period_s": 0.5}

@@ -99,7 +99,7 @@ def test_pretrain_uses_the_nodes_yaml_and_writes_a_checkpoint_the_node_can_load(
     assert model.params.horizon == 4 and model.params.pgwr.max_edge_age == 50
     assert model.frames_seen > 30
     # without 'predictor' the node's default is trained; it takes the horizon from the YAML
-    from gwr_predictor.predictors.gate import GatedPredictor
+    from gwr_predictor.default_predictor.gate import GatedPredictor
 
     custom.write_text("/**/gwr_hierarchy:\n  ros__parameters:\n    horizon: 4\n")
     assert main(["pretrain", "-o", str(out), "--params-file", str(custom), "--patterns", "wave_one",

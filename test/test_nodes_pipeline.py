@@ -12,6 +12,7 @@ from mcap_ros2.decoder import DecoderFactory
 from gwr_predictor.data import faults
 from gwr_predictor.data.demonstrator import default_subjects, demonstrate_one
 from gwr_predictor.data.skeleton_files import save_skeleton
+from gwr_predictor.default_predictor.gate import inner_model
 from gwr_predictor.learning.hierarchy import Hierarchy
 from gwr_predictor.learning.params import HierarchyParams
 from gwr_predictor.nodes import messages
@@ -19,7 +20,6 @@ from gwr_predictor.nodes.messages import DiagnosticArray, Float64MultiArray, Joi
 from gwr_predictor.pipeline import bags
 from gwr_predictor.pipeline.conventions import NEURON_KEYS, SKELETON_JOINTS, TOPIC_TYPES
 from gwr_predictor.pipeline.run_report import compute_report, read_run
-from gwr_predictor.predictors.gate import inner_model
 from gwr_predictor.predictors.registry import DEFAULT_PREDICTOR, load_predictor
 from gwr_predictor.robot.nao import ARM_JOINTS
 

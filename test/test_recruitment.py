@@ -7,13 +7,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from gwr_predictor.learning.checkpoint import CheckpointError
-from gwr_predictor.learning.local_linear import (
+from gwr_predictor.default_predictor import (
     LocalLinearError,
     LocalLinearParams,
     LocalLinearPGWR,
     LocalLinearPredictor,
 )
+from gwr_predictor.learning.checkpoint import CheckpointError
 from gwr_predictor.learning.params import GWRParams
 
 

@@ -22,8 +22,8 @@ import numpy as np
 
 from gwr_predictor.data.datasets import demo_angle_sequences
 from gwr_predictor.data.demonstrator import PATTERNS, DemonstratorError
+from gwr_predictor.default_predictor.gate import inner_model
 from gwr_predictor.learning.params import HierarchyParams, hierarchy_parameter_specs
-from gwr_predictor.predictors.gate import inner_model
 from gwr_predictor.predictors.registry import DEFAULT_PREDICTOR, learner_names, make_predictor
 
 NODE_NAME = "gwr_hierarchy"

@@ -5,7 +5,7 @@ inverse-covariance estimate serves them all and an update costs O(d^2 + d m) for
 outputs. With forgetting on data that excite few directions (a person at rest), P winds up; it is
 reset to its prior when its trace passes `max_trace`, and the weights are reset if they ever stop
 being finite. Used by the direct linear predictor (`predictors/direct_linear.py`) and by the default
-predictor's global read-out (`learning/local_linear.py`).
+predictor's global read-out (`default_predictor/predictor.py`).
 """
 
 from __future__ import annotations

@@ -1,5 +1,5 @@
-"""Online predictors beside the paper's hierarchy: the baselines it must beat, the confidence gate of
-the default, and the one registry of predictors by name.
+"""Online predictors beside the paper's hierarchy and the default: the baselines they must beat, and
+the one registry of predictors by name.
 """
 
 from gwr_predictor._exports import lazy_exports
@@ -15,8 +15,6 @@ _EXPORTS = {
     "register": "registry",
     "learner_names": "registry",
     "UnknownPredictorError": "registry",
-    "GatedPredictor": "gate",
-    "GateParams": "gate",
 }
 __all__ = sorted(_EXPORTS)
 __getattr__, __dir__ = lazy_exports(__name__, _EXPORTS)

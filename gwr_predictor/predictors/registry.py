@@ -145,31 +145,17 @@ register("hierarchy", _hierarchy, "GWR hierarchy", _load_hierarchy)
 
 
 # --- the default predictor (beyond the paper) ------------------------------------------------------
-def local_linear_params(params: Any, **changes: Any) -> Any:
-    """The default's own settings (`LocalLinearParams()`); only horizon and joints come from `params`."""
-    from gwr_predictor.learning.local_linear import LocalLinearParams
+def _default(params: Any, seed: int) -> Predictor:
+    from gwr_predictor.default_predictor import make_default
 
-    return LocalLinearParams(horizon=params.horizon, n_joints=params.n_joints).replace(**changes)
-
-
-def gated(model: Any, params: Any) -> Predictor:
-    """`model` behind the confidence gate that falls back to holding the pose."""
-    from gwr_predictor.predictors.gate import GatedPredictor, GateParams
-
-    return GatedPredictor(model, GateParams(horizon=params.horizon, joints=params.n_joints))
-
-
-def _gated_llm(params: Any, seed: int) -> Predictor:
-    from gwr_predictor.learning.local_linear import LocalLinearPredictor
-
-    return gated(LocalLinearPredictor(local_linear_params(params), seed=seed), params)
+    return make_default(params.horizon, params.n_joints, seed)
 
 
 def gate_loader(wraps: str) -> Loader:
     """A loader of gated checkpoints that refuses a gate around another kind of model."""
     def load(path: str | os.PathLike[str]) -> Predictor:
+        from gwr_predictor.default_predictor.gate import GatedPredictor
         from gwr_predictor.learning.checkpoint import KindMismatchError
-        from gwr_predictor.predictors.gate import GatedPredictor
 
         gate = GatedPredictor.load(path)
         if gate.model.kind != wraps:
@@ -180,7 +166,7 @@ def gate_loader(wraps: str) -> Loader:
     return load
 
 
-register(DEFAULT_PREDICTOR, _gated_llm, "gated local-linear P-GWR (default)", gate_loader("LocalLinearPredictor"))
+register(DEFAULT_PREDICTOR, _default, "gated local-linear P-GWR (default)", gate_loader("LocalLinearPredictor"))
 
 #: The product's predictors: the ones registered above, whatever registers itself later (research/).
 PRODUCT: tuple[str, ...] = tuple(_REGISTRY)

@@ -1,6 +1,6 @@
 """The confidence gate's settings: how safe against holding still, and at what cost where the model is good.
 
-The gate (`predictors.gate`) only reads the wrapped model's outputs and never changes the model, so
+The gate (`default_predictor.gate`) only reads the wrapped model's outputs and never changes the model, so
 the default's local-linear P-GWR is run once per condition with its outputs recorded, and every gate
 variant replays exactly those outputs frame by frame (the same frames, the same model, no peeking):
 a grid of gates costs little more than one run. Conditions:
@@ -139,7 +139,7 @@ def _score(model: Any, learned: list[Any], scored: list[Any], horizon: int) -> t
 def run(config: Config, out: Path, seed: int = 0, progress: bool = True) -> ExperimentOutput:
     from tqdm import tqdm
 
-    from gwr_predictor.predictors.gate import GatedPredictor, GateParams
+    from gwr_predictor.default_predictor.gate import GatedPredictor, GateParams
     from gwr_predictor.predictors.registry import make_predictor
 
     params = common.make_params()

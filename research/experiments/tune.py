@@ -69,8 +69,8 @@ FULL = Config()
 
 
 def _gated(horizon: int, **settings: Any) -> Any:
-    from gwr_predictor.learning.local_linear import LocalLinearParams, LocalLinearPredictor
-    from gwr_predictor.predictors.gate import GatedPredictor, GateParams
+    from gwr_predictor.default_predictor import LocalLinearParams, LocalLinearPredictor
+    from gwr_predictor.default_predictor.gate import GatedPredictor, GateParams
 
     lp = LocalLinearParams(horizon=horizon).replace(**settings)
     return GatedPredictor(LocalLinearPredictor(lp), GateParams(horizon=horizon))

@@ -341,17 +341,7 @@ def inner_model(model: Any) -> Any:
 
 
 def _model_classes() -> dict[str, type]:
+    from gwr_predictor.default_predictor import LocalLinearPredictor
     from gwr_predictor.learning.hierarchy import FlatPredictor, Hierarchy
-    from gwr_predictor.learning.local_linear import LocalLinearPredictor
 
     return {c.kind: c for c in (LocalLinearPredictor, Hierarchy, FlatPredictor)}
-
-
-def make_gated_llm(horizon: int = DEFAULT_HORIZON, joints: int = N_JOINTS, seed: int = 0,
-                   params: Any = None, gate: GateParams | None = None) -> GatedPredictor:
-    """The default predictor: the local-linear P-GWR behind the confidence gate."""
-    from gwr_predictor.learning.local_linear import LocalLinearParams, LocalLinearPredictor
-
-    lp = params or LocalLinearParams(horizon=horizon, n_joints=joints)
-    gp = gate or GateParams(horizon=lp.horizon, joints=lp.n_joints)
-    return GatedPredictor(LocalLinearPredictor(lp, seed=seed), gp)

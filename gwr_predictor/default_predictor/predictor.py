@@ -1,0 +1,342 @@
+"""The default predictor's online loop: the local-linear P-GWR (`network.py`) and a global linear
+read-out, learned one frame at a time, predicting the next `horizon` frames.
+
+A global read-out beside the local ones (`global_order` > 0, the default): where a person has shown
+little, most neurons have seen a handful of pairs and their local models are noise, while one linear
+map fitted exactly to every pair (recursive least squares, `learning/rls.py`, on the newest pose and
+its latest changes) already predicts well. Per horizon step the predictor mixes the two read-outs,
+
+    y(r) = w_local,k y_local(r) + w_global,k y_global(r)
+
+with the weights the least-squares fit of the observed displacements on what each read-out predicted
+for them (decayed, ridge towards 0 = hold-last), scored when a learned pair's targets are complete:
+on motion the network knows, the weights go to the local read-out; on a few minutes of a new person,
+the global one carries the prediction until the network has learned the movements.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from collections import deque
+from typing import Any, ClassVar
+
+import numpy as np
+
+from gwr_predictor.default_predictor.network import LocalLinearPGWR
+from gwr_predictor.default_predictor.params import _BEFORE, LocalLinearParams
+from gwr_predictor.learning.checkpoint import CheckpointError, read_checkpoint, require_arrays, write_checkpoint
+from gwr_predictor.learning.gwr import InputError
+from gwr_predictor.learning.hierarchy import ErrorTracker
+from gwr_predictor.learning.rls import RecursiveLeastSquares, window_features
+from gwr_predictor.learning.scaling import InputScaling
+
+
+class LocalLinearPredictor:
+    """Online predictor: regressor = the last `order` frames (rad, newest first); output = the
+    displacements of the next `horizon` frames from the newest one, read out by `LocalLinearPGWR`.
+
+    The pair (r(t-h), x(t-h+1..t) - x(t-h)) is learned at frame t, once its targets are observed (no
+    peeking). A missing sample (None/NaN) clears the window and the queue, as in the hierarchy.
+    """
+
+    kind: ClassVar[str] = "LocalLinearPredictor"
+
+    def __init__(self, params: LocalLinearParams | None = None, seed: int | None = 0) -> None:
+        self.params = p = params or LocalLinearParams()
+        rng = np.random.default_rng(seed)
+        lo, hi = InputScaling(1.0, p.n_joints).window_bounds(p.order)
+        out_dim = p.horizon * p.n_joints
+        self.pgwr = LocalLinearPGWR(p.order * p.n_joints, out_dim, p.gwr, rng, init_low=np.concatenate(
+            [lo, np.zeros(out_dim)]), init_high=np.concatenate([hi, np.zeros(out_dim)]), rate=p.rate,
+            consolidate_after=p.consolidate_after, recruit_surprise=p.recruit_surprise, recruit_after=p.recruit_after)
+        self._ln_at = -math.log(p.gwr.activation_threshold)
+        self._motion_ms = p.noise_floor ** 2  # running mean of ||x(t) - x(t-1)||^2
+        self._t = self._frames = self._missing = self._predictions = self._sequences = 0
+        self._errors = ErrorTracker(p.horizon, p.n_joints, self.layer_names)
+        self._init_global()
+        self._clear_sequence()
+
+    def _init_global(self) -> None:
+        """The global read-out and the statistics that mix it with the local one (None without one)."""
+        p = self.params
+        self.linear = None
+        if p.global_order:
+            self.linear = RecursiveLeastSquares(p.global_order * p.n_joints + 1, p.horizon * p.n_joints,
+                                                delta=p.global_delta)
+        self._mix_sxx = np.zeros((p.horizon, 2, 2))  # per step: sum of [local, global] read-out products
+        self._mix_sxy = np.zeros((p.horizon, 2))  # per step: sum of read-out x observed displacement
+        self._mix = np.zeros((p.horizon, 2))  # the weights they give (0, 0 = hold-last until scored)
+
+    # --- the online step --------------------------------------------------------------------------
+    def step(self, x: np.ndarray | None, learn: bool = True) -> np.ndarray | None:
+        """Observe x (rad; None/NaN = missing), learn if `learn`, return (horizon, J) or None."""
+        p = self.params
+        t = self._t
+        self._t += 1
+        frame = self._as_frame(x)
+        if frame is None:
+            self._missing += 1
+            self._errors.score(t, None, None)
+            self._clear_sequence()
+            return None
+        self._frames += 1
+        self._errors.score(t, frame, frame)  # no lower layers: P.E. = C.P.E.
+        win, hist = self._win, self._hist
+        if self._fill:
+            step = frame - win[0]
+            self._motion_ms += (1.0 - p.motion_decay) * (float(step @ step) - self._motion_ms)
+        win[1:] = win[:-1]
+        win[0] = frame
+        self._fill = min(self._fill + 1, p.order)
+        hist.append(frame)
+        if learn and len(self._regs) == p.horizon and self._regs[0] is not None:
+            self._learn(self._regs[0], hist)
+        reg = win.reshape(-1).copy() if self._fill == p.order else None
+        self._regs.append(reg)
+        self._last_reg = reg
+        if reg is None:
+            self._outs.append(None)
+            return None
+        self._predictions += 1
+        prediction = self._forecast(reg, record=True)
+        self._errors.expect(t, prediction)
+        return prediction
+
+    def predict(self) -> np.ndarray | None:
+        """The prediction of the last `step` with the current network; no state change."""
+        return None if self._last_reg is None else self._forecast(self._last_reg)
+
+    def _learn(self, reg: np.ndarray, hist: deque[np.ndarray]) -> None:
+        p = self.params
+        frames = np.asarray(hist)  # (horizon + 1, J): x(t-h) ... x(t)
+        target = (frames[1:] - frames[0]).reshape(-1)
+        if self.linear is not None:
+            self._learn_global(target, *self._outs[0])
+        scale = max(math.sqrt(self._motion_ms), p.noise_floor) * p.insertion_scale * math.sqrt(p.order)
+        self.pgwr.distance_factor = self._ln_at / scale
+        self.pgwr.learn_local(reg, target, p.neighbour_rate)
+
+    def _learn_global(self, target: np.ndarray, outs: np.ndarray | None, phi: np.ndarray) -> None:
+        """Score the two read-outs made for a regressor (features `phi`) against its now complete
+        targets (the mixing statistics), then one RLS step of the global read-out."""
+        p = self.params
+        if outs is not None:
+            by_step = outs.transpose(1, 0, 2)  # (horizon, 2, J)
+            self._mix_sxx *= p.mix_decay
+            self._mix_sxx += by_step @ by_step.transpose(0, 2, 1)
+            self._mix_sxy *= p.mix_decay
+            self._mix_sxy += (by_step @ target.reshape(p.horizon, p.n_joints, 1))[..., 0]
+            self._mix = self._mix_weights()
+        self.linear.update(phi, target)
+
+    def _mix_weights(self) -> np.ndarray:
+        """(horizon, 2) least-squares weights of the [local, global] read-outs per step: the 2 x 2 ridge
+        normal equations of every step, solved in closed form (a new array)."""
+        sxx, sxy = self._mix_sxx, self._mix_sxy
+        # [d, a]: the diagonal, swapped, plus the ridge; w = ([d, a] * sxy - b * sxy swapped) / det
+        da = sxx.diagonal(axis1=1, axis2=2)[:, ::-1] + self.params.mix_ridge * self.params.n_joints
+        b = sxx[:, :1, 1]
+        det = da[:, :1] * da[:, 1:]  # > 0 once b * b is taken off: a ridge-regularised Gram matrix is positive definite
+        det -= b * b
+        w = da * sxy
+        w -= b * sxy[:, ::-1]
+        w /= det
+        return w
+
+    def _forecast(self, reg: np.ndarray, record: bool = False) -> np.ndarray:
+        """The prediction for regressor `reg`; `record` files both read-outs to be scored later."""
+        p = self.params
+        local = self.pgwr.predict_local(reg, p.readout_k).reshape(p.horizon, p.n_joints)
+        if self.linear is not None:
+            phi = window_features(reg.reshape(p.order, p.n_joints), p.global_order)
+            outs = np.empty((2, p.horizon, p.n_joints))
+            outs[0] = local
+            outs[1] = self.linear.predict(phi).reshape(p.horizon, p.n_joints)
+            if record:
+                self._outs.append((outs, phi))
+            local = outs[0] * self._mix[:, :1]
+            local += outs[1] * self._mix[:, 1:]
+        local += reg[:p.n_joints]
+        return local
+
+    def _as_frame(self, x: np.ndarray | None) -> np.ndarray | None:
+        if x is None:
+            return None
+        frame = np.asarray(x, dtype=float)
+        if frame.shape != (self.params.n_joints,):
+            raise InputError(f"a frame must have shape ({self.params.n_joints},), got {frame.shape}")
+        return frame if math.isfinite(frame.sum()) else None
+
+    def _clear_sequence(self) -> None:
+        p = self.params
+        self._win = np.zeros((p.order, p.n_joints))
+        self._fill = 0
+        self._hist: deque[np.ndarray] = deque(maxlen=p.horizon + 1)
+        self._regs: deque[np.ndarray | None] = deque(maxlen=p.horizon)
+        # per regressor: its read-outs [local, global] and global features, to be scored and learned
+        self._outs: deque[tuple[np.ndarray, np.ndarray] | None] = deque(maxlen=p.horizon)
+        self._last_reg: np.ndarray | None = None
+
+    def reset_sequence(self) -> None:
+        """Sequence boundary: clear the window, the queue and pending predictions (never the network)."""
+        self._clear_sequence()
+        self._errors.forget_pending()
+        self._sequences += 1
+
+    def reset_errors(self) -> None:
+        """Zero the C.P.E. statistics (counters of frames stay)."""
+        self._errors.reset()
+
+    # --- introspection ------------------------------------------------------------------------------
+    @property
+    def neuron_counts(self) -> tuple[int, ...]:
+        return (self.pgwr.n_neurons,)
+
+    layer_names: ClassVar[tuple[str, ...]] = ("pgwr",)
+
+    @property
+    def frames_seen(self) -> int:
+        return self._frames
+
+    @property
+    def motion_rms(self) -> float:
+        """Running RMS frame-to-frame motion (rad, over all joints) the insertion threshold follows."""
+        return math.sqrt(self._motion_ms)
+
+    def mix_weights(self) -> np.ndarray | None:
+        """(horizon, 2) weights of the [local, global] read-outs per step (None without a global one)."""
+        return None if self.linear is None else self._mix.copy()
+
+    def errors(self) -> dict[str, Any]:
+        """Counts, neurons (and how many of them were recruited), the motion scale, the read-outs'
+        mixing weights, and C.P.E. (= P.E.) per step as the hierarchy reports it."""
+        out = {"steps": self._t, "frames": self._frames, "missing": self._missing,
+               "sequences": self._sequences, "predictions": self._predictions,
+               "neurons": {"pgwr": self.pgwr.n_neurons}, "recruited": self.pgwr.recruited,
+               "motion_rms_rad": self.motion_rms}
+        if self.linear is not None:
+            out["mix_weights"] = {"local": self._mix[:, 0].tolist(), "global": self._mix[:, 1].tolist()}
+        return {**out, **self._errors.summary()}
+
+    # --- persistence --------------------------------------------------------------------------------
+    #: The arrays every checkpoint has; "visits" came with consolidation (without it: zeros), "readout_mse"
+    #: with recruitment (without it: NaN).
+    ARRAYS: ClassVar[tuple[str, ...]] = ("weights", "matrices", "counters", "edges", "win", "hist", "regs",
+                                         *ErrorTracker.ARRAYS)
+    GLOBAL_ARRAYS: ClassVar[tuple[str, ...]] = ("global:weights", "global:p", "mix_sxx", "mix_sxy", "outs",
+                                                "out_features")
+
+    def state(self) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
+        """(JSON-able header, arrays) of the whole state; `from_state` continues bit for bit."""
+        g = self.pgwr
+        regs = list(self._regs)
+        reg_arr = np.array([np.zeros(g.in_dim) if r is None else r for r in regs]).reshape(len(regs), g.in_dim)
+        hist = np.array(list(self._hist)).reshape(len(self._hist), self.params.n_joints)
+        header = {"params": self.params.to_dict(), "distance_factor": g.distance_factor,
+                  "motion_ms": self._motion_ms, "fill": self._fill, "reg_present": [r is not None for r in regs],
+                  "last_reg": self._last_reg is not None,
+                  "counters": [self._t, self._frames, self._missing, self._predictions, self._sequences],
+                  "errors": self._errors.header(), "recruited": g.recruited}
+        arrays = {"weights": g.weights, "matrices": g.matrices.copy(), "visits": g.visits.copy(),
+                  "readout_mse": g.readout_mse.copy(), "surprise_streaks": g.surprise_streaks.copy(),
+                  "counters": g.counters.copy(),
+                  "edges": g.edge_array(), "win": self._win.copy(), "hist": hist, "regs": reg_arr,
+                  **{k: v.copy() for k, v in self._errors.arrays().items()}}
+        if self.linear is not None:
+            queued = list(self._outs)
+            shape = (2, self.params.horizon, self.params.n_joints)
+            features = self.linear.weights.shape[0]
+            rls_header, rls_arrays = self.linear.state()
+            header["global"] = {"rls": rls_header, "outs_present": [q is not None for q in queued]}
+            arrays.update({f"global:{k}": v for k, v in rls_arrays.items()})
+            arrays.update(mix_sxx=self._mix_sxx.copy(), mix_sxy=self._mix_sxy.copy(),
+                          outs=np.array([np.zeros(shape) if q is None else q[0] for q in queued]).reshape(
+                              len(queued), *shape),
+                          out_features=np.array([np.zeros(features) if q is None else q[1] for q in queued]).reshape(
+                              len(queued), features))
+        return header, arrays
+
+    @classmethod
+    def from_state(cls, header: dict[str, Any], arrays: dict[str, np.ndarray],
+                   source: str | os.PathLike[str] = "<state>") -> LocalLinearPredictor:
+        """The predictor of a `state()`; CheckpointError naming `source` if it does not fit."""
+        require_arrays(cls.ARRAYS, arrays, source)
+        try:
+            settings = header["params"]
+            for added, before in _BEFORE:  # an older checkpoint keeps the learner it was written with
+                if added not in settings:
+                    settings = {**settings, **before}
+            params = LocalLinearParams.from_dict(settings)
+            model = cls.__new__(cls)
+            model.params = params
+            model._ln_at = -math.log(params.gwr.activation_threshold)
+            model.pgwr = LocalLinearPGWR.from_parts(
+                arrays["weights"], arrays["matrices"], params.gwr, edges=arrays["edges"],
+                counters=arrays["counters"], match_dim=params.order * params.n_joints,
+                distance_factor=float(header["distance_factor"]), rate=params.rate, delta=1e-4,
+                visits=arrays.get("visits"), consolidate_after=params.consolidate_after,
+                readout_mse=arrays.get("readout_mse"), recruit_surprise=params.recruit_surprise,
+                recruited=int(header.get("recruited", 0)), streaks=arrays.get("surprise_streaks"),
+                recruit_after=params.recruit_after)
+            if model.pgwr.out_dim != params.horizon * params.n_joints:
+                raise ValueError(f"outputs are {model.pgwr.out_dim}-d, parameters say "
+                                 f"{params.horizon * params.n_joints}")
+            model._motion_ms = float(header["motion_ms"])
+            (model._t, model._frames, model._missing, model._predictions,
+             model._sequences) = (int(v) for v in header["counters"])
+            model._errors = ErrorTracker(params.horizon, params.n_joints, cls.layer_names)
+            model._errors.restore(header["errors"], arrays)
+            model._clear_sequence()
+            if np.shape(arrays["win"]) != model._win.shape:
+                raise ValueError(f"array 'win' has shape {np.shape(arrays['win'])}, expected {model._win.shape}")
+            model._win[...] = arrays["win"]
+            model._fill = int(header["fill"])
+            for row in np.asarray(arrays["hist"], dtype=float).reshape(-1, params.n_joints):
+                model._hist.append(row.copy())
+            present = header["reg_present"]
+            regs = np.asarray(arrays["regs"], dtype=float)
+            if len(present) != len(regs) or len(regs) > params.horizon:
+                raise ValueError(f"regressor queue of {len(regs)} entries does not fit the parameters")
+            for flag, reg in zip(present, regs, strict=True):
+                model._regs.append(reg.copy() if flag else None)
+            model._last_reg = model._regs[-1] if header["last_reg"] else None
+            model._init_global()
+            if model.linear is not None:
+                model._restore_global(header["global"], arrays)
+        except CheckpointError:
+            raise
+        except (KeyError, ValueError, TypeError, IndexError) as exc:
+            raise CheckpointError(f"{source}: inconsistent local-linear checkpoint: "
+                                  f"{type(exc).__name__}: {exc}") from exc
+        return model
+
+    def _restore_global(self, header: dict[str, Any], arrays: dict[str, np.ndarray]) -> None:
+        missing = sorted(set(self.GLOBAL_ARRAYS) - arrays.keys())
+        if missing:
+            raise ValueError(f"missing arrays {missing} of the global read-out")
+        prefix = "global:"
+        self.linear.restore(header["rls"], {k[len(prefix):]: v for k, v in arrays.items() if k.startswith(prefix)})
+        for name, dest in (("mix_sxx", self._mix_sxx), ("mix_sxy", self._mix_sxy)):
+            if np.shape(arrays[name]) != dest.shape:
+                raise ValueError(f"array {name!r} has shape {np.shape(arrays[name])}, expected {dest.shape}")
+            dest[...] = arrays[name]
+        self._mix = self._mix_weights()
+        present, outs = header["outs_present"], np.asarray(arrays["outs"], dtype=float)
+        features = np.asarray(arrays["out_features"], dtype=float)
+        shape = (len(self._regs), 2, self.params.horizon, self.params.n_joints)
+        n_features = self.linear.weights.shape[0]
+        if len(present) != len(outs) or outs.shape != shape or features.shape != (len(outs), n_features):
+            raise ValueError(f"read-out queue of shapes {outs.shape}, {features.shape} does not fit the regressor "
+                             f"queue {shape}")
+        for flag, o, f in zip(present, outs, features, strict=True):
+            self._outs.append((o.copy(), f.copy()) if flag else None)
+
+    def save(self, path: str | os.PathLike[str]) -> None:
+        header, arrays = self.state()
+        write_checkpoint(path, self.kind, header, arrays)
+
+    @classmethod
+    def load(cls, path: str | os.PathLike[str]) -> LocalLinearPredictor:
+        header, arrays = read_checkpoint(path, cls.kind, list(cls.ARRAYS))
+        return cls.from_state(header, arrays, path)
