@@ -16,15 +16,19 @@ file refuses to start instead of overwriting the first one's learning.
 global linear read-out, mixed per horizon step, behind a confidence gate that falls back to holding
 the pose, see gwr_predictor/default_predictor/; its status carries the read-outs'
 mixing weights at the last step, `mix_weight_local_h6` / `mix_weight_global_h6`) or `hierarchy` (the
-paper). The hierarchy parameters below apply to `hierarchy`; `gated_llm_gwr` takes only `horizon`
-from them.
+paper). The node declares the chosen predictor's own settings and no other's, named
+`<predictor>.<setting>` (`gated_llm_gwr.order`, `hierarchy.gwr1.eps_b`): one params file can hold a
+section for each (config/gwr_hierarchy.yaml does), the others' are ignored without a warning.
 A checkpoint of another kind than `predictor` stops the node (it is neither used nor moved aside).
 """
 
 from __future__ import annotations
 
+import dataclasses
 import time
+from collections.abc import Sequence
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -38,12 +42,13 @@ from gwr_predictor.learning.checkpoint import (
     set_aside,
 )
 from gwr_predictor.learning.hierarchy import Hierarchy
-from gwr_predictor.learning.params import HierarchyParams, hierarchy_parameter_specs
+from gwr_predictor.learning.params import HIERARCHY_SPECS, HierarchyParams
 from gwr_predictor.parameter_spec import ParamSpec
 from gwr_predictor.pipeline import conventions
 from gwr_predictor.pipeline.gates import missing_frames
 from gwr_predictor.pipeline.markers import ROBOT_FRAME, arm_figure
 from gwr_predictor.pipeline.trajectory import prediction_trajectory
+from gwr_predictor.predictors import registry
 from gwr_predictor.predictors.registry import DEFAULT_PREDICTOR, learner_names, load_predictor, make_predictor
 from gwr_predictor.robot.nao import ARM_JOINTS
 
@@ -60,7 +65,9 @@ from .node_base import (
 PARAMS = (
     ParamSpec("predictor", DEFAULT_PREDICTOR, "model: 'gated_llm_gwr' (local-linear P-GWR with a global linear "
               "read-out behind a confidence gate, never worse than holding the pose; default) or 'hierarchy' (GWR1 "
-              "-> GWR2 -> P-GWR, the paper)", choices=learner_names()),
+              "-> GWR2 -> P-GWR, the paper); the node declares the chosen one's settings as '<predictor>.<name>'",
+              choices=learner_names()),
+    dataclasses.replace(HIERARCHY_SPECS["horizon"], description="frames predicted ahead (6 at 10 fps = 600 ms)"),
     ParamSpec("seed", 0, "seed of the networks' initial random neurons", 0, 2**31 - 1),
     ParamSpec("learn", True, "learn from every frame (false: predict with the networks as they are)", live=True),
     ParamSpec("frame_period_s", 1.0 / conventions.ANGLE_FPS, "spacing of the angle frames (s)", 0.001, 10.0),
@@ -75,24 +82,23 @@ PARAMS = (
 )
 
 
+def predictor_specs(name: str) -> tuple[ParamSpec, ...]:
+    """The settings of product predictor `name` as this node declares them: '<name>.<setting>'."""
+    return tuple(dataclasses.replace(s, name=f"{name}.{s.name}") for s in registry.entry(name).settings())
+
+
 class GwrHierarchyNode(PipelineNode):
     NODE_NAME = "gwr_hierarchy"
 
     def __init__(self) -> None:
-        super().__init__(self.NODE_NAME, (*PARAMS, *hierarchy_parameter_specs()))
+        super().__init__(self.NODE_NAME, PARAMS)
         p = self.params
-        flat = {spec.name: p[spec.name] for spec in hierarchy_parameter_specs()}
-        try:
-            params = HierarchyParams.from_flat(flat)
-        except ValueError as exc:
-            raise ParameterError(str(exc)) from None
-        if params.n_joints != len(ARM_JOINTS):  # the node's input and output are the Nao's arm joints
-            raise ParameterError(f"parameter 'n_joints' = {params.n_joints}: this node learns the "
-                                 f"{len(ARM_JOINTS)} arm joints {', '.join(ARM_JOINTS)}; it must be {len(ARM_JOINTS)}")
+        #: The chosen predictor's settings (its own names) plus the node's horizon and the arm's joints.
+        self.settings = registry.settings_from_parameters(p["predictor"], p, len(ARM_JOINTS))
         self.checkpoint = Path(p["checkpoint"]) if p["checkpoint"] else None
         self.checkpoint_lock = self.claim_checkpoint(self.checkpoint) if self.checkpoint is not None else None
         try:
-            self.model = self.load_or_create(params)
+            self.model = self.load_or_create(self.settings)
         except BaseException:
             self.release_checkpoint()
             raise
@@ -143,22 +149,29 @@ class GwrHierarchyNode(PipelineNode):
         if self.checkpoint is not None and interval_s > 0:
             self.checkpoint_timer = self.create_timer(interval_s, self.save_checkpoint)
 
+    def chosen_specs(self, params: dict[str, Any]) -> Sequence[ParamSpec]:
+        """The chosen predictor's own settings, and only those."""
+        return predictor_specs(params["predictor"])
+
+    def other_options_parameters(self) -> set[str]:
+        return {s.name for name in learner_names() for s in predictor_specs(name)}
+
     def on_live_parameter(self, name: str, value: object) -> None:
         """`learn` is read at every frame; a new checkpoint interval restarts the save timer."""
         if name == "checkpoint_interval_s":
             self.schedule_checkpoints(float(value))
 
-    def create(self, params: HierarchyParams) -> Hierarchy | GatedPredictor:
+    def create(self, settings: dict[str, Any]) -> Hierarchy | GatedPredictor:
         try:
-            return make_predictor(self.params["predictor"], params, seed=self.params["seed"])
+            return make_predictor(self.params["predictor"], settings, seed=self.params["seed"])
         except ValueError as exc:  # a setting this predictor cannot take (ParameterError and the like)
             raise ParameterError(f"predictor {self.params['predictor']!r}: {exc}") from None
 
-    def load_or_create(self, params: HierarchyParams) -> Hierarchy | GatedPredictor:
-        """The checkpoint's model if there is a readable one, else a fresh one with `params`."""
+    def load_or_create(self, settings: dict[str, Any]) -> Hierarchy | GatedPredictor:
+        """The checkpoint's model if there is a readable one, else a fresh one with `settings`."""
         path = self.checkpoint
         if path is None or not path.exists():
-            return self.create(params)
+            return self.create(settings)
         try:
             model = load_predictor(self.params["predictor"], path)
         except KindMismatchError as exc:
@@ -175,10 +188,12 @@ class GwrHierarchyNode(PipelineNode):
                                      "not starting, to avoid overwriting it") from None
             self.get_logger().error(f"unreadable checkpoint moved to {aside}; starting a fresh model: {exc}")
             self.counters.count("checkpoint.corrupt_moved_aside")
-            return self.create(params)
+            return self.create(settings)
         learner = inner_model(model)
-        saved = learner.params.to_flat() if isinstance(learner.params, HierarchyParams) else {}
-        differ = {k: (v, saved[k]) for k, v in params.to_flat().items() if k in saved and saved[k] != v}
+        differ = {}
+        if isinstance(learner.params, HierarchyParams):  # the hierarchy's settings are its flat parameters
+            saved, given = learner.params.to_flat(), HierarchyParams.from_flat(settings).to_flat()
+            differ = {k: (v, saved[k]) for k, v in given.items() if k in saved and saved[k] != v}
         if differ:
             self.get_logger().warning("the checkpoint's learning parameters are used, not these node parameters: "
                                       + ", ".join(f"{k}={a} (checkpoint {b})" for k, (a, b) in differ.items()))

@@ -218,7 +218,12 @@ class PipelineNode(Node):
         super().__init__(name, **kwargs)
         all_specs = (*COMMON_PARAMS, *specs)
         self.params = declare_parameters(self, all_specs)
-        for warning in params_file.unknown_parameters(self._parameter_overrides, self._parameters):
+        chosen = tuple(self.chosen_specs(self.params))
+        if chosen:
+            self.params.update(declare_parameters(self, chosen))
+            all_specs = (*all_specs, *chosen)
+        declared = {*self._parameters, *self.other_options_parameters()}
+        for warning in params_file.unknown_parameters(self._parameter_overrides, declared):
             self.get_logger().warning(warning)  # -p and --params-file keys alike (misspelt, another node's)
         self._specs = {spec.name: spec for spec in all_specs}
         self.add_on_set_parameters_callback(self._check_live_parameters)
@@ -240,6 +245,16 @@ class PipelineNode(Node):
             self._sightings = InstanceSightings()
             self.create_subscription(messages.DiagnosticArray, conventions.DIAGNOSTICS_TOPIC,
                                      self._check_duplicate, status_qos())
+
+    def chosen_specs(self, params: dict[str, Any]) -> Sequence[ParamSpec]:
+        """Parameters that exist only for the option `params` chose (the learner: its predictor's own
+        settings), declared after the node's own; none by default."""
+        return ()
+
+    def other_options_parameters(self) -> set[str]:
+        """Names that belong to an option not chosen (another predictor's settings): a params file may
+        hold them for every option, so they are not warned about as unknown."""
+        return set()
 
     def drain_progress(self) -> int | None:
         """A count that grows while the node still takes in messages it must not lose on a stop (the

@@ -11,7 +11,7 @@ import os
 from typing import Any
 
 from gwr_predictor.predictors import registry
-from gwr_predictor.predictors.registry import Factory, Loader, gate_loader
+from gwr_predictor.predictors.registry import Factory, Loader, gate_loader, hierarchy_params
 from gwr_predictor.protocol import Predictor
 
 
@@ -19,27 +19,29 @@ def local_linear_params(params: Any, **changes: Any) -> Any:
     """The default's own settings (`LocalLinearParams()`) with `changes`; only horizon and joints come from `params`."""
     from gwr_predictor.default_predictor import LocalLinearParams
 
-    return LocalLinearParams(horizon=params.horizon, n_joints=params.n_joints).replace(**changes)
+    hp = hierarchy_params(params)
+    return LocalLinearParams(horizon=hp.horizon, n_joints=hp.n_joints).replace(**changes)
 
 
 def gated(model: Any, params: Any) -> Predictor:
     """`model` behind the default's confidence gate."""
     from gwr_predictor.default_predictor.gate import GatedPredictor, GateParams
 
-    return GatedPredictor(model, GateParams(horizon=params.horizon, joints=params.n_joints))
+    hp = hierarchy_params(params)
+    return GatedPredictor(model, GateParams(horizon=hp.horizon, joints=hp.n_joints))
 
 
 def _flat(params: Any, seed: int) -> Predictor:
     from gwr_predictor.learning.hierarchy import FlatPredictor
 
-    return FlatPredictor(params, seed=seed)
+    return FlatPredictor(hierarchy_params(params), seed=seed)
 
 
 def _blend(name: str) -> tuple[Factory, Loader]:
     def make(params: Any, seed: int) -> Predictor:
         from research.blend import make_blend
 
-        return make_blend(name, params, seed=seed)
+        return make_blend(name, hierarchy_params(params), seed=seed)
 
     def load(path: str | os.PathLike[str]) -> Predictor:
         from research.blend import load_blend
@@ -85,7 +87,7 @@ def _gated_linear(params: Any, seed: int) -> Predictor:
 def _gated_hierarchy(params: Any, seed: int) -> Predictor:
     from gwr_predictor.learning.hierarchy import Hierarchy
 
-    return gated(Hierarchy(params, seed=seed), params)
+    return gated(Hierarchy(hierarchy_params(params), seed=seed), params)
 
 
 def register_all() -> None:

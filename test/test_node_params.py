@@ -8,19 +8,22 @@ import pytest
 import yaml
 from ros_harness import ROOT
 
-from gwr_predictor.learning.params import hierarchy_parameter_specs
+from gwr_predictor.nodes.gwr_hierarchy import predictor_specs
 from gwr_predictor.nodes.node_base import COMMON_PARAMS, ParameterError
 from gwr_predictor.pipeline.params_file import flatten
+from gwr_predictor.predictors.registry import learner_names
 
 NODES = ["skeleton_source", "angle_extractor", "gwr_hierarchy", "delay_compensator", "nao_sim", "bag_recorder",
          "bag_player", "hri_bodies"]
 
 
 def declared_specs(node: str) -> dict:
+    """What the node can declare: its own parameters and, for the learner, every product predictor's
+    settings (it declares the chosen one's)."""
     module = importlib.import_module(f"gwr_predictor.nodes.{node}")
     specs = [*COMMON_PARAMS, *module.PARAMS]
     if node == "gwr_hierarchy":
-        specs += hierarchy_parameter_specs()
+        specs += [s for name in learner_names() for s in module.predictor_specs(name)]
     return {s.name: s for s in specs}
 
 
@@ -63,7 +66,9 @@ BAD_VALUES = [
     ("nao_sim", {"delay_s": -0.5}, "'delay_s' = -0.5 is outside the allowed range [0.0, 60.0]"),
     ("delay_compensator", {"mode": "sideways"},
      "'mode' = 'sideways' is not allowed: must be one of 'none', 'guarded', 'fixed'"),
-    ("gwr_hierarchy", {"gwr1.activation_threshold": 1.5}, "'gwr1.activation_threshold' = 1.5 is outside"),
+    ("gwr_hierarchy", {"predictor": "hierarchy", "hierarchy.gwr1.activation_threshold": 1.5},
+     "'hierarchy.gwr1.activation_threshold' = 1.5 is outside"),
+    ("gwr_hierarchy", {"gated_llm_gwr.order": 0}, "'gated_llm_gwr.order' = 0 is outside the allowed range [1, 32]"),
     ("skeleton_source", {"rate_hz": 0.0}, "'rate_hz' = 0.0 is outside the allowed range [1.0, 1000.0]"),
     ("angle_extractor", {"max_gap_s": "soon"}, "'max_gap_s' must be a number"),
     ("bag_player", {"bag": ""}, "'bag' is empty"),
@@ -72,7 +77,8 @@ BAD_VALUES = [
 
 
 @pytest.mark.ros
-@pytest.mark.parametrize(("node", "params", "message"), BAD_VALUES, ids=[b[0] for b in BAD_VALUES])
+@pytest.mark.parametrize(("node", "params", "message"), BAD_VALUES,
+                         ids=[f"{b[0]}-{next(iter(b[1]))}" for b in BAD_VALUES])
 def test_bad_parameter_stops_the_node_with_exit_code_2_naming_it(ros, node, params, message):
     code, output = ros.run(node, params=params, timeout=60)
     assert code == 2, output
@@ -82,16 +88,20 @@ def test_bad_parameter_stops_the_node_with_exit_code_2_naming_it(ros, node, para
 
 def test_pretrain_uses_the_nodes_yaml_and_writes_a_checkpoint_the_node_can_load(tmp_path):
     from gwr_predictor.commands.cli import main
-    from gwr_predictor.commands.pretrain import hierarchy_params, node_parameters
+    from gwr_predictor.commands.pretrain import node_parameters
     from gwr_predictor.learning.hierarchy import Hierarchy
+    from gwr_predictor.learning.params import HierarchyParams
+    from gwr_predictor.predictors.registry import settings_from_parameters
 
     yaml_path = ROOT / "config" / "gwr_hierarchy.yaml"
-    params = hierarchy_params(node_parameters(yaml_path))
-    assert params.to_flat() == {k: v for k, v in yaml_parameters(yaml_path, "gwr_hierarchy").items()
-                                if k in params.to_flat()}
+    flat = node_parameters(yaml_path)
+    # the YAML's sections are every product predictor's defaults
+    assert HierarchyParams.from_flat(settings_from_parameters("hierarchy", flat)) == HierarchyParams()
+    default = {s.name: s.default for s in predictor_specs("gated_llm_gwr")}
+    assert {k: v for k, v in flat.items() if k.startswith("gated_llm_gwr.")} == default
     custom = tmp_path / "custom.yaml"
     custom.write_text("/**/gwr_hierarchy:\n  ros__parameters:\n    predictor: hierarchy\n    horizon: 4\n"
-                      "    pgwr:\n      max_edge_age: 50\n")
+                      "    hierarchy:\n      pgwr:\n        max_edge_age: 50\n")
     out = tmp_path / "model.npz"
     assert main(["pretrain", "-o", str(out), "--params-file", str(custom), "--patterns", "wave_one",
                  "--subjects", "1", "--repetitions", "1", "--epochs", "1", "--quiet"]) == 0
@@ -101,8 +111,10 @@ def test_pretrain_uses_the_nodes_yaml_and_writes_a_checkpoint_the_node_can_load(
     # without 'predictor' the node's default is trained; it takes the horizon from the YAML
     from gwr_predictor.default_predictor.gate import GatedPredictor
 
-    custom.write_text("/**/gwr_hierarchy:\n  ros__parameters:\n    horizon: 4\n")
+    custom.write_text("/**/gwr_hierarchy:\n  ros__parameters:\n    horizon: 4\n"
+                      "    gated_llm_gwr:\n      order: 5\n      gate:\n        decay: 0.98\n")
     assert main(["pretrain", "-o", str(out), "--params-file", str(custom), "--patterns", "wave_one",
                  "--subjects", "1", "--repetitions", "1", "--epochs", "1", "--quiet"]) == 0
     gated = GatedPredictor.load(out)
     assert gated.params.horizon == 4 and gated.model.frames_seen > 30
+    assert gated.model.params.order == 5 and gated.params.decay == 0.98

@@ -23,8 +23,12 @@ import numpy as np
 from gwr_predictor.data.datasets import demo_angle_sequences
 from gwr_predictor.data.demonstrator import PATTERNS, DemonstratorError
 from gwr_predictor.default_predictor.gate import inner_model
-from gwr_predictor.learning.params import HierarchyParams, hierarchy_parameter_specs
-from gwr_predictor.predictors.registry import DEFAULT_PREDICTOR, learner_names, make_predictor
+from gwr_predictor.predictors.registry import (
+    DEFAULT_PREDICTOR,
+    learner_names,
+    make_predictor,
+    settings_from_parameters,
+)
 
 NODE_NAME = "gwr_hierarchy"
 
@@ -68,15 +72,9 @@ def node_parameters(path: Path, node: str = NODE_NAME) -> dict[str, Any]:
     return flat
 
 
-def hierarchy_params(flat: dict[str, Any]) -> HierarchyParams:
-    names = {spec.name for spec in hierarchy_parameter_specs()}
-    return HierarchyParams.from_flat({k: v for k, v in flat.items() if k in names})
-
-
 def run(args: argparse.Namespace) -> int:
     try:
         flat = node_parameters(args.params_file) if args.params_file else {}
-        params = hierarchy_params(flat)
         seed = args.seed if args.seed is not None else int(flat.get("seed", 0))
         seqs = demo_angle_sequences(args.patterns or None, args.subjects, args.repetitions, args.data_seed)
     except (ValueError, DemonstratorError) as exc:
@@ -89,7 +87,11 @@ def run(args: argparse.Namespace) -> int:
     if predictor not in learner_names():
         print(f"error: predictor {predictor!r} is not one of {', '.join(learner_names())}", file=sys.stderr)
         return 2
-    model = make_predictor(predictor, params, seed=seed)
+    try:
+        model = make_predictor(predictor, settings_from_parameters(predictor, flat), seed=seed)
+    except ValueError as exc:  # a setting the predictor refuses, named
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
     learner = inner_model(model)  # neurons and C.P.E. of the GWR learner (behind the gate, if any)
     rng = np.random.default_rng(seed)
     frames = sum(len(s) for s in seqs)

@@ -3,7 +3,7 @@
 What a robot runs unless told otherwise (`make_default`; registry name `gated_llm_gwr`). Read it in
 this order:
 
-- `params.py`: every setting, declared once;
+- `params.py`: every setting, declared once; `settings.py`: the same as the node's flat parameters;
 - `network.py`: the Predictive GWR whose neurons carry local linear models, consolidate with
   experience and recruit new neurons for movements they have not seen (beyond the paper);
 - `predictor.py`: the online loop, one frame at a time, with a global linear read-out mixed per
@@ -16,7 +16,8 @@ The paper's own method (GWR1 -> GWR2 -> P-GWR) is `gwr_predictor.learning.hierar
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+from collections.abc import Mapping
+from typing import TYPE_CHECKING, Any
 
 from gwr_predictor._exports import lazy_exports
 
@@ -32,16 +33,21 @@ _EXPORTS = {
     "GateParams": "gate",
     "GateError": "gate",
     "inner_model": "gate",
+    "parameter_specs": "settings",
 }
 __getattr__, __dir__ = lazy_exports(__name__, _EXPORTS)
 __all__ = ["make_default", *sorted(_EXPORTS)]
 
 
-def make_default(horizon: int = 6, joints: int = 8, seed: int = 0) -> GatedPredictor:
-    """The default predictor, fresh: the local-linear P-GWR with its global read-out, behind the gate."""
-    from gwr_predictor.default_predictor.gate import GatedPredictor, GateParams
-    from gwr_predictor.default_predictor.params import LocalLinearParams
-    from gwr_predictor.default_predictor.predictor import LocalLinearPredictor
+def make_default(horizon: int = 6, joints: int = 8, seed: int = 0,
+                 settings: Mapping[str, Any] | None = None) -> GatedPredictor:
+    """The default predictor, fresh: the local-linear P-GWR with its global read-out, behind the gate.
 
-    model = LocalLinearPredictor(LocalLinearParams(horizon=horizon, n_joints=joints), seed=seed)
-    return GatedPredictor(model, GateParams(horizon=horizon, joints=joints))
+    `settings`: flat parameters (`parameter_specs()`: e.g. `order`, `gwr.eps_b`, `gate.decay`); the
+    others keep their defaults."""
+    from gwr_predictor.default_predictor.gate import GatedPredictor
+    from gwr_predictor.default_predictor.predictor import LocalLinearPredictor
+    from gwr_predictor.default_predictor.settings import from_settings
+
+    model_params, gate_params = from_settings(settings or {}, horizon, joints)
+    return GatedPredictor(LocalLinearPredictor(model_params, seed=seed), gate_params)

@@ -53,7 +53,7 @@ class GateError(GwrPredictorError, ValueError):
     """Invalid gate parameters, or a wrapped model's output of the wrong shape."""
 
 
-_GATE_SPECS = {spec.name: spec for spec in (
+GATE_SPECS = {spec.name: spec for spec in (
     ParamSpec("decay", 0.99, "forgetting per scored frame of the long memory", 0.0, 1.0, lo_open=True),
     ParamSpec("prior", 0.01, "rad^2 per joint added to S_xx", 0.0, lo_open=True),
     ParamSpec("confidence", 2.0, "z of the lower confidence bound on alpha (0: the estimate itself)", 0.0, 10.0),
@@ -82,18 +82,18 @@ class GateParams:
     each step its own, the gate before `fast_step` existed). `per_joint`: one alpha per
     (step, joint) instead of per step (more to estimate: less safe on short clips)."""
 
-    decay: float = _GATE_SPECS["decay"].default
-    prior: float = _GATE_SPECS["prior"].default
-    confidence: float = _GATE_SPECS["confidence"].default
-    fast_decay: float = _GATE_SPECS["fast_decay"].default
-    fast_confidence: float = _GATE_SPECS["fast_confidence"].default
-    fast_step: int = _GATE_SPECS["fast_step"].default
-    per_joint: bool = _GATE_SPECS["per_joint"].default
-    horizon: int = _GATE_SPECS["horizon"].default
-    joints: int = _GATE_SPECS["joints"].default
+    decay: float = GATE_SPECS["decay"].default
+    prior: float = GATE_SPECS["prior"].default
+    confidence: float = GATE_SPECS["confidence"].default
+    fast_decay: float = GATE_SPECS["fast_decay"].default
+    fast_confidence: float = GATE_SPECS["fast_confidence"].default
+    fast_step: int = GATE_SPECS["fast_step"].default
+    per_joint: bool = GATE_SPECS["per_joint"].default
+    horizon: int = GATE_SPECS["horizon"].default
+    joints: int = GATE_SPECS["joints"].default
 
     def __post_init__(self) -> None:
-        check_fields(self, _GATE_SPECS.values(), GateError)
+        check_fields(self, GATE_SPECS.values(), GateError)
         if self.fast_step > self.horizon:
             raise GateError(f"GateParams.fast_step {self.fast_step} exceeds the horizon {self.horizon}")
 

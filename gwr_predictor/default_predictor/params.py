@@ -15,11 +15,12 @@ class LocalLinearError(GwrPredictorError, ValueError):
     """Invalid local-linear P-GWR parameters or state."""
 
 
-def _default_gwr() -> GWRParams:
+def default_gwr() -> GWRParams:
+    """The GWR step of the default's network: the paper's, with edges removed at age 100."""
     return GWRParams(max_edge_age=100)
 
 
-_LOCAL_LINEAR_SPECS = {spec.name: spec for spec in (
+LOCAL_LINEAR_SPECS = {spec.name: spec for spec in (
     ParamSpec("order", 4, "frames in the regressor", 1, 32),
     ParamSpec("horizon", DEFAULT_HORIZON, "frames predicted", 1, MAX_HORIZON),
     ParamSpec("n_joints", 8, "joints per frame", 1),
@@ -82,26 +83,26 @@ class LocalLinearParams:
     compared with).
     """
 
-    order: int = _LOCAL_LINEAR_SPECS["order"].default
-    horizon: int = _LOCAL_LINEAR_SPECS["horizon"].default
-    n_joints: int = _LOCAL_LINEAR_SPECS["n_joints"].default
-    insertion_scale: float = _LOCAL_LINEAR_SPECS["insertion_scale"].default
-    noise_floor: float = _LOCAL_LINEAR_SPECS["noise_floor"].default
-    motion_decay: float = _LOCAL_LINEAR_SPECS["motion_decay"].default
-    rate: float = _LOCAL_LINEAR_SPECS["rate"].default
-    readout_k: int = _LOCAL_LINEAR_SPECS["readout_k"].default
-    neighbour_rate: float = _LOCAL_LINEAR_SPECS["neighbour_rate"].default
-    global_order: int = _LOCAL_LINEAR_SPECS["global_order"].default
-    global_delta: float = _LOCAL_LINEAR_SPECS["global_delta"].default
-    mix_decay: float = _LOCAL_LINEAR_SPECS["mix_decay"].default
-    mix_ridge: float = _LOCAL_LINEAR_SPECS["mix_ridge"].default
-    consolidate_after: int = _LOCAL_LINEAR_SPECS["consolidate_after"].default
-    recruit_surprise: float = _LOCAL_LINEAR_SPECS["recruit_surprise"].default
-    recruit_after: int = _LOCAL_LINEAR_SPECS["recruit_after"].default
-    gwr: GWRParams = field(default_factory=_default_gwr)
+    order: int = LOCAL_LINEAR_SPECS["order"].default
+    horizon: int = LOCAL_LINEAR_SPECS["horizon"].default
+    n_joints: int = LOCAL_LINEAR_SPECS["n_joints"].default
+    insertion_scale: float = LOCAL_LINEAR_SPECS["insertion_scale"].default
+    noise_floor: float = LOCAL_LINEAR_SPECS["noise_floor"].default
+    motion_decay: float = LOCAL_LINEAR_SPECS["motion_decay"].default
+    rate: float = LOCAL_LINEAR_SPECS["rate"].default
+    readout_k: int = LOCAL_LINEAR_SPECS["readout_k"].default
+    neighbour_rate: float = LOCAL_LINEAR_SPECS["neighbour_rate"].default
+    global_order: int = LOCAL_LINEAR_SPECS["global_order"].default
+    global_delta: float = LOCAL_LINEAR_SPECS["global_delta"].default
+    mix_decay: float = LOCAL_LINEAR_SPECS["mix_decay"].default
+    mix_ridge: float = LOCAL_LINEAR_SPECS["mix_ridge"].default
+    consolidate_after: int = LOCAL_LINEAR_SPECS["consolidate_after"].default
+    recruit_surprise: float = LOCAL_LINEAR_SPECS["recruit_surprise"].default
+    recruit_after: int = LOCAL_LINEAR_SPECS["recruit_after"].default
+    gwr: GWRParams = field(default_factory=default_gwr)
 
     def __post_init__(self) -> None:
-        check_fields(self, _LOCAL_LINEAR_SPECS.values(), LocalLinearError)
+        check_fields(self, LOCAL_LINEAR_SPECS.values(), LocalLinearError)
         if not isinstance(self.gwr, GWRParams):
             raise LocalLinearError(f"LocalLinearParams.gwr must be GWRParams, got {type(self.gwr).__name__}")
         if self.global_order > self.order:

@@ -28,7 +28,7 @@ LAYERS = ("gwr1", "gwr2", "pgwr")
 DEFAULT_INPUT_SCALE = 0.1
 
 
-_GWR_SPECS: dict[str, ParamSpec] = {s.name: s for s in (
+GWR_SPECS: dict[str, ParamSpec] = {s.name: s for s in (
     ParamSpec("activation_threshold", 0.98, "a_T: insert a neuron when exp(-||x - w_b||) falls below it (Eq. 2)",
               0.0, 1.0, lo_open=True, hi_open=True),
     ParamSpec("firing_threshold", 0.1,
@@ -59,7 +59,7 @@ class GWRParams:
 
     def __post_init__(self) -> None:
         owner = type(self).__name__
-        for name, spec in _GWR_SPECS.items():
+        for name, spec in GWR_SPECS.items():
             value = getattr(self, name)
             if name == "max_neurons" and value is None:
                 continue
@@ -85,7 +85,7 @@ DEFAULT_HORIZON = 6
 #: The longest horizon any predictor accepts; prediction messages with more rows are refused on arrival.
 MAX_HORIZON = 100
 
-_HIER_SPECS: dict[str, ParamSpec] = {s.name: s for s in (
+HIERARCHY_SPECS: dict[str, ParamSpec] = {s.name: s for s in (
     ParamSpec("n_joints", 8, "angles per frame (8 Nao arm joints)", 1, 256),
     ParamSpec("tau1", 3, "window of GWR1 BMUs concatenated into the GWR2 input (Eq. 5)", 1, 32),
     ParamSpec("tau2", 3, "window of GWR2 BMUs concatenated into the P-GWR regressor (Eq. 5)", 1, 32),
@@ -126,7 +126,7 @@ class HierarchyParams:
 
     def __post_init__(self) -> None:
         owner = type(self).__name__
-        check_fields(self, _HIER_SPECS.values())
+        check_fields(self, HIERARCHY_SPECS.values())
         for layer in LAYERS:
             if not isinstance(getattr(self, layer), GWRParams):
                 raise ParameterError(f"{owner}.{layer} must be a GWRParams, got {type(getattr(self, layer)).__name__}")
@@ -168,11 +168,11 @@ class HierarchyParams:
     def to_flat(self) -> dict[str, float | int | str | bool]:
         """Dotted flat dict; `max_neurons=None` is written as 0 (ROS parameters have no None)."""
         flat: dict[str, float | int | str | bool] = {}
-        for name in _HIER_SPECS:
+        for name in HIERARCHY_SPECS:
             flat[name] = getattr(self, name)
         for layer in LAYERS:
             gp = getattr(self, layer)
-            for name in _GWR_SPECS:
+            for name in GWR_SPECS:
                 value = getattr(gp, name)
                 flat[f"{layer}.{name}"] = 0 if value is None else value
         return flat
@@ -189,11 +189,11 @@ class HierarchyParams:
                 raise ParameterError(f"parameter names must be strings, got {key!r}")
             layer, _, name = key.partition(".")
             if name:
-                if layer not in layers or name not in _GWR_SPECS:
+                if layer not in layers or name not in GWR_SPECS:
                     raise ParameterError(f"unknown parameter {key!r}")
-                layers[layer][name] = _coerce(key, value, _GWR_SPECS[name])
-            elif key in _HIER_SPECS:
-                top[key] = _coerce(key, value, _HIER_SPECS[key])
+                layers[layer][name] = _coerce(key, value, GWR_SPECS[name])
+            elif key in HIERARCHY_SPECS:
+                top[key] = _coerce(key, value, HIERARCHY_SPECS[key])
             else:
                 raise ParameterError(f"unknown parameter {key!r}")
         for layer, changes in layers.items():
@@ -230,9 +230,9 @@ def hierarchy_parameter_specs() -> list[ParamSpec]:
     """Every flat parameter of `HierarchyParams` (dotted names for the layers) with default, range and
     description: the specs the dataclasses validate with, with each layer's own defaults."""
     defaults = HierarchyParams().to_flat()
-    specs = [dataclasses.replace(spec, default=defaults[name]) for name, spec in _HIER_SPECS.items()]
+    specs = [dataclasses.replace(spec, default=defaults[name]) for name, spec in HIERARCHY_SPECS.items()]
     for layer in LAYERS:
-        for name, spec in _GWR_SPECS.items():
+        for name, spec in GWR_SPECS.items():
             key = f"{layer}.{name}"
             specs.append(dataclasses.replace(spec, name=key, default=defaults[key],
                                              description=f"{layer}: {spec.description}"))

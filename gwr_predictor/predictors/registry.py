@@ -15,14 +15,17 @@ ablations and blends this way.
 from __future__ import annotations
 
 import os
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import Any
 
 from gwr_predictor.errors import GwrPredictorError
+from gwr_predictor.parameter_spec import ParamSpec
 from gwr_predictor.protocol import Predictor
 
-#: (HierarchyParams, seed) -> a fresh predictor; every factory takes the same arguments.
+#: (settings, seed) -> a fresh predictor; settings are None (the defaults), a flat mapping of the
+#: predictor's own parameters (`Entry.settings()`, plus `horizon` and `n_joints`) or, for the
+#: experiments, a `HierarchyParams` (from which a predictor takes what it uses).
 Factory = Callable[[Any, int], Predictor]
 #: checkpoint path -> the saved predictor (checkpoint.KindMismatchError if the file holds another).
 Loader = Callable[[str | os.PathLike[str]], Predictor]
@@ -32,26 +35,35 @@ class UnknownPredictorError(GwrPredictorError, ValueError):
     """A predictor name that is not registered; the message lists the registered ones."""
 
 
+#: () -> the predictor's own parameters, flat (imports deferred like the factories').
+Settings = Callable[[], tuple[ParamSpec, ...]]
+#: Parameters that are the node's or the data's, not a predictor's own.
+DATA_PARAMETERS = ("horizon", "n_joints")
+
+
 @dataclass(frozen=True)
 class Entry:
-    """One registered predictor: its factory, its label in tables and, if it can be saved, its loader."""
+    """One registered predictor: its factory, its label in tables, if it can be saved its loader, and
+    its own parameters (what the learner node declares when it runs it)."""
 
     name: str
     factory: Factory
     label: str
     loader: Loader | None = None
+    settings: Settings = tuple
 
 
 _REGISTRY: dict[str, Entry] = {}
 
 
-def register(name: str, factory: Factory, label: str | None = None, loader: Loader | None = None) -> None:
+def register(name: str, factory: Factory, label: str | None = None, loader: Loader | None = None,
+             settings: Settings = tuple) -> None:
     """Make `name` available to the node, pretrain, evaluate and the experiments; names are unique."""
     if not name.isidentifier():
         raise GwrPredictorError(f"predictor name {name!r} must be an identifier (letters, digits, '_')")
     if name in _REGISTRY:
         raise GwrPredictorError(f"predictor {name!r} is already registered")
-    _REGISTRY[name] = Entry(name, factory, label or name, loader)
+    _REGISTRY[name] = Entry(name, factory, label or name, loader, settings)
 
 
 def entry(name: str) -> Entry:
@@ -90,12 +102,27 @@ def label(name: str) -> str:
 
 
 def make_predictor(name: str, params: Any = None, seed: int = 0) -> Predictor:
-    """A fresh predictor `name` for `params` (HierarchyParams; None = defaults)."""
-    if params is None:
-        from gwr_predictor.learning.params import HierarchyParams
-
-        params = HierarchyParams()
+    """A fresh predictor `name`: `params` None (defaults), a flat mapping of its settings (with `horizon`
+    and `n_joints`), or a `HierarchyParams` (the experiments' shared settings)."""
     return entry(name).factory(params, seed)
+
+
+def settings_from_parameters(name: str, flat: Mapping[str, Any], joints: int = 8) -> dict[str, Any]:
+    """The settings of predictor `name` among the learner node's flat parameters (its own as
+    '<name>.<setting>', the node's `horizon`), as `make_predictor` takes them."""
+    prefix = f"{name}."
+    settings = {key[len(prefix):]: value for key, value in flat.items() if key.startswith(prefix)}
+    settings.update(horizon=flat.get("horizon", 6), n_joints=joints)
+    return settings
+
+
+def hierarchy_params(params: Any) -> Any:
+    """`HierarchyParams` for a factory's `params` (None, a flat mapping or one already)."""
+    from gwr_predictor.learning.params import HierarchyParams
+
+    if params is None:
+        return HierarchyParams()
+    return HierarchyParams.from_flat(params) if isinstance(params, Mapping) else params
 
 
 def load_predictor(name: str, path: str | os.PathLike[str]) -> Predictor:
@@ -112,7 +139,8 @@ def _baseline(name: str) -> Factory:
     def make(params: Any, seed: int) -> Predictor:
         from gwr_predictor.predictors.baselines import make_baselines
 
-        return make_baselines(params.horizon, params.span)[name]  # type: ignore[return-value]
+        hp = hierarchy_params(params)
+        return make_baselines(hp.horizon, hp.span)[name]  # type: ignore[return-value]
 
     return make
 
@@ -120,7 +148,13 @@ def _baseline(name: str) -> Factory:
 def _hierarchy(params: Any, seed: int) -> Predictor:
     from gwr_predictor.learning.hierarchy import Hierarchy
 
-    return Hierarchy(params, seed=seed)
+    return Hierarchy(hierarchy_params(params), seed=seed)
+
+
+def _hierarchy_settings() -> tuple[ParamSpec, ...]:
+    from gwr_predictor.learning.params import hierarchy_parameter_specs
+
+    return tuple(s for s in hierarchy_parameter_specs() if s.name not in DATA_PARAMETERS)
 
 
 def _load_hierarchy(path: str | os.PathLike[str]) -> Predictor:
@@ -137,18 +171,30 @@ register("rls_ar", _baseline("rls_ar"), "RLS-AR")
 def _linear(params: Any, seed: int) -> Predictor:
     from gwr_predictor.predictors.direct_linear import TUNED_LINEAR, DirectLinear
 
-    return DirectLinear(TUNED_LINEAR.replace(horizon=params.horizon, joints=params.n_joints))
+    hp = hierarchy_params(params)
+    return DirectLinear(TUNED_LINEAR.replace(horizon=hp.horizon, joints=hp.n_joints))
 
 
 register("linear", _linear, "direct linear (RLS)")
-register("hierarchy", _hierarchy, "GWR hierarchy", _load_hierarchy)
+register("hierarchy", _hierarchy, "GWR hierarchy", _load_hierarchy, _hierarchy_settings)
 
 
 # --- the default predictor (beyond the paper) ------------------------------------------------------
 def _default(params: Any, seed: int) -> Predictor:
     from gwr_predictor.default_predictor import make_default
 
-    return make_default(params.horizon, params.n_joints, seed)
+    if params is None:
+        return make_default(seed=seed)
+    if isinstance(params, Mapping):
+        own = {k: v for k, v in params.items() if k not in DATA_PARAMETERS}
+        return make_default(params.get("horizon", 6), params.get("n_joints", 8), seed, own)
+    return make_default(params.horizon, params.n_joints, seed)  # HierarchyParams: only these apply
+
+
+def _default_settings() -> tuple[ParamSpec, ...]:
+    from gwr_predictor.default_predictor import parameter_specs
+
+    return parameter_specs()
 
 
 def gate_loader(wraps: str) -> Loader:
@@ -166,7 +212,8 @@ def gate_loader(wraps: str) -> Loader:
     return load
 
 
-register(DEFAULT_PREDICTOR, _default, "gated local-linear P-GWR (default)", gate_loader("LocalLinearPredictor"))
+register(DEFAULT_PREDICTOR, _default, "gated local-linear P-GWR (default)", gate_loader("LocalLinearPredictor"),
+         _default_settings)
 
 #: The product's predictors: the ones registered above, whatever registers itself later (research/).
 PRODUCT: tuple[str, ...] = tuple(_REGISTRY)
