@@ -9,7 +9,7 @@ from fakes import damped_oscillation
 
 from gwr_predictor.default_predictor import LocalLinearError, LocalLinearParams, LocalLinearPredictor, make_default
 from gwr_predictor.default_predictor.gate import GatedPredictor, GateError, GateParams
-from gwr_predictor.evaluation.online import compare_online
+from gwr_predictor.evaluation.online import compare_online, run_sequence
 from gwr_predictor.learning.checkpoint import CheckpointError
 from gwr_predictor.predictors.baselines import HoldLast
 from gwr_predictor.predictors.registry import DEFAULT_PREDICTOR, load_predictor, make_predictor
@@ -44,9 +44,32 @@ def test_the_default_is_registered_everywhere():
     assert isinstance(model, GatedPredictor) and isinstance(model.model, LocalLinearPredictor)
 
 
+def _jumps(n: int = 800, seed: int = 0, chance: float = 0.05) -> np.ndarray:
+    """The whole arm still, then a sudden jump to a random pose (on 5 % of the frames): nothing repeats,
+    and a model that extrapolates the jumps it has seen is worse than holding still."""
+    rng = np.random.default_rng(seed)
+    moves = rng.random((n, 1)) < chance
+    return 0.3 + np.cumsum(moves * rng.normal(scale=0.3, size=(n, 8)), axis=0)
+
+
+def _ratios_to_hold(x: np.ndarray) -> dict[str, np.ndarray]:
+    """MAE / hold-last's MAE per step, one pass from scratch, of the default and of its ungated model."""
+    import research.predictors  # noqa: F401  (registers llm_gwr)
+
+    params = common.make_params()
+    res = compare_online({"hold": HoldLast(), "gated": make_gated_llm(),
+                          "ungated": make_predictor(common.LLM, params, 0)}, [x], progress=False)
+    hold = np.array(res["hold"].stats.mae)
+    return {m: np.array(res[m].stats.mae) / hold for m in ("gated", "ungated")}
+
+
 def test_never_worse_than_hold_where_nothing_repeats():
-    res = compare_online({"hold": HoldLast(), "gated": make_gated_llm()}, [_walk(800)], progress=False)
-    assert np.all(np.array(res["gated"].stats.mae) <= 1.02 * np.array(res["hold"].stats.mae))
+    """On a stream where the ungated model is clearly worse than holding still (measured 1.19 x at
+    600 ms; on a plain random walk it is 1.00 x, so such a stream cannot tell a gate from none), the
+    default stays within 1.02 x at every step (measured 1.000 x)."""
+    ratio = _ratios_to_hold(_jumps(800))
+    assert ratio["ungated"][-1] >= 1.10
+    assert np.all(ratio["gated"] <= 1.02)
 
 
 def test_wins_where_motion_repeats_and_learns_from_nothing():
@@ -133,14 +156,19 @@ def test_global_read_out_settings_are_checked():
         LocalLinearParams(mix_ridge=0.0)
 
 
-def test_no_peeking():
-    x = _periodic(200)
+def _peeks(make, n: int = 200, at: int = 120) -> bool:
+    """Whether a predictor built by `make(sequence)` and fed `sequence` by the evaluation loop predicts
+    anything differently before frame `at` when only the frames from `at` on differ."""
+    x = _periodic(n)
     y = x.copy()
-    y[120:] += 1.0  # a different future
-    ma, mb = make_gated_llm(), make_gated_llm()
-    for t in range(120):
-        pa, pb = ma.step(x[t]), mb.step(y[t])
-    np.testing.assert_array_equal(pa, pb)
+    y[at:] += 1.0  # a different future, handed to the loop (and to `make`) in full
+    before = [run_sequence(make(seq), seq, 6)[0][:at] for seq in (x, y)]
+    return not np.array_equal(*before, equal_nan=True)
+
+
+def test_no_peeking():
+    assert _peeks(lambda seq: Oracle(seq, 6))  # a fake that reads the future it holds is caught
+    assert not _peeks(lambda seq: make_gated_llm())
 
 
 def test_gaps_fall_back_to_hold_and_recover():

@@ -276,6 +276,12 @@ def test_experiment_real(tmp_path, monkeypatch):
     assert hold[-1] > hold[0]
 
 
+def test_experiment_repeats(tmp_path):
+    """Demonstrator stand-ins (no download); the full checks are in test_repeats.py."""
+    r, cfg = _run("repeats", tmp_path)
+    assert r["default_method"] in r["pooled"] and len(r["learning_curve"]["hold"]) == cfg["repetitions"]
+
+
 def test_experiment_gate(tmp_path):
     """Every variant replays the same recorded model outputs: the ungated replay is the model itself,
     and the default gate stays within the band on every pattern learned from scratch."""

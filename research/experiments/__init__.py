@@ -24,6 +24,7 @@ EXPERIMENTS: dict[str, str] = {
     "real": "Real people: mocap recordings, one pass from scratch and leave-one-take-out, vs every baseline",
     "ablation": "What each part of the default predictor adds (gate, displacements, local models), compare's protocol",
     "gate": "The confidence gate's settings: worst ratio to hold-last per clip vs the gain where motion repeats",
+    "repeats": "Real movements performed 8 times with variation: one pass from scratch, learning curve, closed loop",
     "tune": "Settings of the default predictor and of RLS-AR, chosen by one protocol (same split, same budget)",
 }
 

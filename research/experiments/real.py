@@ -24,6 +24,7 @@ from gwr_predictor.evaluation.online import compare_online, train_online
 from gwr_predictor.evaluation.output import ExperimentOutput, figure, markdown_table, save_figure
 from gwr_predictor.predictors import registry
 from research.experiments import common
+from research.recording import Recorded
 
 NAME = "real"
 KNN = "knn"
@@ -78,9 +79,16 @@ def _stats(res: Any) -> dict[str, Any]:
 
 def _score_clip(models: dict[str, Any], clip: dict[str, Any], params: Any, progress: bool, desc: str,
                 per_clip: dict[str, dict[str, Any]], pooled: dict[str, HorizonStats]) -> None:
-    """Run `models` online over one clip; its stats under its name, and merged into `pooled`."""
+    """Run `models` online over one clip; its stats under its name, and merged into `pooled`. The node
+    default's stats also say how often its prediction was exactly hold-last (`exactly_hold`: the gate
+    shut, alpha 0 at every step, or no model prediction yet)."""
+    default = registry.default_name()
+    if default in models:
+        models = {**models, default: Recorded(models[default])}
     res = compare_online(models, [clip["angles"]], horizon=params.horizon, progress=progress, desc=desc)
     per_clip[clip["name"]] = {m: _stats(r) for m, r in res.items()}
+    if default in models:
+        per_clip[clip["name"]][default]["exactly_hold"] = models[default].held_share()
     for m, r in res.items():
         pooled[m] = pooled[m].merge(r.stats)
 
@@ -208,8 +216,21 @@ def _markdown(r: dict[str, Any], clips: list[dict[str, Any]], methods: tuple[str
                "Each take held out in turn: the models learned the other takes online first and keep learning on "
                "it; k-NN is fitted on the other takes and never learns.", ""]
         md += _horizon_tables(loo["pooled"], (*methods, KNN), horizon, default)
-    md += ["", _verdict(r, methods, horizon, default), "", *_band_table(r, methods, default)]
+    md += ["", _verdict(r, methods, horizon, default), "", *_band_table(r, methods, default), "",
+           *_held_table(r, default)]
     return md
+
+
+def _held_table(r: dict[str, Any], default: str) -> list[str]:
+    """Per clip, the share of frames whose prediction by the node default was exactly hold-last."""
+    conds = [("one pass", r["one_pass"]["per_clip"]), ("left out", r["leave_one_take_out"]["per_take"])]
+    cells = [(f"{name} ({word})", per[name][default].get("exactly_hold")) for word, per in conds for name in per
+             if default in per[name]]
+    if not cells:
+        return []
+    return [f"How often {_label(default, default)} predicted exactly hold-last (its gate shut, alpha 0 at every step, "
+            "or no model prediction yet), share of its predictions per clip:", "",
+            markdown_table([c for c, _ in cells], [["–" if v is None else f"{100 * v:.0f} %" for _, v in cells]])]
 
 
 def _band_table(r: dict[str, Any], methods: tuple[str, ...], default: str) -> list[str]:
