@@ -5,6 +5,8 @@ or a real tracker provides /skeleton). Frames are stamped with the node clock at
 time. Sequences (repetitions) are separated by a pause longer than the pipeline's `max_gap_s`,
 which the downstream nodes treat as the end of a sequence. Optional fault injection reproduces the
 paper's faulty sensor: whole chunks dropped (a gap in the stamps) and single joints lost (NaN).
+Every frame also goes out as a `geometry_msgs/PoseArray` on `skeleton_poses` (header stamp = the frame's
+stamp, one pose per joint in SKELETON_JOINTS order), for packages that read `header.stamp`.
 """
 
 from __future__ import annotations
@@ -12,6 +14,7 @@ from __future__ import annotations
 from collections.abc import Iterator
 
 import numpy as np
+from rclpy.publisher import Publisher
 
 from gwr_predictor.data import demonstrator, faults
 from gwr_predictor.data.mocap import ImportOptions, load_any_skeleton
@@ -19,8 +22,9 @@ from gwr_predictor.data.skeleton_files import SkeletonSequence
 from gwr_predictor.errors import GwrPredictorError
 from gwr_predictor.parameter_spec import ParamSpec
 from gwr_predictor.pipeline import conventions
+from gwr_predictor.pipeline.markers import SKELETON_FRAME
 
-from . import messages
+from . import messages, standard_messages
 from .node_base import NodeFatalError, ParameterError, PipelineNode, run_node, stream_qos
 
 PARAMS = (
@@ -48,6 +52,10 @@ PARAMS = (
     ParamSpec("joint_dropout_rate", 0.0, "fault injection: probability per frame and joint of an untracked (NaN) joint",
           0.0, 1.0),
     ParamSpec("tick_s", 0.005, "scheduling period; frames go out at most this late (s)", 0.0005, 0.1),
+    ParamSpec("standard_outputs", True, "also publish every frame as a PoseArray on 'skeleton_poses' (header "
+              "stamp, SKELETON_JOINTS order) for packages that read header.stamp"),
+    ParamSpec("frame_id", SKELETON_FRAME, "frame_id of skeleton_poses: the skeleton camera frame (as "
+              "angle_extractor's markers_frame_id)"),
 )
 
 
@@ -59,6 +67,7 @@ class SkeletonSourceNode(PipelineNode):
         p = self.params
         self.rng = np.random.default_rng(p["seed"])
         self.pub = self.create_publisher(messages.Float64MultiArray, conventions.TOPIC_SKELETON, stream_qos())
+        self.poses_pub = self.create_poses_publisher()
         if p["source"] == "none":
             self.get_logger().info("source 'none': publishing nothing (a bag or a tracker provides /skeleton)")
             return
@@ -68,6 +77,15 @@ class SkeletonSourceNode(PipelineNode):
         self.next_start: float | None = None  # node-clock time of the next sequence's first frame
         self.started_at: float | None = None  # the first tick (under sim time, the first /clock)
         self.create_timer(p["tick_s"], self.tick)
+
+    def create_poses_publisher(self) -> Publisher | None:
+        """The stamped twin of /skeleton, unless `standard_outputs` is off; a pose without a frame means nothing."""
+        if not self.params["standard_outputs"]:
+            return None
+        if not self.params["frame_id"]:
+            raise ParameterError("parameter 'frame_id' is empty: skeleton_poses needs the camera frame "
+                                 "(or set standard_outputs: false)")
+        return self.create_publisher(standard_messages.PoseArray, conventions.TOPIC_SKELETON_POSES, stream_qos())
 
     def sequence_iterator(self) -> Iterator[SkeletonSequence]:
         """The sequences to perform, again and again if `loop` (validated before the first frame)."""
@@ -120,12 +138,18 @@ class SkeletonSourceNode(PipelineNode):
         schedule, positions, keep = self.current
         while self.index < len(schedule) and schedule[self.index] <= now:
             if keep[self.index]:
-                self.pub.publish(messages.skeleton_msg(schedule[self.index], positions[self.index]))
-                self.counters.count("frames.published")
+                self.publish_frame(schedule[self.index], positions[self.index])
             self.index += 1
         if self.index >= len(schedule):
             self.next_start = schedule[-1] + self.params["pause_s"] + 1.0 / self.params["rate_hz"]
             self.current = None
+
+    def publish_frame(self, stamp: float, positions: np.ndarray) -> None:
+        """The labelled array the pipeline reads, then its stamped twin for other packages."""
+        self.pub.publish(messages.skeleton_msg(stamp, positions))
+        if self.poses_pub is not None:
+            self.poses_pub.publish(standard_messages.pose_array(stamp, self.params["frame_id"], positions))
+        self.counters.count("frames.published")
 
     def ready(self, now: float) -> bool:
         p = self.params

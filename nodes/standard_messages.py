@@ -1,4 +1,5 @@
-"""Standard ROS messages that viewers and controllers expect: MarkerArray, JointTrajectory, robot_description.
+"""Standard ROS messages that viewers, controllers and other packages expect: MarkerArray, JointTrajectory,
+PoseArray, robot_description.
 
 Like `messages`, the only place that builds or reads these types; the geometry and the timing
 come from the library (`gwr_predictor.pipeline.markers`, `.trajectory`, `gwr_predictor.data.k4abt`).
@@ -11,7 +12,7 @@ from collections.abc import Sequence
 
 import numpy as np
 from builtin_interfaces.msg import Duration
-from geometry_msgs.msg import Point
+from geometry_msgs.msg import Point, Pose, PoseArray
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from std_msgs.msg import ColorRGBA, String
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
@@ -23,7 +24,7 @@ from gwr_predictor.pipeline.trajectory import Trajectory
 
 from .messages import from_time, to_time
 
-__all__ = ["JointTrajectory", "Marker", "MarkerArray", "String"]
+__all__ = ["JointTrajectory", "Marker", "MarkerArray", "PoseArray", "String"]
 
 
 def to_duration(seconds: float) -> Duration:
@@ -94,6 +95,36 @@ def body_markers(stamp: float, frame_id: str, ids: Sequence[int], positions: np.
         m.pose.position.x, m.pose.position.y, m.pose.position.z = float(x), float(y), float(z)
         markers.append(m)
     return MarkerArray(markers=markers)
+
+
+# --- skeleton poses -----------------------------------------------------------------------------
+
+
+def pose_array(stamp: float, frame_id: str, positions: np.ndarray) -> PoseArray:
+    """A skeleton frame (joints x 3) -> PoseArray with the capture stamp in its header, so that
+    header-reading tools can use it: one pose per joint in the array's order, identity orientation
+    (a tracker gives no joint orientation), NaN position for an untracked joint."""
+    positions = np.asarray(positions, dtype=np.float64)
+    if positions.ndim != 2 or positions.shape[1] != 3:
+        raise conventions.LayoutError(f"skeleton positions must be (joints, 3), got {positions.shape}")
+    msg = PoseArray()
+    msg.header.stamp = to_time(stamp)
+    msg.header.frame_id = frame_id
+    poses = []
+    for x, y, z in positions.tolist():
+        pose = Pose()
+        pose.position.x, pose.position.y, pose.position.z = x, y, z
+        poses.append(pose)  # Pose() starts with the identity quaternion (w = 1)
+    msg.poses = poses
+    return msg
+
+
+def read_pose_array(msg: PoseArray) -> tuple[float, str, np.ndarray]:
+    """PoseArray -> (stamp s, frame_id, positions (n, 3)); more than `conventions.MAX_JOINTS` poses raise
+    TooLargeError before any is read."""
+    conventions.check_size("poses", len(msg.poses), conventions.MAX_JOINTS)
+    xyz = np.array([(p.position.x, p.position.y, p.position.z) for p in msg.poses], dtype=np.float64)
+    return from_time(msg.header.stamp), msg.header.frame_id, xyz.reshape(-1, 3)
 
 
 # --- trajectories ------------------------------------------------------------------------------

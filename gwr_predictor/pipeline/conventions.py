@@ -42,6 +42,7 @@ DIAGNOSTICS_TOPIC = "/" + TOPIC_DIAGNOSTICS
 INSTANCE_KEY = "instance"
 # --- standard views and interfaces (RViz, Foxglove, ros2_control, body trackers) ----------------
 TOPIC_SKELETON_MARKERS = "skeleton_markers"  # visualization_msgs/MarkerArray: joints + bones, capture stamp
+TOPIC_SKELETON_POSES = "skeleton_poses"  # geometry_msgs/PoseArray: the skeleton, SKELETON_JOINTS order, header stamp
 TOPIC_PREDICTED_TRAJECTORY = "predicted_trajectory"  # trajectory_msgs/JointTrajectory: t+1..t+h
 TOPIC_PREDICTED_ARM_MARKERS = "predicted_arm_markers"  # MarkerArray: the Nao's arms at t+h, frame torso
 TOPIC_ROBOT_DESCRIPTION = "robot_description"  # std_msgs/String: the URDF, transient-local
@@ -60,6 +61,7 @@ TOPIC_TYPES: dict[str, str] = {
     TOPIC_LEARNER_STATUS: "diagnostic_msgs/msg/DiagnosticArray",
     TOPIC_DIAGNOSTICS: "diagnostic_msgs/msg/DiagnosticArray",
     TOPIC_SKELETON_MARKERS: "visualization_msgs/msg/MarkerArray",
+    TOPIC_SKELETON_POSES: "geometry_msgs/msg/PoseArray",
     TOPIC_PREDICTED_TRAJECTORY: "trajectory_msgs/msg/JointTrajectory",
     TOPIC_PREDICTED_ARM_MARKERS: "visualization_msgs/msg/MarkerArray",
     TOPIC_ROBOT_DESCRIPTION: "std_msgs/msg/String",
