@@ -1,6 +1,6 @@
 """Plain rclpy, no gwr_predictor code: what a 0-byte payload does to a reliable JointState stream.
 
-Issue 15 saw `arm_angles` / `predictions` stall for 6-9 s after a hostile publisher sent a 0-byte
+Subscribers saw `arm_angles` / `predictions` stall for 6-9 s after a hostile publisher sent a 0-byte
 payload. This script shows it is Fast DDS (rmw_fastrtps_cpp) behaviour of the *sending* writer:
 
     python scripts/dds_zero_payload.py            # runs both cases below, prints one line each

@@ -8,6 +8,7 @@ from pathlib import Path
 import pytest
 
 from gwr_predictor.parameter_spec import markdown_table
+from gwr_predictor.predictors.registry import learner_names
 
 ROOT = Path(__file__).resolve().parents[1]
 DOC = ROOT / "docs" / "pipeline.md"
@@ -31,9 +32,17 @@ def node_table(node: str) -> str:
 def test_the_documented_parameters_are_the_declared_ones(node):
     expected = node_table(node)
     documented = documented_table(node)
-    if node == "gwr_hierarchy":  # the learning constants are summarised in one row (Table I of the paper)
-        documented = "\n".join(line for line in documented.splitlines() if "Table I" not in line)
     assert documented == expected, f"replace the table under '#### {node}' in docs/pipeline.md with:\n{expected}"
+
+
+@pytest.mark.parametrize("predictor", learner_names())
+def test_each_product_predictors_settings_are_documented(predictor):
+    """The learner declares the chosen predictor's own settings: one table per product predictor."""
+    from gwr_predictor.nodes.gwr_hierarchy import predictor_specs
+
+    expected = markdown_table(predictor_specs(predictor))
+    heading = f"gwr_hierarchy: predictor {predictor}"
+    assert documented_table(heading) == expected, f"replace the table under '#### {heading}' with:\n{expected}"
 
 
 def test_the_parameters_every_node_declares_are_documented():

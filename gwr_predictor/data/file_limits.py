@@ -27,7 +27,7 @@ import numpy as np
 
 #: A binary recording (`.npz` members inflated, `.npy`, `.pt`): over 6 hours at 30 fps of 15 joints.
 MAX_RECORDING_BYTES = 256 << 20
-#: A recording as text (CSV, BVH, AMC): over 2 hours. Issue 15 saw a 400 MB CSV take 5.5 GB (about
+#: A recording as text (CSV, BVH, AMC): over 2 hours. A 400 MB CSV took 5.5 GB (about
 #: 14 times its size) while parsing.
 MAX_TEXT_BYTES = 128 << 20
 MAX_CSV_BYTES = MAX_TEXT_BYTES
