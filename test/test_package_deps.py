@@ -17,9 +17,11 @@ PYTHON_KEYS = {
     "PIL": "python3-pil",
     "tqdm": "python3-tqdm",
     "pybullet": "python3-pybullet-pip",
+    "rosbags": "python3-rosbags-pip",
+    "mcap": "mcap-ros2-support",  # the key that brings the mcap package (mcap-ros2-support depends on it)
 }
 # Imports with no rosdep key anywhere: installed with pip, as the README says.
-PIP_ONLY = {"rosbags": "rosbags", "mcap": "mcap", "imageio_ffmpeg": "imageio-ffmpeg"}
+PIP_ONLY = {"imageio_ffmpeg": "imageio-ffmpeg"}
 # ROS packages: the import name is the package name (and the rosdep key).
 ROS_PACKAGES = {
     "rclpy", "builtin_interfaces", "rcl_interfaces", "std_msgs", "sensor_msgs", "diagnostic_msgs",
