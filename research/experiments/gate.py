@@ -32,13 +32,13 @@ NAME = "gate"
 
 #: name -> GateParams changes; "default" is `GateParams()`, "plain" the least-squares gate before the bound.
 VARIANTS: dict[str, dict[str, Any]] = {
-    "plain, per joint (stop 17)": {"confidence": 0.0, "fast_decay": 0.0, "per_joint": True},
+    "plain, per joint (the first gate)": {"confidence": 0.0, "fast_decay": 0.0, "per_joint": True},
     "plain, pooled": {"confidence": 0.0, "fast_decay": 0.0},
     "bound z=2 only": {"fast_decay": 0.0},
     "short memory only": {"confidence": 0.0},
-    "short memory per step, 0.8, z=0.5 (stop 18)": {"fast_decay": 0.8, "fast_step": 0, "fast_confidence": 0.5},
+    "short memory per step, 0.8, z=0.5": {"fast_decay": 0.8, "fast_step": 0, "fast_confidence": 0.5},
     "short memory per step, 0.9": {"fast_step": 0},
-    "short memory z=0.5 (stops 19-20)": {"fast_confidence": 0.5},
+    "short memory z=0.5": {"fast_confidence": 0.5},
     "default (bound z=2 + short memory of step 1, 0.9, z=0)": {},
     "default, bound z=1": {"confidence": 1.0},
     "default, bound z=3": {"confidence": 3.0},
@@ -64,7 +64,7 @@ class Config:
 
 DEFAULT = "default (bound z=2 + short memory of step 1, 0.9, z=0)"
 QUICK = Config(clips=(), patterns=("wave_one", "raise_front_both"), subjects=2, repetitions=3,
-               heldout_repetitions=1, epochs=1, variants=("plain, per joint (stop 17)", DEFAULT, "ungated model"))
+               heldout_repetitions=1, epochs=1, variants=("plain, per joint (the first gate)", DEFAULT, "ungated model"))
 FULL = Config()
 
 
