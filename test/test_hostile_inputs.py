@@ -159,7 +159,7 @@ def test_bad_start_up_arguments_exit_2_with_a_message_and_unknown_names_are_warn
     no_section = tmp_path / "flat.yaml"
     no_section.write_text("horizon: 6\n")
     cases = [
-        ({"params": {"n_joints": 7}}, "parameter 'n_joints' = 7"),
+        ({"params": {"horizon": 101}}, "parameter 'horizon' = 101"),
         ({"params_file": tmp_path / "missing.yaml"}, "no such file"),
         ({"params_file": bad_yaml}, "not valid YAML at line"),
         ({"params_file": no_section}, "ros__parameters"),
