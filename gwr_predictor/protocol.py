@@ -1,4 +1,5 @@
-"""The one `Predictor` protocol every online predictor of the package follows.
+"""The one `Predictor` protocol every online predictor of the package follows, and `Learner`, the
+predictors among them that can be saved.
 
 The hierarchy, the flat P-GWR, the baselines and the blends all take one sample per frame and
 return their predictions for the next `horizon` frames, so the evaluation loop, the closed loop
@@ -8,6 +9,7 @@ with the simulated robot, the blend and the learner node can use any of them (th
 
 from __future__ import annotations
 
+import os
 from typing import Protocol, runtime_checkable
 
 import numpy as np
@@ -26,3 +28,18 @@ class Predictor(Protocol):
     def step(self, x: np.ndarray | None, learn: bool = True) -> np.ndarray | None: ...
 
     def reset_sequence(self) -> None: ...
+
+
+@runtime_checkable
+class Learner(Predictor, Protocol):
+    """A predictor that grows a model worth keeping (the registry's `learner_names()`): its neurons
+    can be counted and its whole state written to a checkpoint that its loader reads back.
+
+    `neuron_counts`: neurons per layer, or None where the model inside has none to count.
+    `save(path)`: the whole state, atomically, to continue bit for bit.
+    """
+
+    @property
+    def neuron_counts(self) -> tuple[int, ...] | None: ...
+
+    def save(self, path: str | os.PathLike[str]) -> None: ...

@@ -5,4 +5,5 @@ source "$(dirname "${BASH_SOURCE[0]}")/env.sh"
 cd "$GWR_ROOT"
 export ROS_LOG_DIR="${ROS_LOG_DIR:-$GWR_ROOT/.test-logs/ros}"
 ruff check .
+python -m mypy  # the library, as configured in pyproject.toml
 exec python -m pytest "$@"

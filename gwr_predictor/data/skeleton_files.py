@@ -74,9 +74,9 @@ class SkeletonSequence:
         self.joint_names = tuple(self.joint_names)
         p = self.positions
         if p.ndim != 3 or p.shape[2] != 3 or p.shape[1] != len(self.joint_names):
-            raise ValueError(f"positions must be (T, {len(self.joint_names)}, 3), got {p.shape}")
+            raise SkeletonFileError(f"positions must be (T, {len(self.joint_names)}, 3), got {p.shape}")
         if self.timestamps.shape != (p.shape[0],):
-            raise ValueError(f"timestamps must be ({p.shape[0]},), got {self.timestamps.shape}")
+            raise SkeletonFileError(f"timestamps must be ({p.shape[0]},), got {self.timestamps.shape}")
 
     @property
     def name(self) -> str:

@@ -26,6 +26,7 @@ if TYPE_CHECKING:
 
 _EXPORTS = {
     "LocalLinearParams": "params",
+    "DefaultPredictorError": "params",
     "LocalLinearError": "params",
     "LocalLinearPGWR": "network",
     "LocalLinearPredictor": "predictor",

@@ -37,21 +37,24 @@ from __future__ import annotations
 import dataclasses
 import os
 from dataclasses import dataclass
-from typing import Any, ClassVar
+from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
 
-from gwr_predictor.errors import GwrPredictorError
+from gwr_predictor.default_predictor.params import DefaultPredictorError
 from gwr_predictor.learning.checkpoint import CheckpointError, read_checkpoint, write_checkpoint
 from gwr_predictor.parameter_spec import ParamSpec, check_fields
 from gwr_predictor.pending import PendingPredictions
 from gwr_predictor.pipeline.conventions import DEFAULT_HORIZON
 from gwr_predictor.predictors.baselines import N_JOINTS, observation
 
+if TYPE_CHECKING:
+    from gwr_predictor.default_predictor.predictor import LocalLinearPredictor
+    from gwr_predictor.learning.hierarchy import FlatPredictor, Hierarchy
 
-class GateError(GwrPredictorError, ValueError):
-    """Invalid gate parameters, or a wrapped model's output of the wrong shape."""
 
+#: The same class under the gate's name.
+GateError = DefaultPredictorError
 
 GATE_SPECS = {spec.name: spec for spec in (
     ParamSpec("decay", 0.99, "forgetting per scored frame of the long memory", 0.0, 1.0, lo_open=True),
@@ -93,9 +96,9 @@ class GateParams:
     joints: int = GATE_SPECS["joints"].default
 
     def __post_init__(self) -> None:
-        check_fields(self, GATE_SPECS.values(), GateError)
+        check_fields(self, GATE_SPECS.values(), DefaultPredictorError)
         if self.fast_step > self.horizon:
-            raise GateError(f"GateParams.fast_step {self.fast_step} exceeds the horizon {self.horizon}")
+            raise DefaultPredictorError(f"GateParams.fast_step {self.fast_step} exceeds the horizon {self.horizon}")
 
     @property
     def memories(self) -> tuple[tuple[float, float], ...]:
@@ -111,12 +114,12 @@ class GatedPredictor:
 
     def __init__(self, model: Any, params: GateParams | None = None) -> None:
         if not (callable(getattr(model, "step", None)) and callable(getattr(model, "reset_sequence", None))):
-            raise GateError(f"{type(model).__name__} does not implement step/reset_sequence")
+            raise DefaultPredictorError(f"{type(model).__name__} does not implement step/reset_sequence")
         self.model = model
         self.params = p = params or GateParams()
         horizon = getattr(getattr(model, "params", None), "horizon", p.horizon)
         if horizon < p.horizon:
-            raise GateError(f"the gate's horizon {p.horizon} exceeds the model's {horizon}")
+            raise DefaultPredictorError(f"the gate's horizon {p.horizon} exceeds the model's {horizon}")
         # per memory: [S_xy, S_xx, S_yy, n], each (horizon, joints) (pooled: equal across joints)
         self._stats = np.zeros((len(p.memories), 4, p.horizon, p.joints))
         self._new = np.ones((4, p.horizon, p.joints))  # scratch of `_score` (row _N stays 1)
@@ -155,7 +158,7 @@ class GatedPredictor:
         if out is not None and self._last is not None:
             out = np.asarray(out, dtype=float)
             if out.ndim != 2 or out.shape[0] < p.horizon or out.shape[1] != p.joints:
-                raise GateError(f"{type(self.model).__name__} returned shape {out.shape}; need at least "
+                raise DefaultPredictorError(f"{type(self.model).__name__} returned shape {out.shape}; need at least "
                                 f"({p.horizon}, {p.joints})")
             diff = out[:p.horizon] - self._last
             if not np.isfinite(diff.sum()):
@@ -260,7 +263,7 @@ class GatedPredictor:
     def state(self) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
         """(header, arrays) of the gate and its model (which needs `state`, `kind`, `from_state`)."""
         state = getattr(self.model, "state", None)
-        model_cls = _model_classes().get(getattr(self.model, "kind", None))
+        model_cls = _model_classes().get(getattr(self.model, "kind", ""))
         if not callable(state) or model_cls is None:
             raise CheckpointError(f"a gate around {type(self.model).__name__} cannot be saved; supported "
                                   f"models: {', '.join(_model_classes())}")
@@ -290,7 +293,7 @@ class GatedPredictor:
                     settings = {**settings, **before}
             gate = cls(model_cls.from_state(header["model"], sub, f"{source} (gated model)"),
                        GateParams(**settings))
-            targets = {"scored": gate._scored}
+            targets: dict[str, np.ndarray] = {"scored": gate._scored}
             if "gate:stats" in arrays:
                 targets["stats"] = gate._stats
             else:  # before the confidence bound: S_xy and S_xx of the one memory
@@ -318,7 +321,7 @@ class GatedPredictor:
         """File a by-age ring (row r: the prediction made r + 1 steps ago) as pending predictions."""
         h = self.params.horizon
         if pose.shape != (h, self.params.joints) or diff.shape != (h, h, self.params.joints):
-            raise ValueError(f"ring arrays of shapes {pose.shape} and {diff.shape} for horizon {h}")
+            raise DefaultPredictorError(f"ring arrays of shapes {pose.shape} and {diff.shape} for horizon {h}")
         self._t = h
         for r in range(h):
             row_ok = ~(np.isnan(pose[r, 0]) | np.isnan(diff[r, :, 0])) & (np.arange(h) >= r)  # targets to come
@@ -340,8 +343,8 @@ def inner_model(model: Any) -> Any:
     return model.model if isinstance(model, GatedPredictor) else model
 
 
-def _model_classes() -> dict[str, type]:
-    from gwr_predictor.default_predictor import LocalLinearPredictor
+def _model_classes() -> dict[str, type[LocalLinearPredictor] | type[Hierarchy] | type[FlatPredictor]]:
+    from gwr_predictor.default_predictor.predictor import LocalLinearPredictor
     from gwr_predictor.learning.hierarchy import FlatPredictor, Hierarchy
 
     return {c.kind: c for c in (LocalLinearPredictor, Hierarchy, FlatPredictor)}

@@ -49,7 +49,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from gwr_predictor.default_predictor.params import LocalLinearError
+from gwr_predictor.default_predictor.params import DefaultPredictorError
 from gwr_predictor.learning.params import GWRParams
 from gwr_predictor.learning.predictive_gwr import PredictiveGWR
 
@@ -80,6 +80,11 @@ class LocalLinearPGWR(PredictiveGWR):
     ERROR_RATE: ClassVar[float] = 0.05
     #: neurons recruited since this network was created (or loaded from a checkpoint that counted them)
     recruited: int = 0
+    # per-neuron storage that `_alloc` grows with the GWR's: local models, visits, read-out errors, streaks
+    _A: np.ndarray
+    _visits: np.ndarray
+    _mse: np.ndarray
+    _streak: np.ndarray
 
     def __init__(self, in_dim: int, out_dim: int, params: GWRParams, rng: np.random.Generator, *,
                  init_low: float | np.ndarray = -1.0, init_high: float | np.ndarray = 1.0,
@@ -94,18 +99,17 @@ class LocalLinearPGWR(PredictiveGWR):
 
     # --- the matrices follow their neurons (allocation, insertion, removal) ----------------------
     def _alloc(self, cap: int) -> None:
-        old, old_visits, old_mse, old_streak = (getattr(self, k, None) for k in ("_A", "_visits", "_mse", "_streak"))
         n = self._n
         super()._alloc(cap)
         a = np.zeros((cap, self.match_dim, self.dim - self.match_dim))
         visits = np.zeros(cap)
         mse = np.full(cap, np.nan)  # NaN: not yet a BMU
         streak = np.zeros(cap)
-        if old is not None and n:
-            a[:n] = old[:n]
-            visits[:n] = old_visits[:n]
-            mse[:n] = old_mse[:n]
-            streak[:n] = old_streak[:n]
+        if n and hasattr(self, "_A"):  # growing: the first allocation (from GWR's setup) has nothing to keep
+            a[:n] = self._A[:n]
+            visits[:n] = self._visits[:n]
+            mse[:n] = self._mse[:n]
+            streak[:n] = self._streak[:n]
         self._A, self._visits, self._mse, self._streak = a, visits, mse, streak
 
     def _append(self, xm: np.ndarray, xc: np.ndarray, b: int) -> int:
@@ -197,10 +201,10 @@ class LocalLinearPGWR(PredictiveGWR):
         b = int(aff.argmax())
         nb = (self._age[b, :self._n] >= 0).nonzero()[0]
         if neighbour_rate > 0:
-            block = np.empty(nb.size + 1, dtype=nb.dtype)
+            block: np.ndarray = np.empty(nb.size + 1, dtype=nb.dtype)
             block[0] = b
             block[1:] = nb
-            rates = np.full(block.size, neighbour_rate)
+            rates: np.ndarray = np.full(block.size, neighbour_rate)
             rates[0] = self.rate
         else:
             block, rates = np.array([b]), np.array([self.rate])
@@ -272,19 +276,19 @@ class LocalLinearPGWR(PredictiveGWR):
                               distance_factor=distance_factor)
         expected = (net.n_neurons, net.in_dim, net.out_dim)
         if np.shape(matrices) != expected:
-            raise LocalLinearError(f"local models have shape {np.shape(matrices)}, expected {expected}")
+            raise DefaultPredictorError(f"local models have shape {np.shape(matrices)}, expected {expected}")
         if not np.isfinite(matrices).all():
-            raise LocalLinearError("local models contain NaN or infinite values")
+            raise DefaultPredictorError("local models contain NaN or infinite values")
         net._A[:net.n_neurons] = matrices
         if visits is not None:
             net._visits[:net.n_neurons] = _per_neuron(visits, net.n_neurons, "visit counts")
             net._most_visits = float(np.max(visits, initial=0.0))
         elif consolidate_after > 0:
-            raise LocalLinearError("consolidating needs the neurons' visit counts")
+            raise DefaultPredictorError("consolidating needs the neurons' visit counts")
         if readout_mse is not None:
             net._mse[:net.n_neurons] = _per_neuron(readout_mse, net.n_neurons, "read-out errors", nan="no visit yet")
         elif recruit_surprise > 0:
-            raise LocalLinearError("recruiting needs the neurons' read-out errors")
+            raise DefaultPredictorError("recruiting needs the neurons' read-out errors")
         if streaks is not None:
             net._streak[:net.n_neurons] = _per_neuron(streaks, net.n_neurons, "surprise streaks")
         net.rate, net.delta = float(rate), float(delta)
@@ -297,15 +301,15 @@ class LocalLinearPGWR(PredictiveGWR):
 
 def _per_neuron(values: Any, n: int, what: str, nan: str | None = None) -> np.ndarray:
     """`values` as n per-neuron figures, finite and >= 0 (or NaN, meaning `nan`, when that is given);
-    LocalLinearError naming `what` otherwise."""
+    DefaultPredictorError naming `what` otherwise."""
     if np.shape(values) != (n,):
-        raise LocalLinearError(f"{what} have shape {np.shape(values)}, expected ({n},)")
+        raise DefaultPredictorError(f"{what} have shape {np.shape(values)}, expected ({n},)")
     v = np.asarray(values, dtype=float)
     ok = np.isfinite(v) & (v >= 0)
     if nan is not None:
         ok |= np.isnan(v)
     if not ok.all():
-        raise LocalLinearError(f"{what} must be {f'NaN ({nan}) or ' if nan else ''}finite and >= 0")
+        raise DefaultPredictorError(f"{what} must be {f'NaN ({nan}) or ' if nan else ''}finite and >= 0")
     return v
 
 

@@ -11,8 +11,13 @@ from gwr_predictor.learning.params import DEFAULT_HORIZON, MAX_HORIZON, GWRParam
 from gwr_predictor.parameter_spec import ParamSpec, check_fields
 
 
-class LocalLinearError(GwrPredictorError, ValueError):
-    """Invalid local-linear P-GWR parameters or state."""
+class DefaultPredictorError(GwrPredictorError, ValueError):
+    """The default predictor's one error: invalid parameters (of the network, the read-outs or the gate),
+    state that does not fit them, or a wrapped model's output of the wrong shape."""
+
+
+#: The same class under the network's name.
+LocalLinearError = DefaultPredictorError
 
 
 def default_gwr() -> GWRParams:
@@ -102,7 +107,7 @@ class LocalLinearParams:
     gwr: GWRParams = field(default_factory=default_gwr)
 
     def __post_init__(self) -> None:
-        check_fields(self, LOCAL_LINEAR_SPECS.values(), LocalLinearError)
+        check_fields(self, LOCAL_LINEAR_SPECS.values(), DefaultPredictorError)
         if not isinstance(self.gwr, GWRParams):
             raise LocalLinearError(f"LocalLinearParams.gwr must be GWRParams, got {type(self.gwr).__name__}")
         if self.global_order > self.order:

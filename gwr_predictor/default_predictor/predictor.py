@@ -24,7 +24,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from gwr_predictor.default_predictor.network import LocalLinearPGWR
-from gwr_predictor.default_predictor.params import _BEFORE, LocalLinearParams
+from gwr_predictor.default_predictor.params import _BEFORE, DefaultPredictorError, LocalLinearParams
 from gwr_predictor.learning.checkpoint import CheckpointError, read_checkpoint, require_arrays, write_checkpoint
 from gwr_predictor.learning.gwr import InputError
 from gwr_predictor.learning.hierarchy import ErrorTracker
@@ -41,6 +41,16 @@ class LocalLinearPredictor:
     """
 
     kind: ClassVar[str] = "LocalLinearPredictor"
+    #: the global read-out (None: local read-outs only, `global_order` 0)
+    linear: RecursiveLeastSquares | None
+    # the sequence state `_clear_sequence` resets: window (newest first) and its fill, the frames, the
+    # regressors waiting for their targets and, in step with them, their read-outs and global features
+    _win: np.ndarray
+    _fill: int
+    _hist: deque[np.ndarray]
+    _regs: deque[np.ndarray | None]
+    _outs: deque[tuple[np.ndarray, np.ndarray] | None]
+    _last_reg: np.ndarray | None
 
     def __init__(self, params: LocalLinearParams | None = None, seed: int | None = 0) -> None:
         self.params = p = params or LocalLinearParams()
@@ -111,13 +121,15 @@ class LocalLinearPredictor:
         p = self.params
         frames = np.asarray(hist)  # (horizon + 1, J): x(t-h) ... x(t)
         target = (frames[1:] - frames[0]).reshape(-1)
-        if self.linear is not None:
-            self._learn_global(target, *self._outs[0])
+        queued = self._outs[0] if self._outs else None
+        if self.linear is not None and queued is not None:  # filed with the regressor, which is here
+            self._learn_global(self.linear, target, *queued)
         scale = max(math.sqrt(self._motion_ms), p.noise_floor) * p.insertion_scale * math.sqrt(p.order)
         self.pgwr.distance_factor = self._ln_at / scale
         self.pgwr.learn_local(reg, target, p.neighbour_rate)
 
-    def _learn_global(self, target: np.ndarray, outs: np.ndarray | None, phi: np.ndarray) -> None:
+    def _learn_global(self, linear: RecursiveLeastSquares, target: np.ndarray, outs: np.ndarray | None,
+                      phi: np.ndarray) -> None:
         """Score the two read-outs made for a regressor (features `phi`) against its now complete
         targets (the mixing statistics), then one RLS step of the global read-out."""
         p = self.params
@@ -128,7 +140,7 @@ class LocalLinearPredictor:
             self._mix_sxy *= p.mix_decay
             self._mix_sxy += (by_step @ target.reshape(p.horizon, p.n_joints, 1))[..., 0]
             self._mix = self._mix_weights()
-        self.linear.update(phi, target)
+        linear.update(phi, target)
 
     def _mix_weights(self) -> np.ndarray:
         """(horizon, 2) least-squares weights of the [local, global] read-outs per step: the 2 x 2 ridge
@@ -172,11 +184,11 @@ class LocalLinearPredictor:
         p = self.params
         self._win = np.zeros((p.order, p.n_joints))
         self._fill = 0
-        self._hist: deque[np.ndarray] = deque(maxlen=p.horizon + 1)
-        self._regs: deque[np.ndarray | None] = deque(maxlen=p.horizon)
+        self._hist = deque(maxlen=p.horizon + 1)
+        self._regs = deque(maxlen=p.horizon)
         # per regressor: its read-outs [local, global] and global features, to be scored and learned
-        self._outs: deque[tuple[np.ndarray, np.ndarray] | None] = deque(maxlen=p.horizon)
-        self._last_reg: np.ndarray | None = None
+        self._outs = deque(maxlen=p.horizon)
+        self._last_reg = None
 
     def reset_sequence(self) -> None:
         """Sequence boundary: clear the window, the queue and pending predictions (never the network)."""
@@ -303,7 +315,7 @@ class LocalLinearPredictor:
             model._last_reg = model._regs[-1] if header["last_reg"] else None
             model._init_global()
             if model.linear is not None:
-                model._restore_global(header["global"], arrays)
+                model._restore_global(model.linear, header["global"], arrays)
         except CheckpointError:
             raise
         except (KeyError, ValueError, TypeError, IndexError) as exc:
@@ -311,24 +323,27 @@ class LocalLinearPredictor:
                                   f"{type(exc).__name__}: {exc}") from exc
         return model
 
-    def _restore_global(self, header: dict[str, Any], arrays: dict[str, np.ndarray]) -> None:
+    def _restore_global(self, linear: RecursiveLeastSquares, header: dict[str, Any],
+                        arrays: dict[str, np.ndarray]) -> None:
         missing = sorted(set(self.GLOBAL_ARRAYS) - arrays.keys())
         if missing:
-            raise ValueError(f"missing arrays {missing} of the global read-out")
+            raise DefaultPredictorError(f"missing arrays {missing} of the global read-out")
         prefix = "global:"
-        self.linear.restore(header["rls"], {k[len(prefix):]: v for k, v in arrays.items() if k.startswith(prefix)})
+        linear.restore(header["rls"], {k[len(prefix):]: v for k, v in arrays.items() if k.startswith(prefix)})
         for name, dest in (("mix_sxx", self._mix_sxx), ("mix_sxy", self._mix_sxy)):
             if np.shape(arrays[name]) != dest.shape:
-                raise ValueError(f"array {name!r} has shape {np.shape(arrays[name])}, expected {dest.shape}")
+                raise DefaultPredictorError(f"array {name!r} has shape {np.shape(arrays[name])}, expected {dest.shape}")
             dest[...] = arrays[name]
         self._mix = self._mix_weights()
         present, outs = header["outs_present"], np.asarray(arrays["outs"], dtype=float)
         features = np.asarray(arrays["out_features"], dtype=float)
         shape = (len(self._regs), 2, self.params.horizon, self.params.n_joints)
-        n_features = self.linear.weights.shape[0]
+        n_features = linear.weights.shape[0]
         if len(present) != len(outs) or outs.shape != shape or features.shape != (len(outs), n_features):
-            raise ValueError(f"read-out queue of shapes {outs.shape}, {features.shape} does not fit the regressor "
-                             f"queue {shape}")
+            raise DefaultPredictorError(f"read-out queue of shapes {outs.shape}, {features.shape} does not fit the "
+                                   f"regressor queue {shape}")
+        if [bool(flag) for flag in present] != [r is not None for r in self._regs]:
+            raise DefaultPredictorError("read-out queue out of step with the regressor queue")
         for flag, o, f in zip(present, outs, features, strict=True):
             self._outs.append((o.copy(), f.copy()) if flag else None)
 

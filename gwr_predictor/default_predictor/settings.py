@@ -14,7 +14,12 @@ from collections.abc import Mapping
 from typing import Any
 
 from gwr_predictor.default_predictor.gate import GATE_SPECS, GateParams
-from gwr_predictor.default_predictor.params import LOCAL_LINEAR_SPECS, LocalLinearError, LocalLinearParams, default_gwr
+from gwr_predictor.default_predictor.params import (
+    LOCAL_LINEAR_SPECS,
+    DefaultPredictorError,
+    LocalLinearParams,
+    default_gwr,
+)
 from gwr_predictor.learning.params import GWR_SPECS
 from gwr_predictor.parameter_spec import ParamSpec
 
@@ -41,11 +46,11 @@ def _flat(value: Any) -> Any:
 
 def from_settings(settings: Mapping[str, Any], horizon: int, joints: int) -> tuple[LocalLinearParams, GateParams]:
     """The model's and the gate's parameters for flat `settings` (any subset of `parameter_specs()`;
-    missing ones keep their defaults). Unknown names or bad values raise LocalLinearError naming them."""
+    missing ones keep their defaults). Unknown names or bad values raise DefaultPredictorError naming them."""
     specs = {s.name: s for s in parameter_specs()}
     unknown = sorted(set(settings) - set(specs))
     if unknown:
-        raise LocalLinearError(f"unknown settings of the default predictor {unknown}; known: {', '.join(specs)}")
+        raise DefaultPredictorError(f"unknown settings of the default predictor {unknown}; known: {', '.join(specs)}")
     own: dict[str, Any] = {}
     gwr: dict[str, Any] = {}
     gate: dict[str, Any] = {}

@@ -73,7 +73,7 @@ class HorizonStats:
         """MSE over every horizon step and joint together."""
         return float(_ratio(self.sum_sq.sum(), self.count.sum()))
 
-    def to_dict(self) -> dict[str, list[float]]:
+    def to_dict(self) -> dict[str, list[float | None]]:
         return {"mae": _floats(self.mae), "mse": _floats(self.mse), "std": _floats(self.std),
                 "n": [int(v) for v in self.n]}
 

@@ -131,7 +131,7 @@ def write_checkpoint(path: str | os.PathLike[str], kind: str, header: Mapping[st
         blob = json.dumps(meta, allow_nan=True).encode()
     except (TypeError, ValueError) as exc:
         raise CheckpointError(f"{path}: header is not JSON-serialisable: {exc}") from exc
-    members = {HEADER_KEY: np.frombuffer(blob, dtype=np.uint8), **arrays}
+    members: dict[str, Any] = {HEADER_KEY: np.frombuffer(blob, dtype=np.uint8), **arrays}
     dest = destination(path)
     folder = dest.parent
     try:

@@ -33,19 +33,22 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from typing import Any
+from typing import Any, TypeVar
 
 import numpy as np
 
 from gwr_predictor.errors import GwrPredictorError
 from gwr_predictor.learning.params import MAX_EDGE_AGE_LIMIT, GWRParams
 
+_G = TypeVar("_G", bound="GWR")
+
 _NO_EDGE = -1
 _MIN_CAPACITY = 64
 
 
 class InputError(GwrPredictorError, ValueError):
-    """An input vector of the wrong shape or with non-finite values."""
+    """What the learning code cannot take: an input vector of the wrong shape or with non-finite values,
+    a size or a set of arrays (neurons, edges, counters, layers) that does not fit; the message says which."""
 
 
 def counter_decay(rho: float, kappa: float) -> tuple[float, float]:
@@ -105,6 +108,12 @@ class _Search:
 class GWR:
     """A GWR network over `dim`-dimensional vectors; see the module docstring for the step."""
 
+    # the storage `_alloc` (re)builds: [w | ||w||^2], carried weights, firing counters, edge ages
+    _wa: np.ndarray
+    _wo: np.ndarray
+    _h: np.ndarray
+    _age: np.ndarray
+
     def __init__(self, dim: int, params: GWRParams, rng: np.random.Generator, *,
                  match_dim: int | None = None, init_low: float | np.ndarray = -1.0,
                  init_high: float | np.ndarray = 1.0, distance_factor: float = 1.0) -> None:
@@ -119,12 +128,12 @@ class GWR:
         if not isinstance(params, GWRParams):
             raise TypeError(f"params must be GWRParams, got {type(params).__name__}")
         if dim < 1:
-            raise ValueError(f"GWR dim must be >= 1, got {dim}")
+            raise InputError(f"GWR dim must be >= 1, got {dim}")
         match_dim = dim if match_dim is None else int(match_dim)
         if not 1 <= match_dim <= dim:
-            raise ValueError(f"GWR match_dim must be in [1, {dim}], got {match_dim}")
+            raise InputError(f"GWR match_dim must be in [1, {dim}], got {match_dim}")
         if not (math.isfinite(distance_factor) and distance_factor > 0):
-            raise ValueError(f"GWR distance_factor must be > 0, got {distance_factor!r}")
+            raise InputError(f"GWR distance_factor must be > 0, got {distance_factor!r}")
         self.dim = dim
         self.match_dim = match_dim
         self.params = params
@@ -184,34 +193,34 @@ class GWR:
         self._wa[idx, m] = np.vecdot(wm, wm)
 
     @classmethod
-    def from_arrays(cls, weights: np.ndarray, params: GWRParams, *, edges: Any = (),
+    def from_arrays(cls: type[_G], weights: np.ndarray, params: GWRParams, *, edges: Any = (),
                     counters: np.ndarray | None = None, match_dim: int | None = None,
-                    distance_factor: float = 1.0) -> GWR:
+                    distance_factor: float = 1.0) -> _G:
         """A network with given neurons and edges ((i, j, age) triples): hand-made cases, pre-grown
         benchmark networks and checkpoints."""
         weights = np.array(weights, dtype=float, ndmin=2)
         n, dim = weights.shape
         if n < 2:
-            raise ValueError(f"a GWR needs at least 2 neurons, got {n}")
+            raise InputError(f"a GWR needs at least 2 neurons, got {n}")
         if params.max_neurons is not None and n > params.max_neurons:
-            raise ValueError(f"{n} neurons exceed max_neurons={params.max_neurons}")
+            raise InputError(f"{n} neurons exceed max_neurons={params.max_neurons}")
         if not np.isfinite(weights).all():
-            raise ValueError("weights contain NaN or infinite values")
+            raise InputError("weights contain NaN or infinite values")
         net = cls.__new__(cls)
         net._setup(dim, params, match_dim, distance_factor, capacity=n, needed=n)
         net._put(np.arange(n), weights)
         h = np.ones(n) if counters is None else np.asarray(counters, dtype=float)
         if h.shape != (n,) or not ((h >= 0) & (h <= 1)).all():
-            raise ValueError(f"counters must be {n} values in [0, 1]")
+            raise InputError(f"counters must be {n} values in [0, 1]")
         net._h[:n] = h
         net._n = n
         edges = np.asarray(edges, dtype=np.int64).reshape(-1, 3)
         if edges.size:
             i, j, a = edges.T
             if (i < 0).any() or (j < 0).any() or (i >= n).any() or (j >= n).any() or (i == j).any():
-                raise ValueError(f"edges must join two distinct neurons in [0, {n}), got {edges.tolist()[:5]}")
+                raise InputError(f"edges must join two distinct neurons in [0, {n}), got {edges.tolist()[:5]}")
             if (a < 0).any() or (a > MAX_EDGE_AGE_LIMIT + 1).any():  # int16 storage with room to age
-                raise ValueError(f"edge ages must be in [0, {MAX_EDGE_AGE_LIMIT + 1}]")
+                raise InputError(f"edge ages must be in [0, {MAX_EDGE_AGE_LIMIT + 1}]")
             net._age[i, j] = a
             net._age[j, i] = a
         return net
@@ -319,12 +328,12 @@ class GWR:
         m = self.match_dim
         xm, xc = (x[:m], x[m:]) if carried is None else (x, carried)
         b, s = self._search.two_nearest(xm, n)  # 1. the two nearest neurons
-        known = neighbours is not None and neighbours[0] == b
-        dist = math.sqrt(neighbours[2]) if known else self._distance(b, xm)
+        known = neighbours if neighbours is not None and neighbours[0] == b else None
+        dist = math.sqrt(known[2]) if known is not None else self._distance(b, xm)
         self.last_distance = dist
 
         age = self._age
-        nb = neighbours[1] if known else (age[b, :n] >= 0).nonzero()[0]
+        nb = known[1] if known is not None else (age[b, :n] >= 0).nonzero()[0]
         k = nb.size + 1
         block = self._block[:k]  # [b, neighbours...]
         block[0] = b

@@ -160,6 +160,12 @@ class _OnlinePredictor:
     kind: ClassVar[str]
     layer_names: ClassVar[tuple[str, ...]]
     pgwr: PredictiveGWR
+    # the sequence state `_clear_sequence` resets: the last scaled frames (oldest first) and their
+    # fill, the regressors waiting for their targets, the newest regressor
+    _xbuf: np.ndarray
+    _xfill: int
+    _regs: deque[np.ndarray | None]
+    _last_reg: np.ndarray | None
 
     def __init__(self, params: HierarchyParams | None = None, seed: int | None = 0) -> None:
         self.params = HierarchyParams() if params is None else params
@@ -324,8 +330,8 @@ class _OnlinePredictor:
         self._clear_windows()
         self._xbuf = np.zeros((self._target_steps + 1, self.params.n_joints))
         self._xfill = 0
-        self._regs: deque[np.ndarray | None] = deque(maxlen=self._target_steps)
-        self._last_reg: np.ndarray | None = None
+        self._regs = deque(maxlen=self._target_steps)
+        self._last_reg = None
 
     def reset_sequence(self) -> None:
         """Sequence boundary: clear windows, queues and pending predictions (not the networks)."""
@@ -341,7 +347,7 @@ class _OnlinePredictor:
         """Stop learning in exactly these layers (they still match); () unfreezes all."""
         unknown = set(which) - set(self.layer_names)
         if unknown:
-            raise ValueError(f"unknown layers {sorted(unknown)}; layers are {self.layer_names}")
+            raise InputError(f"unknown layers {sorted(unknown)}; layers are {self.layer_names}")
         self._frozen = frozenset(which)
 
     @property
@@ -352,7 +358,7 @@ class _OnlinePredictor:
         """Replace one layer by a fresh two-neuron network (optionally with new GWRParams), e.g. to
         re-learn the P-GWR on frozen lower layers with another a_T. Windows are cleared."""
         if name not in self.layer_names:
-            raise ValueError(f"unknown layer {name!r}; layers are {self.layer_names}")
+            raise InputError(f"unknown layer {name!r}; layers are {self.layer_names}")
         if params is not None:
             self.params = self.params.replace(**{name: params})
         setattr(self, name, self._new_layer(name))
@@ -412,11 +418,12 @@ class _OnlinePredictor:
         }
         arrays: dict[str, np.ndarray] = {"xbuf": self._xbuf, "regs": reg_arr, **self._errors.arrays(),
                                          **self._window_arrays()}
-        header["layers"] = {}
+        layers: dict[str, Any] = {}
         for name in self.layer_names:  # each layer in its own format, GWR.state
             net_state = getattr(self, name).state()
             arrays.update({f"{name}.{a}": net_state.pop(a) for a in GWR.STATE_ARRAYS})
-            header["layers"][name] = net_state
+            layers[name] = net_state
+        header["layers"] = layers
         return header, arrays
 
     @classmethod
@@ -458,7 +465,7 @@ class _OnlinePredictor:
             net = type(template).from_state({**saved, **{a: arrays[f"{name}.{a}"] for a in GWR.STATE_ARRAYS}})
             for what in ("dim", "match_dim", "distance_factor", "params"):
                 if getattr(net, what) != getattr(template, what):
-                    raise ValueError(f"layer {name} has {what} {getattr(net, what)!r}, "
+                    raise InputError(f"layer {name} has {what} {getattr(net, what)!r}, "
                                      f"the parameters say {getattr(template, what)!r}")
             setattr(model, name, net)
         c = header["counters"]
@@ -474,7 +481,7 @@ class _OnlinePredictor:
         present = header["reg_present"]
         regs = arrays["regs"]
         if len(present) != len(regs) or len(regs) > model._target_steps:
-            raise ValueError(f"regressor queue of {len(regs)} entries does not fit the parameters")
+            raise InputError(f"regressor queue of {len(regs)} entries does not fit the parameters")
         for flag, reg in zip(present, regs, strict=True):
             model._regs.append(reg.copy() if flag else None)
         model._last_reg = model._regs[-1] if header["last_reg"] else None
@@ -485,7 +492,7 @@ class _OnlinePredictor:
 
 def _copy_into(dest: np.ndarray, src: np.ndarray, name: str) -> None:
     if src.shape != dest.shape:
-        raise ValueError(f"array {name!r} has shape {src.shape}, expected {dest.shape}")
+        raise InputError(f"array {name!r} has shape {src.shape}, expected {dest.shape}")
     dest[...] = src
 
 
@@ -553,8 +560,8 @@ class Hierarchy(_OnlinePredictor):
         q1, q2 = x1[:-1], x2[:-1]  # where the queries go ([query | -1/2] is the product's operand)
         dot = np.dot
         bmu_readout = self._readout_k == 1  # the BMU read-out (Eq. 10), inlined as well
-        a3, x3, o3, _ = self.pgwr.search_views() if bmu_readout else (None, None, None, None)
-        q3, wo, delta, readout = x3[:-1] if bmu_readout else None, self.pgwr.weights_out, self._delta, self._readout
+        a3, x3, o3, _ = self.pgwr.search_views()  # read-only views, used by the BMU read-out only
+        q3, wo, delta, readout = x3[:-1], self.pgwr.weights_out, self._delta, self._readout
         prev = out[0]
         for k in range(1, h):  # predicted frame -> GWR1 BMU -> GWR2 BMU -> P-GWR read-out
             s -= 1

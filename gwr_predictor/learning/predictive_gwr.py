@@ -7,12 +7,14 @@ the regressor's BMU (Eq. 10). This is the `GWR` step with the output part carrie
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, TypeVar
 
 import numpy as np
 
 from gwr_predictor.learning.gwr import GWR, InputError
 from gwr_predictor.learning.params import GWRParams
+
+_P = TypeVar("_P", bound="PredictiveGWR")
 
 
 class PredictiveGWR(GWR):
@@ -22,21 +24,21 @@ class PredictiveGWR(GWR):
                  init_low: float | np.ndarray = -1.0, init_high: float | np.ndarray = 1.0,
                  distance_factor: float = 1.0) -> None:
         if out_dim < 1:
-            raise ValueError(f"PredictiveGWR out_dim must be >= 1, got {out_dim}")
+            raise InputError(f"PredictiveGWR out_dim must be >= 1, got {out_dim}")
         super().__init__(in_dim + out_dim, params, rng, match_dim=in_dim, init_low=init_low,
                          init_high=init_high, distance_factor=distance_factor)
 
     @classmethod
-    def from_arrays(cls, weights: np.ndarray, params: GWRParams, *, edges: Any = (),
+    def from_arrays(cls: type[_P], weights: np.ndarray, params: GWRParams, *, edges: Any = (),
                     counters: np.ndarray | None = None, match_dim: int | None = None,
-                    distance_factor: float = 1.0) -> PredictiveGWR:
+                    distance_factor: float = 1.0) -> _P:
         """As `GWR.from_arrays` with rows [w_in | w_out]; `match_dim` is the regressor size."""
         if match_dim is None:
-            raise ValueError("PredictiveGWR.from_arrays needs match_dim (the regressor size)")
+            raise InputError("PredictiveGWR.from_arrays needs match_dim (the regressor size)")
         net = super().from_arrays(weights, params, edges=edges, counters=counters, match_dim=match_dim,
                                   distance_factor=distance_factor)
         if net.match_dim == net.dim:
-            raise ValueError("PredictiveGWR needs at least one output value (match_dim < dim)")
+            raise InputError("PredictiveGWR needs at least one output value (match_dim < dim)")
         return net
 
     @property
@@ -57,7 +59,7 @@ class PredictiveGWR(GWR):
         """(n, out_dim) view of the output weights."""
         return self._wo[:self._n]
 
-    def learn(self, x_in: np.ndarray, x_out: np.ndarray | None = None) -> int:  # type: ignore[override]
+    def learn(self, x_in: np.ndarray, x_out: np.ndarray | None = None) -> int:
         """One step on (x_in, x_out) (Eqs. 8-9); returns the BMU index. Also accepts one whole
         [x_in | x_out] vector."""
         if x_out is None:

@@ -15,6 +15,8 @@ from typing import Any, ClassVar
 
 import numpy as np
 
+from gwr_predictor.learning.gwr import InputError
+
 
 class RecursiveLeastSquares:
     """y = phi @ W, fitted to every (phi, y) pair seen, older pairs down-weighted by `forgetting`.
@@ -62,10 +64,10 @@ class RecursiveLeastSquares:
                 {"weights": self.weights.copy(), "p": self.p.copy()})
 
     def restore(self, header: dict[str, Any], arrays: dict[str, np.ndarray]) -> None:
-        """Load a `state()` into this (freshly built) model; ValueError if the shapes do not fit."""
+        """Load a `state()` into this (freshly built) model; InputError if the shapes do not fit."""
         for name, dest in (("weights", self.weights), ("p", self.p)):
             if np.shape(arrays[name]) != dest.shape:
-                raise ValueError(f"RLS array {name!r} has shape {np.shape(arrays[name])}, expected {dest.shape}")
+                raise InputError(f"RLS array {name!r} has shape {np.shape(arrays[name])}, expected {dest.shape}")
             dest[...] = arrays[name]
         self.updates, self.resets = int(header["updates"]), int(header["resets"])
 

@@ -33,9 +33,11 @@ from rosbags.interfaces import Qos, QosDurability, QosHistory, QosLiveliness, Qo
 from rosbags.rosbag2 import Reader, StoragePlugin, Writer
 from rosbags.rosbag2.errors import ReaderError, WriterError
 from rosbags.rosbag2.metadata import parse_qos
+from rosbags.rosbag2.storage_mcap import McapWriter
 from rosbags.typesys import Stores, get_typestore
 
 from gwr_predictor.errors import GwrPredictorError
+from gwr_predictor.parameter_spec import ParameterError
 from gwr_predictor.pipeline import conventions
 from gwr_predictor.pipeline.conventions import ArrayDim, PackedArray
 
@@ -204,7 +206,9 @@ def _close_as_rosbag2(writer: Writer) -> None:
     storage = writer.storage
     if storage is not None:
         close_storage = storage.close
-        storage.close = lambda version, text: close_storage(version, text.replace(_ROSBAGS_DISTRO, rosbag2_distro))
+        # the one hook into the metadata record rosbags writes as it closes
+        storage.close = lambda version, metadata: close_storage(  # type: ignore[method-assign]
+            version, metadata.replace(_ROSBAGS_DISTRO, rosbag2_distro))
     writer.close()
     tmp = writer.metapath.with_suffix(".yaml.tmp")
     tmp.write_text(writer.metapath.read_text(encoding="utf-8").replace(_ROSBAGS_DISTRO, rosbag2_distro),
@@ -301,11 +305,11 @@ class BagWriter:
     def flush(self) -> None:
         """Put every message written so far on disk as a complete MCAP chunk."""
         writer = self._require_open()
-        storage = writer.storage
+        storage = writer.storage  # an McapWriter once open (the storage plugin is MCAP)
         try:
-            if storage is not None and storage.chunk.bio.tell():
+            if isinstance(storage, McapWriter) and storage.chunk.bio.tell():
                 storage.close_chunk()
-            if storage is not None:
+            if isinstance(storage, McapWriter):
                 storage.bio.flush()
                 os.fsync(storage.bio.fileno())
         except OSError as err:
@@ -590,12 +594,12 @@ def _swap_in(path: Path, staging: Path, damaged: Path, metadata: Path) -> None:
 
 
 def parse_remaps(entries: list[str]) -> dict[str, str]:
-    """['a:=b', ...] -> {'/a': '/b'}; ValueError naming a malformed entry."""
+    """['a:=b', ...] -> {'/a': '/b'}; ParameterError naming a malformed entry."""
     remaps = {}
     for entry in entries:
         src, sep, dst = entry.partition(":=")
         if not sep or not src.strip() or not dst.strip():
-            raise ValueError(f"remap entry {entry!r} must look like 'from:=to'")
+            raise ParameterError(f"remap entry {entry!r} must look like 'from:=to'")
         remaps["/" + src.strip().lstrip("/")] = "/" + dst.strip().lstrip("/")
     return remaps
 

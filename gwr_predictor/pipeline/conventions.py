@@ -241,9 +241,9 @@ NEURON_KEYS = {"gwr1": "neurons.gwr1", "gwr2": "neurons.gwr2", "pgwr": "neurons.
 
 def split_stamp(seconds: float) -> tuple[int, int]:
     """Seconds -> (sec, nanosec) of a builtin_interfaces/Time; negative or non-finite stamps are a
-    caller bug (ValueError)."""
+    caller bug (LayoutError, a ValueError)."""
     if not math.isfinite(seconds) or seconds < 0.0:
-        raise ValueError(f"stamp must be finite and >= 0, got {seconds}")
+        raise LayoutError(f"stamp must be finite and >= 0, got {seconds}")
     sec = math.floor(seconds)
     nanosec = round((seconds - sec) * 1e9)
     if nanosec >= 1_000_000_000:

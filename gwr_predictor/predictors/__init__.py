@@ -14,6 +14,7 @@ _EXPORTS = {
     "load_predictor": "registry",
     "register": "registry",
     "learner_names": "registry",
+    "PredictorError": "registry",
     "UnknownPredictorError": "registry",
 }
 __all__ = sorted(_EXPORTS)

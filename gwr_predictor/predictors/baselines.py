@@ -16,15 +16,15 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from gwr_predictor.errors import GwrPredictorError
 from gwr_predictor.pipeline.conventions import DEFAULT_HORIZON
+from gwr_predictor.predictors.registry import PredictorError
 from gwr_predictor.robot.nao import ARM_JOINTS
 
 N_JOINTS = len(ARM_JOINTS)
 
 
-class BaselineError(GwrPredictorError, ValueError):
-    """Invalid baseline parameters or an input of the wrong shape."""
+#: The same class under the baselines' name.
+BaselineError = PredictorError
 
 
 def observation(x: np.ndarray | None, joints: int = N_JOINTS) -> np.ndarray | None:
@@ -33,13 +33,13 @@ def observation(x: np.ndarray | None, joints: int = N_JOINTS) -> np.ndarray | No
         return None
     x = np.asarray(x, dtype=float)
     if x.shape != (joints,):
-        raise BaselineError(f"expected a ({joints},) sample, got shape {x.shape}")
+        raise PredictorError(f"expected a ({joints},) sample, got shape {x.shape}")
     return x if np.isfinite(x).all() else None
 
 
 def _check_horizon(horizon: int) -> None:
     if int(horizon) != horizon or horizon < 1:
-        raise BaselineError(f"horizon must be a positive integer, got {horizon!r}")
+        raise PredictorError(f"horizon must be a positive integer, got {horizon!r}")
 
 
 class HoldLast:
@@ -70,7 +70,7 @@ class ConstantVelocity:
     def __init__(self, horizon: int = DEFAULT_HORIZON, joints: int = N_JOINTS, window: int = 2) -> None:
         _check_horizon(horizon)
         if int(window) != window or window < 2:
-            raise BaselineError(f"window must be an integer >= 2, got {window!r}")
+            raise PredictorError(f"window must be an integer >= 2, got {window!r}")
         self.horizon, self.joints, self.window = int(horizon), joints, int(window)
         self.reset_sequence()
 
@@ -116,13 +116,13 @@ class RLSParams:
 
     def __post_init__(self) -> None:
         if self.order < 1:
-            raise BaselineError(f"order must be >= 1, got {self.order}")
+            raise PredictorError(f"order must be >= 1, got {self.order}")
         if not 0.9 <= self.forgetting <= 1.0:
-            raise BaselineError(f"forgetting must be in [0.9, 1], got {self.forgetting}")
+            raise PredictorError(f"forgetting must be in [0.9, 1], got {self.forgetting}")
         if self.delta <= 0 or self.max_trace <= 0:
-            raise BaselineError(f"delta and max_trace must be > 0, got {self.delta}, {self.max_trace}")
+            raise PredictorError(f"delta and max_trace must be > 0, got {self.delta}, {self.max_trace}")
         if self.prior not in ("hold", "zero"):
-            raise BaselineError(f"prior must be 'hold' or 'zero', got {self.prior!r}")
+            raise PredictorError(f"prior must be 'hold' or 'zero', got {self.prior!r}")
 
 
 class RLSAutoregressive:
@@ -140,7 +140,7 @@ class RLSAutoregressive:
         self.horizon, self.joints = int(horizon), joints
         self.dim = self.params.order * joints + 1
         self.weights_ = self._prior_weights()
-        self.p_ = self.params.delta * np.eye(self.dim)
+        self.p_: np.ndarray = self.params.delta * np.eye(self.dim)
         self.updates_ = 0
         self.resets_ = 0
         self.reset_sequence()
@@ -152,8 +152,8 @@ class RLSAutoregressive:
         return w
 
     def reset_sequence(self) -> None:
-        self._buf = np.zeros((self.params.order, self.joints))  # newest first
-        self._real = np.zeros(self.params.order, dtype=bool)  # observed (not padded/imputed)
+        self._buf: np.ndarray = np.zeros((self.params.order, self.joints))  # newest first
+        self._real: np.ndarray = np.zeros(self.params.order, dtype=bool)  # observed (not padded/imputed)
         self._started = False
 
     def _regressor(self, buf: np.ndarray) -> np.ndarray:
@@ -226,7 +226,7 @@ class RLSAutoregressive:
 
     @classmethod
     def from_state(cls, header: dict[str, Any], arrays: dict[str, np.ndarray]) -> RLSAutoregressive:
-        """The model of a `state()`; BaselineError if the arrays do not fit the stored parameters."""
+        """The model of a `state()`; PredictorError if the arrays do not fit the stored parameters."""
         try:
             model = cls(RLSParams(**header["params"]), int(header["horizon"]), int(header["joints"]))
             expected = {"weights": model.weights_.shape, "p": model.p_.shape, "buf": model._buf.shape,
@@ -234,7 +234,7 @@ class RLSAutoregressive:
             for name, shape in expected.items():
                 if name not in arrays or np.shape(arrays[name]) != shape:
                     got = np.shape(arrays[name]) if name in arrays else "missing"
-                    raise BaselineError(f"RLS state array {name!r}: {got}, expected {shape}")
+                    raise PredictorError(f"RLS state array {name!r}: {got}, expected {shape}")
             model.weights_ = np.array(arrays["weights"], dtype=float)
             model.p_ = np.array(arrays["p"], dtype=float)
             model._buf = np.array(arrays["buf"], dtype=float)
@@ -242,7 +242,7 @@ class RLSAutoregressive:
             model.updates_, model.resets_ = int(header["updates"]), int(header["resets"])
             model._started = bool(header["started"])
         except (KeyError, TypeError) as exc:
-            raise BaselineError(f"RLS state header incomplete: {type(exc).__name__}: {exc}") from exc
+            raise PredictorError(f"RLS state header incomplete: {type(exc).__name__}: {exc}") from exc
         return model
 
 

@@ -30,16 +30,15 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from gwr_predictor.errors import GwrPredictorError
 from gwr_predictor.learning.checkpoint import CheckpointError, read_checkpoint, require_arrays, write_checkpoint
 from gwr_predictor.learning.rls import RecursiveLeastSquares, window_features
 from gwr_predictor.parameter_spec import ParamSpec, check_fields
 from gwr_predictor.pipeline.conventions import DEFAULT_HORIZON
 from gwr_predictor.predictors.baselines import N_JOINTS, observation
+from gwr_predictor.predictors.registry import PredictorError
 
-
-class DirectLinearError(GwrPredictorError, ValueError):
-    """Invalid direct-linear parameters or state."""
+#: The same class under the direct-linear model's name.
+DirectLinearError = PredictorError
 
 
 _SPECS = {spec.name: spec for spec in (
@@ -66,7 +65,7 @@ class DirectLinearParams:
     joints: int = _SPECS["joints"].default
 
     def __post_init__(self) -> None:
-        check_fields(self, _SPECS.values(), DirectLinearError)
+        check_fields(self, _SPECS.values(), PredictorError)
 
     def replace(self, **changes: Any) -> DirectLinearParams:
         return dataclasses.replace(self, **changes)
@@ -81,6 +80,13 @@ class DirectLinear:
 
     kind: ClassVar[str] = "DirectLinear"
     ARRAYS: ClassVar[tuple[str, ...]] = ("weights", "p", "win", "hist", "feats")
+    # the sequence state `_clear_sequence` resets: window (newest first), its fill, the frames and the
+    # features of the pairs still waiting for their targets, the last features predicted from
+    _win: np.ndarray
+    _fill: int
+    _hist: deque[np.ndarray]
+    _feats: deque[np.ndarray | None]
+    _last: np.ndarray | None
 
     def __init__(self, params: DirectLinearParams | None = None) -> None:
         self.params = p = params or DirectLinearParams()
@@ -122,9 +128,9 @@ class DirectLinear:
         p = self.params
         self._win = np.zeros((p.order, p.joints))  # newest first
         self._fill = 0
-        self._hist: deque[np.ndarray] = deque(maxlen=p.horizon + 1)
-        self._feats: deque[np.ndarray | None] = deque(maxlen=p.horizon)
-        self._last: np.ndarray | None = None
+        self._hist = deque(maxlen=p.horizon + 1)
+        self._feats = deque(maxlen=p.horizon)
+        self._last = None
 
     def _forecast(self, phi: np.ndarray) -> np.ndarray:
         p = self.params

@@ -31,8 +31,13 @@ Factory = Callable[[Any, int], Predictor]
 Loader = Callable[[str | os.PathLike[str]], Predictor]
 
 
-class UnknownPredictorError(GwrPredictorError, ValueError):
-    """A predictor name that is not registered; the message lists the registered ones."""
+class PredictorError(GwrPredictorError, ValueError):
+    """The predictors' one error: a name that is not registered (the message lists the registered
+    ones), a setting out of its range, an input or a saved state that does not fit."""
+
+
+#: The same class under the name a lookup of an unregistered name raises.
+UnknownPredictorError = PredictorError
 
 
 #: () -> the predictor's own parameters, flat (imports deferred like the factories').
@@ -70,7 +75,7 @@ def entry(name: str) -> Entry:
     try:
         return _REGISTRY[name]
     except KeyError:
-        raise UnknownPredictorError(f"unknown predictor {name!r}; choose from {', '.join(_REGISTRY)}") from None
+        raise PredictorError(f"unknown predictor {name!r}; choose from {', '.join(_REGISTRY)}") from None
 
 
 def names() -> tuple[str, ...]:
@@ -129,7 +134,7 @@ def load_predictor(name: str, path: str | os.PathLike[str]) -> Predictor:
     """The predictor `name` saved at `path`; KindMismatchError if the file holds another kind or blend."""
     e = entry(name)
     if e.loader is None:
-        raise UnknownPredictorError(f"predictor {name!r} cannot be loaded from a checkpoint; "
+        raise PredictorError(f"predictor {name!r} cannot be loaded from a checkpoint; "
                                     f"choose from {', '.join(learner_names())}")
     return e.loader(path)
 
@@ -192,7 +197,7 @@ def _default(params: Any, seed: int) -> Predictor:
 
 
 def _default_settings() -> tuple[ParamSpec, ...]:
-    from gwr_predictor.default_predictor import parameter_specs
+    from gwr_predictor.default_predictor.settings import parameter_specs
 
     return parameter_specs()
 

@@ -22,15 +22,10 @@ from typing import Any, Literal
 
 import numpy as np
 
-from gwr_predictor.errors import GwrPredictorError
 from gwr_predictor.parameter_spec import ParameterError, ParamSpec
-from gwr_predictor.robot.nao import ARM_JOINTS, VELOCITY_LIMITS, clip_to_limits
+from gwr_predictor.robot.nao import ARM_JOINTS, VELOCITY_LIMITS, RobotError, clip_to_limits
 
 BACKENDS = ("kinematic", "pybullet")
-
-
-class RobotError(GwrPredictorError, ValueError):
-    """Invalid robot / delay parameters or inputs; the message names the field and its range."""
 
 
 def _check_range(owner: str, name: str, value: float, low: float, high: float) -> float:

@@ -10,6 +10,13 @@ from typing import NamedTuple
 
 import numpy as np
 
+from gwr_predictor.errors import GwrPredictorError
+
+
+class RobotError(GwrPredictorError, ValueError):
+    """Invalid robot / delay parameters or inputs; the message names the field and its range."""
+
+
 SIDES = ("L", "R")
 ARM_JOINT_SUFFIXES = ("ShoulderPitch", "ShoulderRoll", "ElbowYaw", "ElbowRoll")
 #: The 8 angles of the paper, in the order used everywhere (learner vectors, JointState names).
@@ -73,10 +80,10 @@ def robot_arm_positions(angles: np.ndarray, wrist_yaw: np.ndarray | tuple[float,
     joint_states for every movable URDF joint carries (the learner never commands the wrists)."""
     angles = np.asarray(angles, dtype=float).ravel()
     if angles.size != len(ARM_JOINTS):
-        raise ValueError(f"expected {len(ARM_JOINTS)} arm angles, got {angles.size}")
+        raise RobotError(f"expected {len(ARM_JOINTS)} arm angles, got {angles.size}")
     wrists = np.asarray(wrist_yaw, dtype=float).ravel()
     if wrists.size != len(SIDES):
-        raise ValueError(f"expected one WristYaw per side ({len(SIDES)}), got {wrists.size}")
+        raise RobotError(f"expected one WristYaw per side ({len(SIDES)}), got {wrists.size}")
     k = len(ARM_JOINT_SUFFIXES)
     return np.concatenate([angles[:k], wrists[:1], angles[k:], wrists[1:]])
 
@@ -84,7 +91,7 @@ def robot_arm_positions(angles: np.ndarray, wrist_yaw: np.ndarray | tuple[float,
 def side_offsets(side: str) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Shoulder, elbow, wrist and hand offsets of one side ('L' or 'R')."""
     if side not in SIDES:
-        raise ValueError(f"side must be 'L' or 'R', got {side!r}")
+        raise RobotError(f"side must be 'L' or 'R', got {side!r}")
     m = np.ones(3) if side == "L" else _MIRROR
     return SHOULDER_OFFSET * m, ELBOW_OFFSET * m, WRIST_OFFSET * m, HAND_OFFSET * m
 
@@ -127,7 +134,7 @@ def arm_forward_kinematics(side: str, angles: np.ndarray, wrist_yaw: np.ndarray 
     """
     angles = np.asarray(angles, dtype=float)
     if angles.shape[-1] != 4:
-        raise ValueError(f"expected (..., 4) arm angles, got shape {angles.shape}")
+        raise RobotError(f"expected (..., 4) arm angles, got shape {angles.shape}")
     s_off, e_off, w_off, h_off = side_offsets(side)
     r_shoulder = rot_y(angles[..., 0]) @ rot_z(angles[..., 1])
     r_elbow = r_shoulder @ rot_x(angles[..., 2]) @ rot_z(angles[..., 3])
@@ -143,6 +150,6 @@ def forward_kinematics(angles: np.ndarray) -> dict[str, ArmPoints]:
     """FK of both arms from (..., 8) angles in `ARM_JOINTS` order: {'L': ArmPoints, 'R': ...}."""
     angles = np.asarray(angles, dtype=float)
     if angles.shape[-1] != len(ARM_JOINTS):
-        raise ValueError(f"expected (..., {len(ARM_JOINTS)}) angles, got shape {angles.shape}")
+        raise RobotError(f"expected (..., {len(ARM_JOINTS)}) angles, got shape {angles.shape}")
     return {"L": arm_forward_kinematics("L", angles[..., :4]),
             "R": arm_forward_kinematics("R", angles[..., 4:])}

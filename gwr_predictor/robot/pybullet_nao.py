@@ -118,7 +118,7 @@ class NaoSimulator:
         return ROBOT_ARM_JOINTS
 
     def _full_targets(self, positions: Mapping[str, float] | np.ndarray | Sequence[float]) -> np.ndarray:
-        full = self._targets.copy()
+        full: np.ndarray = self._targets.copy()
         if isinstance(positions, Mapping):
             unknown = set(positions) - set(ROBOT_ARM_JOINTS)
             if unknown:

@@ -107,13 +107,13 @@ def _link(robot: ET.Element, name: str, mass: float, shape: Shape | None) -> Non
             ET.SubElement(element, "material", name=shape.colour)
 
 
-def _joint(robot: ET.Element, name: str, kind: str, parent: str, child: str, xyz: np.ndarray,
-           axis: str | None = None) -> None:
-    joint = ET.SubElement(robot, "joint", name=name, type=kind)
+def _joint(robot: ET.Element, name: str, parent: str, child: str, xyz: np.ndarray, axis: str | None = None) -> None:
+    """A revolute joint about `axis`, or a fixed one without."""
+    joint = ET.SubElement(robot, "joint", name=name, type="fixed" if axis is None else "revolute")
     ET.SubElement(joint, "parent", link=parent)
     ET.SubElement(joint, "child", link=child)
     ET.SubElement(joint, "origin", xyz=_fmt(xyz), rpy="0 0 0")
-    if kind == "revolute":
+    if axis is not None:
         ET.SubElement(joint, "axis", xyz=axis)
         lo, hi = JOINT_LIMITS[name]
         suffix = name[1:]
@@ -136,20 +136,20 @@ def _arm(robot: ET.Element, side: str) -> None:
     parent = BASE_LINK
     for joint, axis, origin, child, mass, shape in chain:
         _link(robot, child, mass, shape)
-        _joint(robot, joint, "revolute", parent, child, origin, axis)
+        _joint(robot, joint, parent, child, origin, axis)
         parent = child
     _link(robot, HAND_LINKS[s], 0.005, None)
-    _joint(robot, f"{s}HandFrame", "fixed", parent, HAND_LINKS[s], hand)
+    _joint(robot, f"{s}HandFrame", parent, HAND_LINKS[s], hand)
 
 
 def _leg(robot: ET.Element, side: str) -> None:
     mirror = np.array([1.0, 1.0 if side == "L" else -1.0, 1.0])
     name = f"{side}Leg"
     _link(robot, name, 1.6, Shape("cylinder", (0.035, LEG_LENGTH), (0.0, 0.0, -LEG_LENGTH / 2)))
-    _joint(robot, f"{side}HipFixed", "fixed", BASE_LINK, name, HIP_OFFSET * mirror)
+    _joint(robot, f"{side}HipFixed", BASE_LINK, name, HIP_OFFSET * mirror)
     foot = f"{side}Foot"
     _link(robot, foot, 0.16, Shape("box", (0.16, 0.088, FOOT_HEIGHT), (0.02, 0.0, -FOOT_HEIGHT / 2), colour="grey"))
-    _joint(robot, f"{side}AnkleFixed", "fixed", name, foot, np.array([0.0, 0.0, -LEG_LENGTH]))
+    _joint(robot, f"{side}AnkleFixed", name, foot, np.array([0.0, 0.0, -LEG_LENGTH]))
 
 
 def build_nao_urdf() -> str:
@@ -159,7 +159,7 @@ def build_nao_urdf() -> str:
         ET.SubElement(ET.SubElement(robot, "material", name=colour), "color", rgba=rgba)
     _link(robot, BASE_LINK, 1.05, Shape("box", (0.09, 0.14, 0.2), (-0.005, 0.0, 0.03)))
     _link(robot, "Head", 0.6, Shape("sphere", (0.065,), (0.0, 0.0, 0.06)))
-    _joint(robot, "HeadFixed", "fixed", BASE_LINK, "Head", NECK_OFFSET)
+    _joint(robot, "HeadFixed", BASE_LINK, "Head", NECK_OFFSET)
     for side in SIDES:
         _arm(robot, side)
     for side in SIDES:
