@@ -1,0 +1,172 @@
+"""Candidate defaults for motion that repeats with variation, composed from the package's parts.
+
+Each is registered as `cand_<name>` (`gwr_predictor.predictors.registry`) so the experiments score it
+like any other method. They differ from the default in what the linear read-out sees and in how fast
+the gate trusts the model; the network (the local-linear P-GWR) is the default's, unchanged:
+
+- `cand_long`: the default with its global read-out fitted on `global_frames` = 12 frames (RLS-AR and
+  the direct linear model use 12; the default's read-out 2), decoupled from the 4 frames the neurons
+  match on, behind the default gate;
+- `cand_long_fast`: the same behind a gate that needs less evidence (a weaker prior, a lower bound
+  at one standard error instead of two);
+- `cand_experts`: the neurons' model (with the long read-out), the direct linear model and RLS-AR as
+  experts, weighted per horizon step by each one's recent squared error (`research.blend`), behind the
+  default gate with a ~20-frame memory (decay 0.95), a weaker prior and a one-standard-error bound.
+
+`tuning.py` says on which streams their settings were chosen.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Any
+
+import numpy as np
+
+from gwr_predictor.default_predictor.params import LocalLinearParams
+from gwr_predictor.default_predictor.predictor import LocalLinearPredictor
+from gwr_predictor.errors import GwrPredictorError
+from gwr_predictor.learning.rls import RecursiveLeastSquares, window_features
+from gwr_predictor.predictors import registry
+from gwr_predictor.predictors.registry import hierarchy_params
+from gwr_predictor.protocol import Predictor
+
+#: frames the candidates' global read-out spans (RLS-AR's and the direct linear model's order)
+GLOBAL_FRAMES = 12
+#: prior variance of the long read-out's weights (the direct linear model's tuned delta)
+GLOBAL_DELTA = 1.0
+#: the gate that opens faster: (prior, confidence) against the default's (0.01, 2.0)
+FAST_GATE = {"prior": 0.001, "confidence": 1.0}
+#: the experts' gate, chosen on the tuning set: a ~20-frame long memory instead of ~100 as well
+EXPERTS_GATE = {"decay": 0.95, **FAST_GATE}
+
+
+class CandidateError(GwrPredictorError, ValueError):
+    """A candidate's setting out of range; the message says which."""
+
+
+class LongReadoutPredictor(LocalLinearPredictor):
+    """The default's model with a global read-out over the last `global_frames` frames, whatever the
+    neurons' `order`: the read-out's features are `window_features` of its own newest-first window,
+    padded with the oldest frame until it is full (as the direct linear model pads its first frames).
+    Research only: no checkpoints."""
+
+    def __init__(self, params: LocalLinearParams | None = None, seed: int | None = 0,
+                 global_frames: int = GLOBAL_FRAMES, global_delta: float = GLOBAL_DELTA) -> None:
+        if global_frames < 1 or not global_delta > 0:
+            raise CandidateError(f"global_frames must be >= 1 and global_delta > 0, got {global_frames}, "
+                                 f"{global_delta}")
+        self.global_frames = global_frames
+        self.global_delta = global_delta
+        p = params or LocalLinearParams()
+        super().__init__(p if p.global_order else p.replace(global_order=1), seed)
+
+    def _init_global(self) -> None:
+        super()._init_global()
+        p = self.params
+        self.linear = RecursiveLeastSquares(self.global_frames * p.n_joints + 1, p.horizon * p.n_joints,
+                                            delta=self.global_delta)
+
+    def _clear_sequence(self) -> None:
+        super()._clear_sequence()
+        self._long = np.zeros((self.global_frames, self.params.n_joints))
+        self._long_fill = 0
+
+    def step(self, x: np.ndarray | None, learn: bool = True) -> np.ndarray | None:
+        frame = self._as_frame(x)
+        if frame is not None:  # a missing frame clears the window in the parent's `_clear_sequence`
+            if self._long_fill == 0:
+                self._long[...] = frame
+            else:
+                self._long[1:] = self._long[:-1]
+                self._long[0] = frame
+            self._long_fill = min(self._long_fill + 1, self.global_frames)
+        return super().step(x, learn)
+
+    def _forecast(self, reg: np.ndarray, record: bool = False) -> np.ndarray:
+        p = self.params
+        local = self.pgwr.predict_local(reg, p.readout_k).reshape(p.horizon, p.n_joints)
+        phi = window_features(self._long, self.global_frames)
+        outs = np.empty((2, p.horizon, p.n_joints))
+        outs[0] = local
+        outs[1] = self.linear.predict(phi).reshape(p.horizon, p.n_joints)
+        if record:
+            self._outs.append((outs, phi))
+        out = outs[0] * self._mix[:, :1]
+        out += outs[1] * self._mix[:, 1:]
+        out += reg[:p.n_joints]
+        return out
+
+    def state(self) -> Any:
+        raise CandidateError("a research candidate cannot be saved")
+
+
+def long_model(params: Any, seed: int, global_frames: int = GLOBAL_FRAMES, global_delta: float = GLOBAL_DELTA,
+               **changes: Any) -> LongReadoutPredictor:
+    """The long-read-out model for the experiments' `params` (only horizon and joints are taken)."""
+    from research.predictors import local_linear_params
+
+    return LongReadoutPredictor(local_linear_params(params, **changes), seed, global_frames, global_delta)
+
+
+def gate(model: Any, params: Any, **changes: Any) -> Predictor:
+    """`model` behind the default's gate with `changes` to its settings."""
+    from gwr_predictor.default_predictor.gate import GatedPredictor, GateParams
+
+    hp = hierarchy_params(params)
+    return GatedPredictor(model, GateParams(horizon=hp.horizon, joints=hp.n_joints, **changes))
+
+
+def _sharp_blend(members: Mapping[str, Any], params: Any, power: float) -> Any:
+    """A `research.blend.BlendedPredictor` whose weights go as 1 / MSE^power (1: the blend's own)."""
+    from research.blend import BlendedPredictor
+
+    class SharpBlend(BlendedPredictor):
+        def running_mse(self) -> np.ndarray:
+            return super().running_mse() ** power
+
+    return SharpBlend(members, params)
+
+
+def experts(params: Any, seed: int, decay: float = 0.99, members: tuple[str, ...] = ("llm", "linear", "rls"),
+            model: Mapping[str, Any] | None = None, power: float = 1.0) -> Predictor:
+    """The neurons' model, the direct linear model and RLS-AR, blended per step by recent squared error
+    (weights 1 / MSE^power)."""
+    from gwr_predictor.predictors.baselines import TUNED_RLS, RLSAutoregressive
+    from gwr_predictor.predictors.direct_linear import TUNED_LINEAR, DirectLinear
+    from research.blend import BlendParams
+
+    hp = hierarchy_params(params)
+    make = {"llm": lambda: long_model(params, seed, **(model or {})),
+            "linear": lambda: DirectLinear(TUNED_LINEAR.replace(horizon=hp.horizon, joints=hp.n_joints)),
+            "rls": lambda: RLSAutoregressive(TUNED_RLS, hp.horizon, hp.n_joints)}
+    return _sharp_blend({m: make[m]() for m in members}, BlendParams(decay=decay, horizon=hp.horizon), power)
+
+
+def _cand_long(params: Any, seed: int) -> Predictor:
+    return gate(long_model(params, seed), params)
+
+
+def _cand_long_fast(params: Any, seed: int) -> Predictor:
+    return gate(long_model(params, seed), params, **FAST_GATE)
+
+
+def _cand_experts(params: Any, seed: int) -> Predictor:
+    return gate(experts(params, seed), params, **EXPERTS_GATE)
+
+
+CANDIDATES = {
+    "cand_long": (_cand_long, "candidate: default, 12-frame global read-out"),
+    "cand_long_fast": (_cand_long_fast, "candidate: 12-frame read-out, faster gate"),
+    "cand_experts": (_cand_experts, "candidate: gated experts by recent error"),
+}
+
+
+def register_all() -> None:
+    """Register every candidate once (importing this module does)."""
+    for name, (factory, label) in CANDIDATES.items():
+        if name not in registry.names():
+            registry.register(name, factory, label)
+
+
+register_all()

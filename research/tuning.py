@@ -1,0 +1,213 @@
+"""The tuning set of the candidate defaults (`research.candidates`): every setting is chosen here,
+never on a reported figure.
+
+Disjoint from every reported column:
+
+- repetition streams (`research.repetitions`, 8 performances, the benchmark's `StreamSettings`) of
+  segments the repetition benchmark does not use, seeds 100, 101, 102 (15 streams):
+  climb_1 12.9-15.9 s, climb_3 11.3-14.3 s, omomo_sub3 0-3 s (other takes and another person than the
+  benchmark's climb_0/2/4 and omomo_sub10), cmu_walk 11.9-14.9 s and kneel 11.7-14.2 s (the benchmark
+  cuts cmu_walk 4.4-7.4 s and kneel 4.1-7.1 s: no frame in common). The segments were picked like the
+  benchmark's (most arm motion per second, end pose near the start pose) among windows outside those.
+- the demonstrator cold start on `raise_lateral_both` and `wave_both` (3 subjects x 10 repetitions,
+  demonstrator seed 0, one online pass over each pattern's 30 recordings from scratch); the reported
+  cold start is `raise_front_both`.
+- constraints only (never optimised): MAE <= 1.02 x hold-last at every step on the sudden-jump stream
+  of `test/test_default_predictor.py` with seeds 100-102, and on the real clips, one pass each (the
+  reported `experiment real` clips: used as a pass/fail bound, as the issue allows).
+
+`python -m research.tuning [--real] NAME...` scores registry names and the variants in `VARIANTS`.
+
+Chosen here: `cand_experts` (blend decay 0.99, gate decay 0.95, prior 0.001, confidence 1): pooled
+0.632 x hold at 600 ms on the 15 tuning streams (RLS-AR 0.674, direct linear 0.692, the default
+0.736), below every baseline on 12 of 15 (behind on climb_3 s102, cmu_walk s100 and s102 by at most
+0.014), learning curve 1.006 / 0.809 / 0.577 / 0.538 x hold on performances 1-4; cold start 0.1620 /
+0.2183 rad (RLS-AR 0.1623 / 0.2295); at most 1.003 x hold at any step on the jump streams. It fails
+the real-clip bound (1.19 x hold on omomo_sub10 one pass; 1.09 x even behind the default's gate):
+the linear experts' errors on real clips are what the faster gate lets through. Not a default yet.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from collections.abc import Callable
+from concurrent.futures import ProcessPoolExecutor
+from typing import Any
+
+import numpy as np
+
+import research  # noqa: F401  (registers the research predictors)
+from gwr_predictor.evaluation.metrics import HorizonStats, future_windows, horizon_stats
+from gwr_predictor.evaluation.online import compare_online
+from research import candidates as cand
+from research.experiments import common
+from research.recording import Recorded
+from research.repetitions import RepetitionStream, Segment, StreamSettings, load_segments, make_streams
+
+SEGMENTS: tuple[Segment, ...] = (
+    Segment("climb_1", 12.9, 15.9, "climbing move, take 1"),
+    Segment("climb_3", 11.3, 14.3, "climbing move, take 3"),
+    Segment("omomo_sub3", 0.0, 3.0, "box lift, the other person"),
+    Segment("cmu_walk", 11.9, 14.9, "walking, later strides than the benchmark's"),
+    Segment("kneel", 11.7, 14.2, "getting up, after the benchmark's cut"),
+)
+SEEDS = (100, 101, 102)
+COLD_PATTERNS = ("raise_lateral_both", "wave_both")
+BASELINES = ("hold", "rls_ar", common.LINEAR, common.LLM, common.BLEND_FLAT, common.BLEND, common.DEFAULT)
+Factory = Callable[[Any, int], Any]
+
+#: grid points measured beside the registered candidates: name -> factory(params, seed)
+VARIANTS: dict[str, Factory] = {
+    "v_long_d100": lambda p, s: cand.gate(cand.long_model(p, s, global_delta=100.0), p),
+    "v_long_g6": lambda p, s: cand.gate(cand.long_model(p, s, global_frames=6), p),
+    "v_long_ungated": lambda p, s: cand.long_model(p, s),
+    "v_long_c1": lambda p, s: cand.gate(cand.long_model(p, s), p, confidence=1.0),
+    "v_long_p001": lambda p, s: cand.gate(cand.long_model(p, s), p, prior=0.001),
+    "v_long_c0": lambda p, s: cand.gate(cand.long_model(p, s), p, prior=0.001, confidence=0.5),
+    "v_long_fd": lambda p, s: cand.gate(cand.long_model(p, s), p, decay=0.97, prior=0.001, confidence=1.0),
+    "v_long_mix99": lambda p, s: cand.gate(cand.long_model(p, s, mix_decay=0.99), p, **cand.FAST_GATE),
+    "v_long_ridge": lambda p, s: cand.gate(cand.long_model(p, s, mix_ridge=0.001), p, **cand.FAST_GATE),
+    "v_experts_fast": lambda p, s: cand.gate(cand.experts(p, s), p, **cand.FAST_GATE),
+    "v_experts_d95": lambda p, s: cand.gate(cand.experts(p, s, decay=0.95), p, **cand.FAST_GATE),
+    "v_experts_ungated": lambda p, s: cand.experts(p, s),
+    "v_experts2_fast": lambda p, s: cand.gate(cand.experts(p, s, members=("llm", "linear")), p, **cand.FAST_GATE),
+    "v_default_fast": lambda p, s: cand.gate(cand.long_model(p, s, global_frames=2, global_delta=100.0), p,
+                                             **cand.FAST_GATE),
+}
+
+
+def factory(name: str) -> Factory:
+    """A registry name, a `VARIANTS` key, or `X<blend decay>[^<power>]_<gate key=value,...>`: the
+    experts with that blend decay (and weight power) behind a gate with those settings
+    (e.g. `X0.99_decay=0.95,prior=0.001,confidence=1`, the chosen `cand_experts`)."""
+    if name in VARIANTS:
+        return VARIANTS[name]
+    if name.startswith("X") and "_" in name:
+        blend, _, spec = name[1:].partition("_")
+        decay, _, power = blend.partition("^")
+        changes = {k: float(v) for k, v in (kv.split("=") for kv in spec.split(",") if kv)}
+        return lambda p, s: cand.gate(cand.experts(p, s, decay=float(decay), power=float(power or 1.0)), p,
+                                      **changes)
+    return lambda p, s, n=name: common.make_model(n, p, s)
+
+
+def tuning_streams() -> list[RepetitionStream]:
+    return make_streams(load_segments(SEGMENTS), SEEDS, StreamSettings())
+
+
+def score_stream(stream: RepetitionStream, methods: tuple[str, ...], seed: int = 0) -> dict[str, Any]:
+    """One pass from scratch per method: MAE per step, and at the last step per performance."""
+    params = common.make_params()
+    h, joints = params.horizon, params.n_joints
+    models = {m: Recorded(factory(m)(params, seed)) for m in methods}
+    res = compare_online(models, [stream.angles], horizon=h, progress=False)
+    preds = {m: r.predictions(h, joints) for m, r in models.items()}
+    scored = np.logical_and.reduce([np.isfinite(p).all(axis=(1, 2)) for p in preds.values()])
+    future = future_windows(stream.angles, h)
+    reps = [scored & (stream.repetition == k) for k in range(int(stream.repetition.max()) + 1)]
+    return {"name": stream.name,
+            "stats": {m: r.stats for m, r in res.items()},
+            "per_rep": {m: [horizon_stats(p[sel], future[sel]) for sel in reps] for m, p in preds.items()}}
+
+
+def _jumps(n: int, seed: int, chance: float = 0.05) -> np.ndarray:
+    """The sudden-jump stream of test/test_default_predictor.py (nothing repeats)."""
+    rng = np.random.default_rng(seed)
+    moves = rng.random((n, 1)) < chance
+    return 0.3 + np.cumsum(moves * rng.normal(scale=0.3, size=(n, 8)), axis=0)
+
+
+def _one_pass(methods: tuple[str, ...], sequences: list[Any]) -> dict[str, HorizonStats]:
+    params = common.make_params()
+    models = {m: factory(m)(params, 0) for m in methods}
+    return {m: r.stats for m, r in compare_online(models, sequences, horizon=params.horizon, progress=False).items()}
+
+
+def _task(job: tuple[str, Any, tuple[str, ...]]) -> tuple[str, Any]:
+    kind, item, methods = job
+    if kind == "stream":
+        return kind, score_stream(item, methods)
+    if kind == "cold":
+        return kind, (item, _one_pass(methods, list(common.demo_data((item,), 3, 10, 0))))
+    if kind == "jump":
+        return kind, (f"jumps s{item}", _one_pass(methods, [_jumps(800, item)]))
+    return kind, (item["name"], _one_pass(methods, [item["angles"]]))
+
+
+def evaluate(methods: tuple[str, ...], real: bool = False, workers: int = 2) -> dict[str, Any]:
+    """Every tuning figure for `methods` (hold first)."""
+    methods = tuple(dict.fromkeys(("hold", *methods)))
+    jobs: list[tuple[str, Any, tuple[str, ...]]] = [("stream", s, methods) for s in tuning_streams()]
+    jobs += [("cold", p, methods) for p in COLD_PATTERNS] + [("jump", s, methods) for s in SEEDS]
+    if real:
+        from research.experiments.real import Config, load_clips
+
+        jobs += [("real", c, methods) for c in load_clips(Config())]
+    with ProcessPoolExecutor(workers) as pool:
+        done = list(pool.map(_task, jobs))
+    return summarise(methods, done)
+
+
+def summarise(methods: tuple[str, ...], done: list[tuple[str, Any]]) -> dict[str, Any]:
+    streams = [r for k, r in done if k == "stream"]
+    last = {s["name"]: {m: s["stats"][m].mae[-1] / s["stats"]["hold"].mae[-1] for m in methods} for s in streams}
+    pooled = {m: HorizonStats.empty(6, 8) for m in methods}
+    curve = {m: [HorizonStats.empty(6, 8)] * 8 for m in methods}
+    for s in streams:
+        for m in methods:
+            pooled[m] = pooled[m].merge(s["stats"][m])
+            curve[m] = [c.merge(r) for c, r in zip(curve[m], s["per_rep"][m], strict=True)]
+    worst = {}
+    for k, (name, stats) in ((k, r) for k, r in done if k != "stream"):
+        worst[f"{k}:{name}"] = {m: float(np.max(np.array(stats[m].mae) / np.array(stats["hold"].mae)))
+                                for m in methods}
+    cold = {name: {m: float(stats[m].mae[-1]) for m in methods} for k, (name, stats) in
+            ((k, r) for k, r in done if k == "cold")}
+    return {
+        "per_stream": last,
+        "pooled": {m: float(pooled[m].mae[-1] / pooled["hold"].mae[-1]) for m in methods},
+        "curve": {m: [float(c.mae[-1] / hc.mae[-1]) for c, hc in zip(curve[m], curve["hold"], strict=True)]
+                  for m in methods},
+        "cold_mae_600": cold,
+        "worst_step_ratio": worst,
+    }
+
+
+def report(r: dict[str, Any], candidates: tuple[str, ...]) -> str:
+    """Per candidate: pooled ratio, learning curve, streams where it beats every baseline, cold start, worst ratio."""
+    base = [m for m in BASELINES if m in r["pooled"] and m != "hold"]
+    lines = ["pooled ratio@600: " + ", ".join(f"{m} {r['pooled'][m]:.3f}" for m in r["pooled"])]
+    for m in r["pooled"]:
+        curve = " ".join(f"{v:.3f}" for v in r["curve"][m])
+        cold = " ".join(f"{p} {v[m]:.4f}" for p, v in r["cold_mae_600"].items())
+        worst = max(v[m] for v in r["worst_step_ratio"].values())
+        where = max(r["worst_step_ratio"], key=lambda k, m=m: r["worst_step_ratio"][k][m])
+        line = f"{m:>18}: pooled {r['pooled'][m]:.3f} | curve {curve} | cold {cold} | worst {worst:.3f} ({where})"
+        if m in candidates:
+            rivals = [b for b in base if b != m]
+            wins = sum(all(s[m] < s[b] for b in rivals) for s in r["per_stream"].values())
+            margin = max(s[m] - min(s[b] for b in rivals) for s in r["per_stream"].values())
+            line += f" | beats all {wins}/{len(r['per_stream'])} streams, worst margin {margin:+.3f}"
+        lines.append(line)
+    return "\n".join(lines)
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("names", nargs="*", help="registry names or VARIANTS")
+    ap.add_argument("--real", action="store_true", help="also the real clips, one pass (the <= 1.02 bound)")
+    ap.add_argument("--out", default=None, help="JSON of the figures")
+    args = ap.parse_args(argv)
+    names = tuple(args.names) or tuple(cand.CANDIDATES)
+    r = evaluate((*BASELINES, *names), real=args.real)
+    print(report(r, names))
+    if args.out:
+        with open(args.out, "w") as f:
+            json.dump(r, f, indent=1)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
