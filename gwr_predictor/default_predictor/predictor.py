@@ -24,7 +24,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from gwr_predictor.default_predictor.network import LocalLinearPGWR
-from gwr_predictor.default_predictor.params import _BEFORE, LocalLinearParams
+from gwr_predictor.default_predictor.params import LocalLinearParams
 from gwr_predictor.learning.checkpoint import CheckpointError, read_checkpoint, require_arrays, write_checkpoint
 from gwr_predictor.learning.gwr import InputError
 from gwr_predictor.learning.hierarchy import ErrorTracker
@@ -220,10 +220,9 @@ class LocalLinearPredictor:
         return {**out, **self._errors.summary()}
 
     # --- persistence --------------------------------------------------------------------------------
-    #: The arrays every checkpoint has; "visits" came with consolidation (without it: zeros), "readout_mse"
-    #: with recruitment (without it: NaN).
-    ARRAYS: ClassVar[tuple[str, ...]] = ("weights", "matrices", "counters", "edges", "win", "hist", "regs",
-                                         *ErrorTracker.ARRAYS)
+    #: The arrays every checkpoint has (and, with a global read-out, GLOBAL_ARRAYS).
+    ARRAYS: ClassVar[tuple[str, ...]] = ("weights", "matrices", "visits", "readout_mse", "surprise_streaks",
+                                         "counters", "edges", "win", "hist", "regs", *ErrorTracker.ARRAYS)
     GLOBAL_ARRAYS: ClassVar[tuple[str, ...]] = ("global:weights", "global:p", "mix_sxx", "mix_sxy", "outs",
                                                 "out_features")
 
@@ -263,11 +262,7 @@ class LocalLinearPredictor:
         """The predictor of a `state()`; CheckpointError naming `source` if it does not fit."""
         require_arrays(cls.ARRAYS, arrays, source)
         try:
-            settings = header["params"]
-            for added, before in _BEFORE:  # an older checkpoint keeps the learner it was written with
-                if added not in settings:
-                    settings = {**settings, **before}
-            params = LocalLinearParams.from_dict(settings)
+            params = LocalLinearParams.from_dict(header["params"])
             model = cls.__new__(cls)
             model.params = params
             model._ln_at = -math.log(params.gwr.activation_threshold)
@@ -275,9 +270,9 @@ class LocalLinearPredictor:
                 arrays["weights"], arrays["matrices"], params.gwr, edges=arrays["edges"],
                 counters=arrays["counters"], match_dim=params.order * params.n_joints,
                 distance_factor=float(header["distance_factor"]), rate=params.rate, delta=1e-4,
-                visits=arrays.get("visits"), consolidate_after=params.consolidate_after,
-                readout_mse=arrays.get("readout_mse"), recruit_surprise=params.recruit_surprise,
-                recruited=int(header.get("recruited", 0)), streaks=arrays.get("surprise_streaks"),
+                visits=arrays["visits"], consolidate_after=params.consolidate_after,
+                readout_mse=arrays["readout_mse"], recruit_surprise=params.recruit_surprise,
+                recruited=int(header["recruited"]), streaks=arrays["surprise_streaks"],
                 recruit_after=params.recruit_after)
             if model.pgwr.out_dim != params.horizon * params.n_joints:
                 raise ValueError(f"outputs are {model.pgwr.out_dim}-d, parameters say "

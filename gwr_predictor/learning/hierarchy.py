@@ -25,7 +25,6 @@ sequence boundary and also drops those pending predictions. Networks are never c
 
 from __future__ import annotations
 
-import dataclasses
 import math
 import os
 from collections import deque
@@ -449,12 +448,9 @@ class _OnlinePredictor:
         model.params = HierarchyParams.from_flat(header["params"])
         model._rng = np.random.default_rng(0)  # only for the layer templates; replaced below
         model._configure()
-        layers = header.get("layers", {})
         for name in cls.layer_names:
             template = model._new_layer(name)  # sizes and distance factor from the parameters
-            # files written before the layers' GWR.state was in the header: its values from the parameters
-            saved = layers.get(name) or {"match_dim": template.match_dim, "params": dataclasses.asdict(template.params),
-                                         "distance_factor": template.distance_factor}
+            saved = header["layers"][name]
             net = type(template).from_state({**saved, **{a: arrays[f"{name}.{a}"] for a in GWR.STATE_ARRAYS}})
             for what in ("dim", "match_dim", "distance_factor", "params"):
                 if getattr(net, what) != getattr(template, what):

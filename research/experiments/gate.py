@@ -64,7 +64,8 @@ class Config:
 
 DEFAULT = "default (bound z=2 + short memory of step 1, 0.9, z=0)"
 QUICK = Config(clips=(), patterns=("wave_one", "raise_front_both"), subjects=2, repetitions=3,
-               heldout_repetitions=1, epochs=1, variants=("plain, per joint (the first gate)", DEFAULT, "ungated model"))
+               heldout_repetitions=1, epochs=1,
+               variants=("plain, per joint (the first gate)", DEFAULT, "ungated model"))
 FULL = Config()
 
 
