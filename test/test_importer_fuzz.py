@@ -14,7 +14,7 @@ from mocap_files import write_bvh
 from test_importer_limits import bvh_text, pt_bytes
 from test_mocap import AMC, ASF
 
-from gwr_predictor.data import file_limits
+from gwr_predictor import file_limits
 from gwr_predictor.data.mocap import ImportOptions, load_any_skeleton, load_clip
 from gwr_predictor.data.skeleton_files import SkeletonFileError, SkeletonSequence, load_skeleton, save_skeleton
 

@@ -24,7 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
-from gwr_predictor.data import file_limits as limits
+from gwr_predictor import file_limits as limits
 from gwr_predictor.data.skeleton_files import SkeletonFileError, SkeletonSequence
 from gwr_predictor.pipeline.conventions import SKELETON_FPS, SKELETON_JOINTS
 

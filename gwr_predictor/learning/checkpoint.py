@@ -28,7 +28,8 @@ from typing import Any
 
 import numpy as np
 
-from gwr_predictor.data.file_limits import (
+from gwr_predictor.errors import GwrPredictorError
+from gwr_predictor.file_limits import (
     MAX_ARCHIVE_MEMBERS,
     MAX_CHECKPOINT_BYTES,
     check_count,
@@ -37,7 +38,6 @@ from gwr_predictor.data.file_limits import (
     npy_header,
     zip_entry_count,
 )
-from gwr_predictor.errors import GwrPredictorError
 
 MAGIC = "gwr_predictor.checkpoint"
 #: The one format this build reads and writes; older files are refused with a clear message (their
