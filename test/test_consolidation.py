@@ -109,9 +109,8 @@ def test_consolidation_without_visit_counts_or_with_bad_ones_is_refused():
 class _Unhanded(LocalLinearPGWR):
     """The GWR step recomputes the plasticity itself (what `learn_local` hands it)."""
 
-    def _step_rates(self, block, h):
-        self._handed = None
-        return super()._step_rates(block, h)
+    def _step_rates(self, block, h, prepared=None):
+        return super()._step_rates(block, h, None)
 
 
 def test_what_learning_hands_the_gwr_step_equals_recomputing_it_through_insertions():

@@ -26,13 +26,12 @@ import numpy as np
 from gwr_predictor.default_predictor.network import LocalLinearPGWR
 from gwr_predictor.default_predictor.params import LocalLinearParams
 from gwr_predictor.learning.checkpoint import CheckpointError, read_checkpoint, require_arrays, write_checkpoint
-from gwr_predictor.learning.gwr import InputError
-from gwr_predictor.learning.hierarchy import ErrorTracker
+from gwr_predictor.learning.online_loop import ErrorTracker, OnlineLoop
 from gwr_predictor.learning.rls import RecursiveLeastSquares, window_features
 from gwr_predictor.learning.scaling import InputScaling
 
 
-class LocalLinearPredictor:
+class LocalLinearPredictor(OnlineLoop):
     """Online predictor: regressor = the last `order` frames (rad, newest first); output = the
     displacements of the next `horizon` frames from the newest one, read out by `LocalLinearPGWR`.
 
@@ -50,10 +49,8 @@ class LocalLinearPredictor:
         self.pgwr = LocalLinearPGWR(p.order * p.n_joints, out_dim, p.gwr, rng, init_low=np.concatenate(
             [lo, np.zeros(out_dim)]), init_high=np.concatenate([hi, np.zeros(out_dim)]), rate=p.rate,
             consolidate_after=p.consolidate_after, recruit_surprise=p.recruit_surprise, recruit_after=p.recruit_after)
-        self._ln_at = -math.log(p.gwr.activation_threshold)
         self._motion_ms = p.noise_floor ** 2  # running mean of ||x(t) - x(t-1)||^2
-        self._t = self._frames = self._missing = self._predictions = self._sequences = 0
-        self._errors = ErrorTracker(p.horizon, p.n_joints, self.layer_names)
+        self._start_loop(p.horizon, p.n_joints)
         self._init_global()
         self._clear_sequence()
 
@@ -114,7 +111,7 @@ class LocalLinearPredictor:
         if self.linear is not None:
             self._learn_global(target, *self._outs[0])
         scale = max(math.sqrt(self._motion_ms), p.noise_floor) * p.insertion_scale * math.sqrt(p.order)
-        self.pgwr.distance_factor = self._ln_at / scale
+        self.pgwr.follow_motion_scale(scale)
         self.pgwr.learn_local(reg, target, p.neighbour_rate)
 
     def _learn_global(self, target: np.ndarray, outs: np.ndarray | None, phi: np.ndarray) -> None:
@@ -160,14 +157,6 @@ class LocalLinearPredictor:
         local += reg[:p.n_joints]
         return local
 
-    def _as_frame(self, x: np.ndarray | None) -> np.ndarray | None:
-        if x is None:
-            return None
-        frame = np.asarray(x, dtype=float)
-        if frame.shape != (self.params.n_joints,):
-            raise InputError(f"a frame must have shape ({self.params.n_joints},), got {frame.shape}")
-        return frame if math.isfinite(frame.sum()) else None
-
     def _clear_sequence(self) -> None:
         p = self.params
         self._win = np.zeros((p.order, p.n_joints))
@@ -178,26 +167,12 @@ class LocalLinearPredictor:
         self._outs: deque[tuple[np.ndarray, np.ndarray] | None] = deque(maxlen=p.horizon)
         self._last_reg: np.ndarray | None = None
 
-    def reset_sequence(self) -> None:
-        """Sequence boundary: clear the window, the queue and pending predictions (never the network)."""
-        self._clear_sequence()
-        self._errors.forget_pending()
-        self._sequences += 1
-
-    def reset_errors(self) -> None:
-        """Zero the C.P.E. statistics (counters of frames stay)."""
-        self._errors.reset()
-
     # --- introspection ------------------------------------------------------------------------------
     @property
     def neuron_counts(self) -> tuple[int, ...]:
         return (self.pgwr.n_neurons,)
 
     layer_names: ClassVar[tuple[str, ...]] = ("pgwr",)
-
-    @property
-    def frames_seen(self) -> int:
-        return self._frames
 
     @property
     def motion_rms(self) -> float:
@@ -211,9 +186,7 @@ class LocalLinearPredictor:
     def errors(self) -> dict[str, Any]:
         """Counts, neurons (and how many of them were recruited), the motion scale, the read-outs'
         mixing weights, and C.P.E. (= P.E.) per step as the hierarchy reports it."""
-        out = {"steps": self._t, "frames": self._frames, "missing": self._missing,
-               "sequences": self._sequences, "predictions": self._predictions,
-               "neurons": {"pgwr": self.pgwr.n_neurons}, "recruited": self.pgwr.recruited,
+        out = {**self._counts(), "neurons": {"pgwr": self.pgwr.n_neurons}, "recruited": self.pgwr.recruited,
                "motion_rms_rad": self.motion_rms}
         if self.linear is not None:
             out["mix_weights"] = {"local": self._mix[:, 0].tolist(), "global": self._mix[:, 1].tolist()}
@@ -235,7 +208,7 @@ class LocalLinearPredictor:
         header = {"params": self.params.to_dict(), "distance_factor": g.distance_factor,
                   "motion_ms": self._motion_ms, "fill": self._fill, "reg_present": [r is not None for r in regs],
                   "last_reg": self._last_reg is not None,
-                  "counters": [self._t, self._frames, self._missing, self._predictions, self._sequences],
+                  "counters": self._counters_header(),
                   "errors": self._errors.header(), "recruited": g.recruited}
         arrays = {"weights": g.weights, "matrices": g.matrices.copy(), "visits": g.visits.copy(),
                   "readout_mse": g.readout_mse.copy(), "surprise_streaks": g.surprise_streaks.copy(),
@@ -265,7 +238,6 @@ class LocalLinearPredictor:
             params = LocalLinearParams.from_dict(header["params"])
             model = cls.__new__(cls)
             model.params = params
-            model._ln_at = -math.log(params.gwr.activation_threshold)
             model.pgwr = LocalLinearPGWR.from_parts(
                 arrays["weights"], arrays["matrices"], params.gwr, edges=arrays["edges"],
                 counters=arrays["counters"], match_dim=params.order * params.n_joints,
@@ -278,8 +250,7 @@ class LocalLinearPredictor:
                 raise ValueError(f"outputs are {model.pgwr.out_dim}-d, parameters say "
                                  f"{params.horizon * params.n_joints}")
             model._motion_ms = float(header["motion_ms"])
-            (model._t, model._frames, model._missing, model._predictions,
-             model._sequences) = (int(v) for v in header["counters"])
+            model._restore_counters(header["counters"])
             model._errors = ErrorTracker(params.horizon, params.n_joints, cls.layer_names)
             model._errors.restore(header["errors"], arrays)
             model._clear_sequence()
