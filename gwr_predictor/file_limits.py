@@ -103,7 +103,7 @@ def check_npz_members(path: str | os.PathLike[str], limit: int, what: str,
     try:
         with zipfile.ZipFile(path) as zf:
             total = sum(info.file_size for info in zf.infolist())
-    except (zipfile.BadZipFile, OSError, ValueError):
+    except (zipfile.BadZipFile, OSError, ValueError, EOFError, NotImplementedError, RuntimeError, struct.error):
         return 0
     if total > limit:
         raise error(f"{path}: its arrays inflate to {_human(total)}, too large for a {what} "

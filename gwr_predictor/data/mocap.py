@@ -102,6 +102,8 @@ class MocapClip:
             raise MocapError(f"{self.source}: positions must be (frames, {len(self.joint_names)}, 3), got {p.shape}")
         if p.shape[0] < 1:
             raise MocapError(f"{self.source}: no frames")
+        if p.shape[1] < 1:
+            raise MocapError(f"{self.source}: no joints")
         if not (np.isfinite(self.fps) and self.fps > 0):
             raise MocapError(f"{self.source}: frame rate must be positive, got {self.fps} (give --fps)")
         if np.isinf(p).any():
