@@ -3,7 +3,7 @@
 A prediction made at step t is h rows; row k (0-based) targets step t + k + 1 (`target_steps`).
 Online, `PendingPredictions` files each row under the step it targets (a ring of h slots), so the
 predictions due at a frame are one vectorised look-up, taken exactly once, when that frame arrives:
-the hierarchy's P.E./C.P.E. (`learning.hierarchy.ErrorTracker`), the blend's running MSEs
+the hierarchy's P.E./C.P.E. (`learning.online_loop.ErrorTracker`), the blend's running MSEs
 (`research.blend`) and the default predictor's gate (`default_predictor.gate`) are scored this way.
 After the fact, `evaluation.metrics.future_windows` lines a whole recorded sequence up with the same
 rule, for the evaluation loop (`evaluation.online`).

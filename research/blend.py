@@ -28,7 +28,7 @@ import numpy as np
 from gwr_predictor.errors import GwrPredictorError
 from gwr_predictor.learning.checkpoint import CheckpointError, read_checkpoint, write_checkpoint
 from gwr_predictor.parameter_spec import ParamSpec, check_fields
-from gwr_predictor.pending import PendingPredictions, target_steps
+from gwr_predictor.pending import PendingPredictions
 from gwr_predictor.pipeline.conventions import DEFAULT_HORIZON
 from gwr_predictor.protocol import Predictor
 
@@ -243,19 +243,14 @@ class BlendedPredictor:
             blend._count = np.array(arrays["blend:count"], dtype=np.int64)
             if meta["joints"] is not None:
                 blend._allocate(int(meta["joints"]))
-                old_layout = "t" not in meta  # written before the blend used PendingPredictions
-                blend._t = 0 if old_layout else int(meta["t"])
+                blend._t = int(meta["t"])
                 ring = blend._pending
-                names = ("pending", "outputs") if old_layout else ("pending", "valid", "outputs")
-                dests = (np.empty_like(ring.pending), blend._outputs) if old_layout else (
-                    ring.pending, ring.valid, blend._outputs)
-                for a, dest in zip(names, dests, strict=True):
+                for a, dest in zip(("pending", "valid", "outputs"), (ring.pending, ring.valid, blend._outputs),
+                                   strict=True):
                     if arrays[f"blend:{a}"].shape != dest.shape:
                         raise ValueError(f"array blend:{a} has shape {arrays[f'blend:{a}'].shape}, "
                                          f"expected {dest.shape}")
                     dest[...] = arrays[f"blend:{a}"]
-                if old_layout:
-                    blend._refile(dests[0])
         except CheckpointError:
             raise
         except (KeyError, ValueError, TypeError, IndexError) as exc:  # BlendError, BaselineError are ValueErrors
@@ -281,16 +276,6 @@ class BlendedPredictor:
         self._joints = joints
         self._pending = PendingPredictions(h, joints, (n,))
         self._outputs = np.full((n, h, joints), np.nan)
-
-    def _refile(self, by_age: np.ndarray) -> None:
-        """File the pending predictions of a checkpoint written before PendingPredictions, where
-        `by_age[:, r]` was the prediction made r + 1 frames before the next one (NaN = none)."""
-        h = self.horizon
-        for r in range(h):  # rows k >= r still target the next frame or a later one
-            made = by_age[:, r, r:]
-            slots = target_steps(self._t - 1 - r, h)[r:] % h
-            self._pending.pending[:, slots, np.arange(r, h)] = made
-            self._pending.valid[:, slots, np.arange(r, h)] = np.isfinite(made).all(axis=-1)
 
     def _score(self, obs: np.ndarray, targeted: np.ndarray, valid: np.ndarray) -> None:
         """Score the member predictions (members, h, joints) due at this (observed) frame, row k made

@@ -19,6 +19,7 @@ from test_node_bad_input import FAST
 from gwr_predictor.default_predictor.gate import inner_model
 from gwr_predictor.learning import checkpoint as ckpt
 from gwr_predictor.learning.checkpoint import (
+    FORMAT_VERSION,
     HEADER_KEY,
     MAGIC,
     CheckpointError,
@@ -45,7 +46,7 @@ def _header_member(header: object) -> bytes:
     return _npy(np.frombuffer(json.dumps(header).encode() if not isinstance(header, bytes) else header, np.uint8))
 
 
-GOOD_HEADER = {"magic": MAGIC, "kind": "Hierarchy", "format_version": 2}
+GOOD_HEADER = {"magic": MAGIC, "kind": "Hierarchy", "format_version": FORMAT_VERSION}
 
 
 def _zip(path, members: dict[str, bytes], deflate: tuple[str, ...] = ()) -> None:

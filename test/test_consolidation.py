@@ -95,22 +95,10 @@ def test_a_consolidating_checkpoint_continues_bit_for_bit(tmp_path):
         np.testing.assert_array_equal(model.step(f), again.step(f))
 
 
-def test_a_checkpoint_from_before_consolidation_keeps_its_constant_rates():
-    """Written before `consolidate_after` existed: no such setting, no visit counts. It loads with
-    constant rates and continues bit for bit like the model that wrote it."""
-    model, rest = _trained(LocalLinearParams(consolidate_after=0))
-    header, arrays = model.state()
-    del header["params"]["consolidate_after"], arrays["visits"]
-    again = LocalLinearPredictor.from_state(header, arrays)
-    assert again.params.consolidate_after == 0
-    for f in rest:
-        np.testing.assert_array_equal(model.step(f), again.step(f))
-
-
 def test_consolidation_without_visit_counts_or_with_bad_ones_is_refused():
     model, _ = _trained(LocalLinearParams(consolidate_after=50), frames=60)
     header, arrays = model.state()
-    with pytest.raises(CheckpointError, match="visit counts"):
+    with pytest.raises(CheckpointError, match=r"missing arrays \['visits'\]"):
         LocalLinearPredictor.from_state(header, {k: v for k, v in arrays.items() if k != "visits"})
     with pytest.raises(CheckpointError, match="visit counts"):
         LocalLinearPredictor.from_state(header, {**arrays, "visits": -arrays["visits"] - 1})
@@ -121,9 +109,8 @@ def test_consolidation_without_visit_counts_or_with_bad_ones_is_refused():
 class _Unhanded(LocalLinearPGWR):
     """The GWR step recomputes the plasticity itself (what `learn_local` hands it)."""
 
-    def _step_rates(self, block, h):
-        self._handed = None
-        return super()._step_rates(block, h)
+    def _step_rates(self, block, h, prepared=None):
+        return super()._step_rates(block, h, None)
 
 
 def test_what_learning_hands_the_gwr_step_equals_recomputing_it_through_insertions():

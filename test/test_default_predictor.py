@@ -135,20 +135,6 @@ def test_the_global_read_out_carries_what_the_network_has_barely_seen():
     assert set(both.errors()["mix_weights"]) == {"local", "global"}
 
 
-def test_a_checkpoint_from_before_the_global_read_out_keeps_the_local_read_outs_only():
-    model = make_gated_llm(params=LocalLinearParams(global_order=0))
-    x = _periodic(300)
-    for f in x[:200]:
-        model.step(f)
-    header, arrays = model.state()
-    for name in ("global_order", "global_delta", "mix_decay", "mix_ridge"):
-        del header["model"]["params"][name]
-    again = GatedPredictor.from_state(header, arrays)
-    assert again.model.params.global_order == 0 and again.model.linear is None
-    for f in x[200:]:
-        np.testing.assert_array_equal(model.step(f), again.step(f))
-
-
 def test_global_read_out_settings_are_checked():
     with pytest.raises(LocalLinearError, match="global_order 5 exceeds"):
         LocalLinearParams(global_order=5)
@@ -193,48 +179,6 @@ def test_checkpoint_continues_bit_for_bit(tmp_path):
     for f in x[200:]:
         np.testing.assert_array_equal(model.step(f), again.step(f))
     assert again.neuron_counts == model.neuron_counts
-
-
-def test_a_checkpoint_with_the_first_by_age_ring_continues_bit_for_bit():
-    """The gate first kept its pending predictions as a ring by age (row r made r + 1 steps ago);
-    such a state, built here from what the gate predicted at each step, loads and continues alike."""
-    model = make_gated_llm()
-    x = _periodic(300)
-    h, joints = model.params.horizon, model.params.joints
-    made = []  # (newest pose, model step - pose) per step, NaN where the gate made no prediction
-    for t, f in enumerate(x[:200]):
-        model.step(None if t == 197 else f)
-        diff = model._out_diff
-        made.append((model._last.copy(), diff.copy()) if diff is not None
-                    else (np.full(joints, np.nan), np.full((h, joints), np.nan)))
-    header, arrays = model.state()
-    del header["t"], arrays["gate:pending"], arrays["gate:valid"]
-    arrays["gate:pose"] = np.stack([made[-1 - r][0] for r in range(h)])
-    arrays["gate:diff"] = np.stack([made[-1 - r][1] for r in range(h)])
-    again = GatedPredictor.from_state(header, arrays)
-    for f in x[200:]:
-        np.testing.assert_array_equal(model.step(f), again.step(f))
-    assert again.errors() == model.errors()  # every pending prediction was scored once, in both
-
-
-def test_a_checkpoint_of_the_plain_gate_loads_as_the_plain_gate():
-    """Checkpoints written before the confidence bound and the short memory hold S_xy and S_xx only
-    and gate settings without `confidence`: they load as the plain least-squares gate and continue
-    bit for bit."""
-    plain = GateParams(confidence=0.0, fast_decay=0.0, fast_confidence=0.0, per_joint=True)
-    model = GatedPredictor(LocalLinearPredictor(LocalLinearParams()), plain)
-    x = _periodic(300)
-    for f in x[:200]:
-        model.step(f)
-    header, arrays = model.state()
-    for name in ("confidence", "fast_decay", "fast_confidence"):
-        del header["gate"][name]
-    stats = arrays.pop("gate:stats")
-    arrays["gate:sxy"], arrays["gate:sxx"] = stats[0, 0], stats[0, 1]
-    again = GatedPredictor.from_state(header, arrays)
-    assert again.params == plain
-    for f in x[200:]:
-        np.testing.assert_array_equal(model.step(f), again.step(f))
 
 
 class _Oracle(Oracle):
@@ -289,19 +233,6 @@ def test_the_short_memory_judges_by_the_freshest_record():
     assert fresh[308:313].mean() > per_step[308:313].mean() + 0.05
     with pytest.raises(GateError, match="fast_step"):
         GateParams(fast_step=7)
-
-
-def test_a_checkpoint_from_before_fast_step_keeps_its_per_step_short_memory():
-    model = make_gated_llm(gate=GateParams(fast_decay=0.8, fast_step=0))
-    x = _periodic(300)
-    for f in x[:200]:
-        model.step(f)
-    header, arrays = model.state()
-    del header["gate"]["fast_step"]
-    again = GatedPredictor.from_state(header, arrays)
-    assert again.params == model.params
-    for f in x[200:]:
-        np.testing.assert_array_equal(model.step(f), again.step(f))
 
 
 def test_the_confidence_bound_ignores_luck():

@@ -247,33 +247,6 @@ def test_blend_saved_mid_stream_continues_bit_for_bit(tmp_path, kind):
     np.testing.assert_array_equal(b._count, a._count)
 
 
-def test_blend_checkpoint_of_the_older_by_age_layout_continues_bit_for_bit(tmp_path):
-    """Blend checkpoints written before PendingPredictions held the ring by age (row r: made r + 1
-    frames before the next one, NaN = none) and no frame clock; they still load and continue."""
-    from gwr_predictor.learning.checkpoint import read_checkpoint, write_checkpoint
-
-    frames = _arm_frames(130)
-    a = make_blend("blend_flat_rls", seed=2)
-    for x in frames[:90]:
-        a.step(x)
-    a.save(tmp_path / "new.npz")
-    header, arrays = read_checkpoint(tmp_path / "new.npz", BlendedPredictor.kind)
-    t_next, h = header["blend"].pop("t"), a.horizon
-    ring, valid = arrays.pop("blend:pending"), arrays.pop("blend:valid")
-    by_age = np.full_like(ring, np.nan)
-    for r in range(h):
-        for k in range(r, h):
-            slot = (t_next + k - r) % h
-            by_age[:, r, k] = np.where(valid[:, slot, k, None], ring[:, slot, k], np.nan)
-    arrays["blend:pending"] = by_age
-    write_checkpoint(tmp_path / "old.npz", BlendedPredictor.kind, header, arrays)
-    b = BlendedPredictor.load(tmp_path / "old.npz")
-    for x in frames[90:]:
-        np.testing.assert_array_equal(b.step(x), a.step(x))
-    np.testing.assert_array_equal(b._count, a._count)
-    np.testing.assert_array_equal(b.running_mse(), a.running_mse())
-
-
 def test_fresh_blend_round_trips_before_any_frame(tmp_path):
     a = make_blend("blend_hierarchy_rls", seed=1, blend=BlendParams(decay=0.95, floor=1e-5, adapt_frozen=False))
     a.save(tmp_path / "b.npz")

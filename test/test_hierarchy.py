@@ -8,7 +8,8 @@ import pytest
 
 from gwr_predictor.commands import cli
 from gwr_predictor.learning.gwr import InputError
-from gwr_predictor.learning.hierarchy import ErrorTracker, FlatPredictor, Hierarchy
+from gwr_predictor.learning.hierarchy import FlatPredictor, Hierarchy
+from gwr_predictor.learning.online_loop import ErrorTracker
 from gwr_predictor.learning.params import GWRParams, HierarchyParams, hierarchy_parameter_specs
 
 H = 6

@@ -7,8 +7,8 @@ import zipfile
 import numpy as np
 import pytest
 
+from gwr_predictor import file_limits
 from gwr_predictor.commands.cli import main as cli_main
-from gwr_predictor.data import file_limits
 from gwr_predictor.data.skeleton_files import SkeletonFileError, load_skeleton
 from gwr_predictor.learning.checkpoint import CheckpointError, read_checkpoint
 from gwr_predictor.pipeline import bags

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 from mocap_files import write_bvh
 
-from gwr_predictor.data import file_limits
+from gwr_predictor import file_limits
 from gwr_predictor.data.asf_amc import load_amc
 from gwr_predictor.data.bvh import load_bvh
 from gwr_predictor.data.mocap import MocapError, load_any_skeleton, load_clip

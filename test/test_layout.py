@@ -63,3 +63,21 @@ def test_every_public_name_of_the_package_and_its_subpackages_resolves():
 
     starters = {"make_predictor", "load_predictor", "register", "Predictor", "GwrPredictorError"}
     assert starters <= set(gwr_predictor.__all__)
+
+
+def test_the_learner_imports_no_data_pipeline_or_robot_code():
+    """learning/ is the method alone: it reads no files (but its checkpoints), knows no messages and no robot.
+    One exception, named: scaling.py draws the initial neurons of an 8-joint model inside the Nao's limits."""
+    allowed = {("scaling.py", "gwr_predictor.robot.nao")}
+    found = set()
+    for path in (ROOT / "gwr_predictor" / "learning").glob("*.py"):
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            if isinstance(node, ast.ImportFrom) and node.module:
+                names = [node.module]
+            elif isinstance(node, ast.Import):
+                names = [a.name for a in node.names]
+            else:
+                continue
+            found |= {(path.name, n) for n in names
+                      if n.startswith(("gwr_predictor.data", "gwr_predictor.pipeline", "gwr_predictor.robot"))}
+    assert found == allowed

@@ -15,9 +15,9 @@ from typing import TextIO
 
 import numpy as np
 
-from gwr_predictor.data.file_limits import MAX_CSV_BYTES, check_file_size
 from gwr_predictor.data.skeleton_files import parse_float_table
 from gwr_predictor.errors import GwrPredictorError
+from gwr_predictor.file_limits import MAX_CSV_BYTES, check_file_size
 from gwr_predictor.robot.nao import ARM_JOINTS, JOINT_LIMITS
 
 

@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from gwr_predictor.data import file_limits as limits
+from gwr_predictor import file_limits as limits
 from gwr_predictor.data.mocap import MocapClip, MocapError
 
 INCH_M = 0.0254

@@ -22,7 +22,8 @@ from pathlib import Path
 
 import numpy as np
 
-from gwr_predictor.data.file_limits import (
+from gwr_predictor.data.mocap import MocapClip, MocapError
+from gwr_predictor.file_limits import (
     MAX_DEPTH,
     MAX_JOINTS,
     MAX_TEXT_BYTES,
@@ -32,7 +33,6 @@ from gwr_predictor.data.file_limits import (
     check_shape,
     frame_chunks,
 )
-from gwr_predictor.data.mocap import MocapClip, MocapError
 
 _AXIS = {"x": 0, "y": 1, "z": 2}
 _CHANNELS = frozenset(f"{a}{kind}" for a in "xyz" for kind in ("position", "rotation"))

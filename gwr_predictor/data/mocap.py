@@ -24,7 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
-from gwr_predictor.data import file_limits as limits
+from gwr_predictor import file_limits as limits
 from gwr_predictor.data.skeleton_files import SkeletonFileError, SkeletonSequence
 from gwr_predictor.pipeline.conventions import SKELETON_FPS, SKELETON_JOINTS
 
@@ -102,6 +102,8 @@ class MocapClip:
             raise MocapError(f"{self.source}: positions must be (frames, {len(self.joint_names)}, 3), got {p.shape}")
         if p.shape[0] < 1:
             raise MocapError(f"{self.source}: no frames")
+        if p.shape[1] < 1:
+            raise MocapError(f"{self.source}: no joints")
         if not (np.isfinite(self.fps) and self.fps > 0):
             raise MocapError(f"{self.source}: frame rate must be positive, got {self.fps} (give --fps)")
         if np.isinf(p).any():

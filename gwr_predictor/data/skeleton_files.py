@@ -30,7 +30,8 @@ from pathlib import Path
 
 import numpy as np
 
-from gwr_predictor.data.file_limits import (
+from gwr_predictor.errors import GwrPredictorError
+from gwr_predictor.file_limits import (
     MAX_CSV_BYTES,
     MAX_FRAMES,
     MAX_JOINTS,
@@ -39,7 +40,6 @@ from gwr_predictor.data.file_limits import (
     check_count,
     check_file_size,
 )
-from gwr_predictor.errors import GwrPredictorError
 from gwr_predictor.pipeline.conventions import SKELETON_JOINTS
 
 CAMERA_CONVENTION = "openni-rh"

@@ -67,11 +67,6 @@ GATE_SPECS = {spec.name: spec for spec in (
     ParamSpec("horizon", DEFAULT_HORIZON, "steps gated", 1),
     ParamSpec("joints", N_JOINTS, "joints per frame", 1),
 )}
-# per setting added after the first gate, in order: what a checkpoint written before it ran with
-_BEFORE = (
-    ("confidence", {"confidence": 0.0, "fast_decay": 0.0, "fast_confidence": 0.0}),  # the plain gate
-    ("fast_step", {"fast_step": 0}),  # each step's short memory judged by its own record
-)
 _XY, _XX, _YY, _N = range(4)  # the running sums, per memory
 
 
@@ -260,6 +255,9 @@ class GatedPredictor:
         return out
 
     # --- persistence --------------------------------------------------------------------------------
+    #: The gate's own arrays in every checkpoint (the model's follow under "model:").
+    ARRAYS: ClassVar[tuple[str, ...]] = ("gate:stats", "gate:scored", "gate:pending", "gate:valid")
+
     def state(self) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
         """(header, arrays) of the gate and its model (which needs `state`, `kind`, `from_state`)."""
         state = getattr(self.model, "state", None)
@@ -287,28 +285,16 @@ class GatedPredictor:
                 raise CheckpointError(f"{source}: the gate wraps a {header['model_kind']!r}; this build "
                                       f"restores {', '.join(_model_classes())}")
             sub = {k[len("model:"):]: v for k, v in arrays.items() if k.startswith("model:")}
-            settings = header["gate"]
-            for added, before in _BEFORE:  # an older checkpoint keeps the gate it was written with
-                if added not in settings:
-                    settings = {**settings, **before}
             gate = cls(model_cls.from_state(header["model"], sub, f"{source} (gated model)"),
-                       GateParams(**settings))
-            targets: dict[str, np.ndarray] = {"scored": gate._scored}
-            if "gate:stats" in arrays:
-                targets["stats"] = gate._stats
-            else:  # before the confidence bound: S_xy and S_xx of the one memory
-                targets.update(sxy=gate._stats[0, _XY], sxx=gate._stats[0, _XX])
-            if "t" in header:
-                gate._t = int(header["t"])
-                targets.update(pending=gate._pending.pending, valid=gate._pending.valid)
+                       GateParams(**header["gate"]))
+            gate._t = int(header["t"])
+            targets = {"scored": gate._scored, "stats": gate._stats, "pending": gate._pending.pending,
+                       "valid": gate._pending.valid}
             for name, dest in targets.items():
                 src = arrays[f"gate:{name}"]
                 if np.shape(src) != dest.shape:
                     raise ValueError(f"array gate:{name} has shape {np.shape(src)}, expected {dest.shape}")
                 dest[...] = src
-            if "t" not in header:  # the first layout: a ring by age, row r made r + 1 steps ago
-                gate._refile_ring(np.asarray(arrays["gate:pose"], dtype=float),
-                                  np.asarray(arrays["gate:diff"], dtype=float))
             gate._last = None if header["last"] is None else np.asarray(header["last"], dtype=float)
             gate._out_diff = np.array(arrays["gate:out_diff"], dtype=float) if header["out_diff"] else None
         except CheckpointError:
@@ -317,16 +303,6 @@ class GatedPredictor:
             raise CheckpointError(f"{source}: inconsistent gate checkpoint: {type(exc).__name__}: {exc}") from exc
         return gate
 
-    def _refile_ring(self, pose: np.ndarray, diff: np.ndarray) -> None:
-        """File a by-age ring (row r: the prediction made r + 1 steps ago) as pending predictions."""
-        h = self.params.horizon
-        if pose.shape != (h, self.params.joints) or diff.shape != (h, h, self.params.joints):
-            raise DefaultPredictorError(f"ring arrays of shapes {pose.shape} and {diff.shape} for horizon {h}")
-        self._t = h
-        for r in range(h):
-            row_ok = ~(np.isnan(pose[r, 0]) | np.isnan(diff[r, :, 0])) & (np.arange(h) >= r)  # targets to come
-            self._pending.file(self._t - 1 - r, np.stack([np.broadcast_to(pose[r], diff[r].shape), diff[r]]), row_ok)
-
     def save(self, path: str | os.PathLike[str]) -> None:
         """One atomic, versioned checkpoint of the gate and its model."""
         header, arrays = self.state()
@@ -334,7 +310,7 @@ class GatedPredictor:
 
     @classmethod
     def load(cls, path: str | os.PathLike[str]) -> GatedPredictor:
-        header, arrays = read_checkpoint(path, cls.kind, ["gate:scored"])
+        header, arrays = read_checkpoint(path, cls.kind, list(cls.ARRAYS))
         return cls.from_state(header, arrays, path)
 
 

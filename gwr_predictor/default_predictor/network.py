@@ -50,6 +50,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from gwr_predictor.default_predictor.params import DefaultPredictorError
+from gwr_predictor.learning.gwr import Prepared
 from gwr_predictor.learning.params import GWRParams
 from gwr_predictor.learning.predictive_gwr import PredictiveGWR
 
@@ -72,8 +73,6 @@ class LocalLinearPGWR(PredictiveGWR):
     neighbour (of the block `learn_local` updates) that the pair surprises is not moved by it either.
     """
 
-    #: what `learn_local` hands to the GWR step on the same block: (block size, the neurons' plasticity)
-    _handed: tuple[int, np.ndarray | None] | None = None
     #: at least the visits of the most visited neuron (removals do not lower it): 0 = nobody consolidates
     _most_visits: float = 0.0
     #: per visit of a neuron as BMU, the weight of its newest squared read-out error in `readout_mse`
@@ -133,6 +132,15 @@ class LocalLinearPGWR(PredictiveGWR):
         self._streak[last] = 0.0
         return super()._remove(i)
 
+    # --- insertion follows the data -------------------------------------------------------------
+    def follow_motion_scale(self, insertion_distance: float) -> None:
+        """Insert a neuron where the BMU is farther than `insertion_distance` (the regressor's units).
+
+        Here the GWR's distance factor is learned state, not a setting: it follows the data's running
+        motion scale, so that Eq. 2's test exp(-c d) < a_T holds exactly when d exceeds that distance
+        (c = -ln a_T / distance), whatever a_T is."""
+        self.distance_factor = -math.log(self.params.activation_threshold) / insertion_distance
+
     # --- consolidation --------------------------------------------------------------------------
     def _block_plasticity(self, block: np.ndarray) -> np.ndarray | None:
         """Per neuron of `block`: min(1, consolidate_after / visits), the factor on all its rates; None
@@ -144,14 +152,13 @@ class LocalLinearPGWR(PredictiveGWR):
                 return np.minimum(1.0, after / np.maximum(visits, 1.0))
         return None
 
-    def _step_rates(self, block: np.ndarray, h: np.ndarray) -> np.ndarray:
+    def _step_rates(self, block: np.ndarray, h: np.ndarray, prepared: Prepared | None = None) -> np.ndarray:
         """The GWR step's rates (Eqs. 4, 9) scaled by each neuron's plasticity: a consolidated neuron
         moves, and changes its output weight, as the running mean of its visits. Scaling position and
         output alike leaves its local model's function v + A^T (r - w) where its own visits put it."""
         rate = super()._step_rates(block, h)
-        handed, self._handed = self._handed, None
-        if handed is not None and handed[0] == block.size:  # from `learn_local` on this very block
-            plasticity = handed[1]
+        if prepared is not None and prepared.scaled == block.size:  # `learn_local`'s, for this very block
+            plasticity = prepared.rate_scale
         else:
             plasticity = self._block_plasticity(block)
         return rate if plasticity is None else rate * plasticity[:, None]
@@ -234,13 +241,11 @@ class LocalLinearPGWR(PredictiveGWR):
                 self._mse[b] = e2[0] if math.isnan(known) else known + self.ERROR_RATE * (e2[0] - known)
         if plasticity is not None:
             rates = rates * plasticity
-        self._handed = (block.size, plasticity)
         dd = np.vecdot(d, d)
         gain = rates / (dd + self.delta)
         a += np.einsum("ki,ko->kio", gain[:, None] * d, err)  # rank-1 NLMS step per neuron
         self._A[block] = a
-        b = self.learn_unchecked(x_in, y, neighbours=(b, nb, float(dd[0])))
-        self._handed = None  # unused if the step inserted a neuron instead
+        b = self.learn_unchecked(x_in, y, neighbours=Prepared(b, nb, float(dd[0]), plasticity, block.size))
         self._visits[b] += 1.0
         self._most_visits = max(self._most_visits, float(self._visits[b]))
         return b

@@ -51,14 +51,6 @@ LOCAL_LINEAR_SPECS = {spec.name: spec for spec in (
     ParamSpec("recruit_after", 2, "surprising pairs in a row after which a consolidated BMU recruits a neuron",
               1, 1000),
 )}
-# per setting added after the first local-linear P-GWR, in order: what a checkpoint written before it ran with
-_BEFORE = (
-    ("global_order", {"global_order": 0}),  # local read-outs only
-    ("consolidate_after", {"consolidate_after": 0}),  # constant output rates
-    ("recruit_surprise", {"recruit_surprise": 0.0}),  # no recruitment
-)
-
-
 @dataclass(frozen=True)
 class LocalLinearParams:
     """Settings of `LocalLinearPredictor` (chosen by `gwr-predictor experiment tune`, see docs).

@@ -24,15 +24,14 @@ from typing import Any, ClassVar
 import numpy as np
 
 from gwr_predictor.default_predictor.network import LocalLinearPGWR
-from gwr_predictor.default_predictor.params import _BEFORE, DefaultPredictorError, LocalLinearParams
+from gwr_predictor.default_predictor.params import DefaultPredictorError, LocalLinearParams
 from gwr_predictor.learning.checkpoint import CheckpointError, read_checkpoint, require_arrays, write_checkpoint
-from gwr_predictor.learning.gwr import InputError
-from gwr_predictor.learning.hierarchy import ErrorTracker
+from gwr_predictor.learning.online_loop import ErrorTracker, OnlineLoop
 from gwr_predictor.learning.rls import RecursiveLeastSquares, window_features
 from gwr_predictor.learning.scaling import InputScaling
 
 
-class LocalLinearPredictor:
+class LocalLinearPredictor(OnlineLoop):
     """Online predictor: regressor = the last `order` frames (rad, newest first); output = the
     displacements of the next `horizon` frames from the newest one, read out by `LocalLinearPGWR`.
 
@@ -60,10 +59,8 @@ class LocalLinearPredictor:
         self.pgwr = LocalLinearPGWR(p.order * p.n_joints, out_dim, p.gwr, rng, init_low=np.concatenate(
             [lo, np.zeros(out_dim)]), init_high=np.concatenate([hi, np.zeros(out_dim)]), rate=p.rate,
             consolidate_after=p.consolidate_after, recruit_surprise=p.recruit_surprise, recruit_after=p.recruit_after)
-        self._ln_at = -math.log(p.gwr.activation_threshold)
         self._motion_ms = p.noise_floor ** 2  # running mean of ||x(t) - x(t-1)||^2
-        self._t = self._frames = self._missing = self._predictions = self._sequences = 0
-        self._errors = ErrorTracker(p.horizon, p.n_joints, self.layer_names)
+        self._start_loop(p.horizon, p.n_joints)
         self._init_global()
         self._clear_sequence()
 
@@ -125,7 +122,7 @@ class LocalLinearPredictor:
         if self.linear is not None and queued is not None:  # filed with the regressor, which is here
             self._learn_global(self.linear, target, *queued)
         scale = max(math.sqrt(self._motion_ms), p.noise_floor) * p.insertion_scale * math.sqrt(p.order)
-        self.pgwr.distance_factor = self._ln_at / scale
+        self.pgwr.follow_motion_scale(scale)
         self.pgwr.learn_local(reg, target, p.neighbour_rate)
 
     def _learn_global(self, linear: RecursiveLeastSquares, target: np.ndarray, outs: np.ndarray | None,
@@ -172,14 +169,6 @@ class LocalLinearPredictor:
         local += reg[:p.n_joints]
         return local
 
-    def _as_frame(self, x: np.ndarray | None) -> np.ndarray | None:
-        if x is None:
-            return None
-        frame = np.asarray(x, dtype=float)
-        if frame.shape != (self.params.n_joints,):
-            raise InputError(f"a frame must have shape ({self.params.n_joints},), got {frame.shape}")
-        return frame if math.isfinite(frame.sum()) else None
-
     def _clear_sequence(self) -> None:
         p = self.params
         self._win = np.zeros((p.order, p.n_joints))
@@ -190,26 +179,12 @@ class LocalLinearPredictor:
         self._outs = deque(maxlen=p.horizon)
         self._last_reg = None
 
-    def reset_sequence(self) -> None:
-        """Sequence boundary: clear the window, the queue and pending predictions (never the network)."""
-        self._clear_sequence()
-        self._errors.forget_pending()
-        self._sequences += 1
-
-    def reset_errors(self) -> None:
-        """Zero the C.P.E. statistics (counters of frames stay)."""
-        self._errors.reset()
-
     # --- introspection ------------------------------------------------------------------------------
     @property
     def neuron_counts(self) -> tuple[int, ...]:
         return (self.pgwr.n_neurons,)
 
     layer_names: ClassVar[tuple[str, ...]] = ("pgwr",)
-
-    @property
-    def frames_seen(self) -> int:
-        return self._frames
 
     @property
     def motion_rms(self) -> float:
@@ -223,19 +198,16 @@ class LocalLinearPredictor:
     def errors(self) -> dict[str, Any]:
         """Counts, neurons (and how many of them were recruited), the motion scale, the read-outs'
         mixing weights, and C.P.E. (= P.E.) per step as the hierarchy reports it."""
-        out = {"steps": self._t, "frames": self._frames, "missing": self._missing,
-               "sequences": self._sequences, "predictions": self._predictions,
-               "neurons": {"pgwr": self.pgwr.n_neurons}, "recruited": self.pgwr.recruited,
+        out = {**self._counts(), "neurons": {"pgwr": self.pgwr.n_neurons}, "recruited": self.pgwr.recruited,
                "motion_rms_rad": self.motion_rms}
         if self.linear is not None:
             out["mix_weights"] = {"local": self._mix[:, 0].tolist(), "global": self._mix[:, 1].tolist()}
         return {**out, **self._errors.summary()}
 
     # --- persistence --------------------------------------------------------------------------------
-    #: The arrays every checkpoint has; "visits" came with consolidation (without it: zeros), "readout_mse"
-    #: with recruitment (without it: NaN).
-    ARRAYS: ClassVar[tuple[str, ...]] = ("weights", "matrices", "counters", "edges", "win", "hist", "regs",
-                                         *ErrorTracker.ARRAYS)
+    #: The arrays every checkpoint has (and, with a global read-out, GLOBAL_ARRAYS).
+    ARRAYS: ClassVar[tuple[str, ...]] = ("weights", "matrices", "visits", "readout_mse", "surprise_streaks",
+                                         "counters", "edges", "win", "hist", "regs", *ErrorTracker.ARRAYS)
     GLOBAL_ARRAYS: ClassVar[tuple[str, ...]] = ("global:weights", "global:p", "mix_sxx", "mix_sxy", "outs",
                                                 "out_features")
 
@@ -248,7 +220,7 @@ class LocalLinearPredictor:
         header = {"params": self.params.to_dict(), "distance_factor": g.distance_factor,
                   "motion_ms": self._motion_ms, "fill": self._fill, "reg_present": [r is not None for r in regs],
                   "last_reg": self._last_reg is not None,
-                  "counters": [self._t, self._frames, self._missing, self._predictions, self._sequences],
+                  "counters": self._counters_header(),
                   "errors": self._errors.header(), "recruited": g.recruited}
         arrays = {"weights": g.weights, "matrices": g.matrices.copy(), "visits": g.visits.copy(),
                   "readout_mse": g.readout_mse.copy(), "surprise_streaks": g.surprise_streaks.copy(),
@@ -275,28 +247,22 @@ class LocalLinearPredictor:
         """The predictor of a `state()`; CheckpointError naming `source` if it does not fit."""
         require_arrays(cls.ARRAYS, arrays, source)
         try:
-            settings = header["params"]
-            for added, before in _BEFORE:  # an older checkpoint keeps the learner it was written with
-                if added not in settings:
-                    settings = {**settings, **before}
-            params = LocalLinearParams.from_dict(settings)
+            params = LocalLinearParams.from_dict(header["params"])
             model = cls.__new__(cls)
             model.params = params
-            model._ln_at = -math.log(params.gwr.activation_threshold)
             model.pgwr = LocalLinearPGWR.from_parts(
                 arrays["weights"], arrays["matrices"], params.gwr, edges=arrays["edges"],
                 counters=arrays["counters"], match_dim=params.order * params.n_joints,
                 distance_factor=float(header["distance_factor"]), rate=params.rate, delta=1e-4,
-                visits=arrays.get("visits"), consolidate_after=params.consolidate_after,
-                readout_mse=arrays.get("readout_mse"), recruit_surprise=params.recruit_surprise,
-                recruited=int(header.get("recruited", 0)), streaks=arrays.get("surprise_streaks"),
+                visits=arrays["visits"], consolidate_after=params.consolidate_after,
+                readout_mse=arrays["readout_mse"], recruit_surprise=params.recruit_surprise,
+                recruited=int(header["recruited"]), streaks=arrays["surprise_streaks"],
                 recruit_after=params.recruit_after)
             if model.pgwr.out_dim != params.horizon * params.n_joints:
                 raise ValueError(f"outputs are {model.pgwr.out_dim}-d, parameters say "
                                  f"{params.horizon * params.n_joints}")
             model._motion_ms = float(header["motion_ms"])
-            (model._t, model._frames, model._missing, model._predictions,
-             model._sequences) = (int(v) for v in header["counters"])
+            model._restore_counters(header["counters"])
             model._errors = ErrorTracker(params.horizon, params.n_joints, cls.layer_names)
             model._errors.restore(header["errors"], arrays)
             model._clear_sequence()

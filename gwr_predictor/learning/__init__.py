@@ -15,7 +15,7 @@ _EXPORTS = {
     "PredictiveGWR": "predictive_gwr",
     "Hierarchy": "hierarchy",
     "FlatPredictor": "hierarchy",
-    "ErrorTracker": "hierarchy",
+    "ErrorTracker": "online_loop",
     "InputScaling": "scaling",
     "CheckpointError": "checkpoint",
     "KindMismatchError": "checkpoint",

@@ -28,7 +28,8 @@ from typing import Any
 
 import numpy as np
 
-from gwr_predictor.data.file_limits import (
+from gwr_predictor.errors import GwrPredictorError
+from gwr_predictor.file_limits import (
     MAX_ARCHIVE_MEMBERS,
     MAX_CHECKPOINT_BYTES,
     check_count,
@@ -37,15 +38,12 @@ from gwr_predictor.data.file_limits import (
     npy_header,
     zip_entry_count,
 )
-from gwr_predictor.errors import GwrPredictorError
 
 MAGIC = "gwr_predictor.checkpoint"
-#: 2: HierarchyParams gained `target` and `readout_k`, and the frame buffer `xbuf` keeps one frame
-#: more (the base of delta targets). Version 1 files are refused: their parameters lack the new keys.
-#: Within 2, a model's layers are stored in the network's own format (`GWR.state`: arrays
-#: `<layer>.weights/counters/edges`, the other values in the header's `layers`); files without
-#: `layers` take those values from the parameters, as they were written.
-FORMAT_VERSION = 2
+#: The one format this build reads and writes; older files are refused with a clear message (their
+#: history: CHANGELOG.md). 3: every model's arrays and header keys as the classes write them now, with
+#: no fallbacks for files of earlier development builds.
+FORMAT_VERSION = 3
 HEADER_KEY = "__header__"
 #: The JSON header holds parameters and small per-layer values (a few kB); arrays are members.
 MAX_HEADER_BYTES = 4 << 20
@@ -284,8 +282,8 @@ def read_checkpoint(path: str | os.PathLike[str], kind: str,
                               f"expected {MAGIC!r}: not a gwr_predictor checkpoint")
     version = header.get("format_version")
     if version != FORMAT_VERSION:
-        hint = (" (written by an older build, before the P-GWR target/read-out options: retrain or "
-                "re-run `gwr-predictor pretrain`)") if isinstance(version, int) and version < FORMAT_VERSION else ""
+        hint = (" (written by an older build: retrain, or re-run `gwr-predictor pretrain`; CHANGELOG.md says "
+                "what changed)") if isinstance(version, int) and version < FORMAT_VERSION else ""
         raise CheckpointError(f"{path}: format_version {version!r} is not supported (this build reads "
                               f"{FORMAT_VERSION}){hint}")
     if header.get("kind") != kind:

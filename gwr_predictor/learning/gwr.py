@@ -33,7 +33,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from typing import Any, TypeVar
+from typing import Any, NamedTuple, TypeVar
 
 import numpy as np
 
@@ -104,6 +104,19 @@ class _Search:
     def nearest(self, xm: np.ndarray, n: int) -> int:
         return int(self.affinity(xm, n).argmax())
 
+
+
+class Prepared(NamedTuple):
+    """What a caller has just computed for one query on a network, handed to its learning step so that
+    nothing is computed twice: the BMU b, b's neighbours, ||x - w_b||^2 and, for a subclass that
+    scales its neurons' rates, the factors (None: full rates) it found for a block of `scaled` neurons
+    starting with b (0: none found; the block [b, neighbours...] if `scaled` is its size)."""
+
+    b: int
+    neighbours: np.ndarray
+    dist2: float
+    rate_scale: np.ndarray | None = None
+    scaled: int = 0
 
 class GWR:
     """A GWR network over `dim`-dimensional vectors; see the module docstring for the step."""
@@ -318,11 +331,11 @@ class GWR:
         return self.learn_unchecked(self._check_input(x, self.dim))
 
     def learn_unchecked(self, x: np.ndarray, carried: np.ndarray | None = None,
-                        neighbours: tuple[int, np.ndarray, float] | None = None) -> int:
+                        neighbours: Prepared | None = None) -> int:
         """`learn` on trusted finite float vectors: x whole (dim,), or x its matched part and
         `carried` the rest (a Predictive GWR's (x_in, x_out): no concatenated copy). `neighbours`:
-        (b, b's neighbours, ||x - w_b||^2) if the caller has just computed them for this very query on
-        this network (used only if b is again the BMU), so neither is computed twice."""
+        what the caller has just computed for this very query on this network (used only if b is
+        again the BMU), so none of it is computed twice."""
         p = self.params
         n = self._n
         m = self.match_dim
@@ -344,7 +357,7 @@ class GWR:
                   and hb < p.firing_threshold
                   and (p.max_neurons is None or n < p.max_neurons))
         if not insert:  # Eq. 4 on b and its neighbours at once
-            rate = self._step_rates(block, h)
+            rate = self._step_rates(block, h, neighbours if known else None)
             wa = self._wa.take(block, axis=0)
             w = wa[:, :m]
             if m < self.dim:  # the carried part (Eq. 9), the same rates
@@ -385,9 +398,10 @@ class GWR:
         self.last_inserted = r
         return b
 
-    def _step_rates(self, block: np.ndarray, h: np.ndarray) -> np.ndarray:
+    def _step_rates(self, block: np.ndarray, h: np.ndarray, prepared: Prepared | None = None) -> np.ndarray:
         """(k, 1) rates of Eq. 4 (and 9) for the block [b, neighbours...] with firing counters h:
-        eps_b h_b, eps_n h_n. A subclass may scale them (`LocalLinearPGWR` consolidates its neurons)."""
+        eps_b h_b, eps_n h_n. A subclass may scale them (`LocalLinearPGWR` consolidates its neurons),
+        with what its caller `prepared` for this very block (None: nothing)."""
         return (self._eps_vec[:block.size] * h)[:, None]
 
     # --- structure changes ----------------------------------------------------------------------

@@ -25,8 +25,6 @@ sequence boundary and also drops those pending predictions. Networks are never c
 
 from __future__ import annotations
 
-import dataclasses
-import math
 import os
 from collections import deque
 from typing import Any, ClassVar
@@ -35,98 +33,10 @@ import numpy as np
 
 from gwr_predictor.learning.checkpoint import CheckpointError, read_checkpoint, require_arrays, write_checkpoint
 from gwr_predictor.learning.gwr import GWR, InputError
+from gwr_predictor.learning.online_loop import ErrorTracker, OnlineLoop, copy_into
 from gwr_predictor.learning.params import LAYERS, HierarchyParams
 from gwr_predictor.learning.predictive_gwr import PredictiveGWR
 from gwr_predictor.learning.scaling import InputScaling
-from gwr_predictor.pending import PendingPredictions
-
-
-class ErrorTracker:
-    """P.E./C.P.E. per horizon step (MSE, rad^2) and per-layer quantization errors (rad).
-
-    Predictions wait in `pending.PendingPredictions` under the step they target, so a prediction is
-    scored exactly when its target arrives. Squared errors are summed over joints here and divided
-    by the joint count in `summary`.
-    """
-
-    def __init__(self, horizon: int, n_joints: int, layers: tuple[str, ...]) -> None:
-        self.horizon = horizon
-        self.n_joints = n_joints
-        self.layers = layers
-        self._targets = np.empty((2, 1, n_joints))  # [P.E. target, C.P.E. target]
-        self._pending = PendingPredictions(horizon, n_joints)
-        self.reset()
-
-    def reset(self) -> None:
-        """Zero the accumulated errors (pending predictions stay)."""
-        self.sse = np.zeros((2, self.horizon))  # rows: P.E., C.P.E.; summed over joints
-        self.count = np.zeros(self.horizon, dtype=np.int64)
-        self.q_last = {name: math.nan for name in self.layers}
-        self.q_sum = {name: 0.0 for name in self.layers}
-        self.q_count = {name: 0 for name in self.layers}
-
-    def forget_pending(self) -> None:
-        self._pending.drop()
-
-    def expect(self, t: int, prediction: np.ndarray) -> None:
-        """File the prediction (horizon, joints) made at step t: row k targets step t + k + 1."""
-        self._pending.file(t, prediction)
-
-    def score(self, t: int, frame: np.ndarray | None, represented: np.ndarray | None) -> None:
-        """Score the predictions targeting step t (None: missing frame, they are dropped)."""
-        predicted, valid = self._pending.take(t)
-        if frame is not None and valid.any():
-            if represented is frame:  # no lower layers (P.E. = C.P.E.): one difference for both rows
-                diff = predicted - frame
-            else:
-                targets = self._targets
-                targets[0, 0] = represented
-                targets[1, 0] = frame
-                diff = predicted - targets
-            err = np.vecdot(diff, diff)
-            if not valid.all():
-                err *= valid
-            self.sse += err
-            self.count += valid
-
-    def quantization(self, layer: str, distance_rad: float) -> None:
-        self.q_last[layer] = distance_rad
-        self.q_sum[layer] += distance_rad
-        self.q_count[layer] += 1
-
-    def summary(self) -> dict[str, Any]:
-        with np.errstate(invalid="ignore", divide="ignore"):
-            pe, cpe = self.sse / (self.count * self.n_joints)
-        total = int(self.count.sum()) * self.n_joints
-        return {
-            "pe": pe.tolist(),
-            "cpe": cpe.tolist(),
-            "pe_mean": float(self.sse[0].sum() / total) if total else math.nan,
-            "cpe_mean": float(self.sse[1].sum() / total) if total else math.nan,
-            "scored": self.count.tolist(),
-            "quantization_last": dict(self.q_last),
-            "quantization_mean": {k: (self.q_sum[k] / self.q_count[k] if self.q_count[k] else math.nan)
-                                  for k in self.layers},
-        }
-
-    # persistence
-    ARRAYS = ("err.sse", "err.count", "err.pending", "err.valid")
-
-    def arrays(self) -> dict[str, np.ndarray]:
-        return dict(zip(self.ARRAYS, self._state(), strict=True))
-
-    def _state(self) -> tuple[np.ndarray, ...]:
-        return self.sse, self.count, self._pending.pending, self._pending.valid
-
-    def header(self) -> dict[str, Any]:
-        return {"q_last": self.q_last, "q_sum": self.q_sum, "q_count": self.q_count}
-
-    def restore(self, header: dict[str, Any], arrays: dict[str, np.ndarray]) -> None:
-        for name, current in zip(self.ARRAYS, self._state(), strict=True):
-            _copy_into(current, arrays[name], name)
-        self.q_last = {k: float(v) for k, v in header["q_last"].items()}
-        self.q_sum = {k: float(v) for k, v in header["q_sum"].items()}
-        self.q_count = {k: int(v) for k, v in header["q_count"].items()}
 
 
 class _Window:
@@ -149,11 +59,11 @@ class _Window:
         return self.fill == len(rows)
 
     def restore(self, rows: np.ndarray, fill: int, name: str) -> None:
-        _copy_into(self.rows, rows, name)
+        copy_into(self.rows, rows, name)
         self.fill = int(fill)
 
 
-class _OnlinePredictor:
+class _OnlinePredictor(OnlineLoop):
     """Shared online loop of `Hierarchy` and `FlatPredictor`: gaps, delayed targets, predictions,
     bookkeeping, persistence. Subclasses encode frames into regressors."""
 
@@ -176,8 +86,7 @@ class _OnlinePredictor:
         for name in self.layer_names:
             setattr(self, name, self._new_layer(name))
         self._frozen: frozenset[str] = frozenset()
-        self._t = self._frames = self._missing = self._sequences = self._predictions = 0
-        self._errors = ErrorTracker(self.params.horizon, self.params.n_joints, self.layer_names)
+        self._start_loop(self.params.horizon, self.params.n_joints)
         self._clear_sequence()
 
     def _configure(self) -> None:
@@ -241,14 +150,6 @@ class _OnlinePredictor:
         self._missing += 1
         self._errors.score(t, None, None)
         self._clear_sequence()
-
-    def _as_frame(self, x: np.ndarray | None) -> np.ndarray | None:
-        if x is None:
-            return None
-        frame = np.asarray(x, dtype=float)
-        if frame.shape != (self.params.n_joints,):
-            raise InputError(f"a frame must have shape ({self.params.n_joints},), got {frame.shape}")
-        return frame if math.isfinite(frame.sum()) else None
 
     def _observe(self, xs: np.ndarray) -> None:
         """Keep the last `_target_steps` + 1 scaled frames, oldest first: the targets of the pair
@@ -333,16 +234,6 @@ class _OnlinePredictor:
         self._regs = deque(maxlen=self._target_steps)
         self._last_reg = None
 
-    def reset_sequence(self) -> None:
-        """Sequence boundary: clear windows, queues and pending predictions (not the networks)."""
-        self._clear_sequence()
-        self._errors.forget_pending()
-        self._sequences += 1
-
-    def reset_errors(self) -> None:
-        """Zero P.E., C.P.E. and quantization statistics (counters of frames stay)."""
-        self._errors.reset()
-
     def freeze_layers(self, which: tuple[str, ...] | list[str]) -> None:
         """Stop learning in exactly these layers (they still match); () unfreezes all."""
         unknown = set(which) - set(self.layer_names)
@@ -370,22 +261,11 @@ class _OnlinePredictor:
         """Neurons per layer, in `layer_names` order."""
         return tuple(getattr(self, n).n_neurons for n in self.layer_names)
 
-    @property
-    def frames_seen(self) -> int:
-        return self._frames
-
     def errors(self) -> dict[str, Any]:
         """Bookkeeping: counts, neurons, quantization errors (rad, Euclidean over a layer's input,
         last and mean), P.E./C.P.E. (MSE rad^2 per horizon step, their means, how many scored)."""
-        return {
-            "steps": self._t,
-            "frames": self._frames,
-            "missing": self._missing,
-            "sequences": self._sequences,
-            "predictions": self._predictions,
-            "neurons": dict(zip(self.layer_names, self.neuron_counts, strict=True)),
-            **self._errors.summary(),
-        }
+        return {**self._counts(), "neurons": dict(zip(self.layer_names, self.neuron_counts, strict=True)),
+                **self._errors.summary()}
 
     # --- persistence ----------------------------------------------------------------------------
     def _window_arrays(self) -> dict[str, np.ndarray]:
@@ -408,8 +288,7 @@ class _OnlinePredictor:
         header = {
             "params": self.params.to_flat(),
             "rng": self._rng.bit_generator.state,
-            "counters": {"t": self._t, "frames": self._frames, "missing": self._missing,
-                         "sequences": self._sequences, "predictions": self._predictions},
+            "counters": self._counters_header(),
             "frozen": sorted(self._frozen),
             "xfill": self._xfill,
             "reg_present": [r is not None for r in regs],
@@ -456,27 +335,22 @@ class _OnlinePredictor:
         model.params = HierarchyParams.from_flat(header["params"])
         model._rng = np.random.default_rng(0)  # only for the layer templates; replaced below
         model._configure()
-        layers = header.get("layers", {})
         for name in cls.layer_names:
             template = model._new_layer(name)  # sizes and distance factor from the parameters
-            # files written before the layers' GWR.state was in the header: its values from the parameters
-            saved = layers.get(name) or {"match_dim": template.match_dim, "params": dataclasses.asdict(template.params),
-                                         "distance_factor": template.distance_factor}
+            saved = header["layers"][name]
             net = type(template).from_state({**saved, **{a: arrays[f"{name}.{a}"] for a in GWR.STATE_ARRAYS}})
             for what in ("dim", "match_dim", "distance_factor", "params"):
                 if getattr(net, what) != getattr(template, what):
                     raise InputError(f"layer {name} has {what} {getattr(net, what)!r}, "
                                      f"the parameters say {getattr(template, what)!r}")
             setattr(model, name, net)
-        c = header["counters"]
-        model._t, model._frames, model._missing = int(c["t"]), int(c["frames"]), int(c["missing"])
-        model._sequences, model._predictions = int(c["sequences"]), int(c["predictions"])
+        model._restore_counters(header["counters"])
         model.freeze_layers(tuple(header["frozen"]))
         model._errors = ErrorTracker(model.params.horizon, model.params.n_joints, cls.layer_names)
         model._errors.restore(header["errors"], arrays)
         model._clear_sequence()
         model._restore_windows(header, arrays)
-        _copy_into(model._xbuf, arrays["xbuf"], "xbuf")
+        copy_into(model._xbuf, arrays["xbuf"], "xbuf")
         model._xfill = int(header["xfill"])
         present = header["reg_present"]
         regs = arrays["regs"]
@@ -488,12 +362,6 @@ class _OnlinePredictor:
         model._rng = np.random.default_rng()
         model._rng.bit_generator.state = header["rng"]
         return model
-
-
-def _copy_into(dest: np.ndarray, src: np.ndarray, name: str) -> None:
-    if src.shape != dest.shape:
-        raise InputError(f"array {name!r} has shape {src.shape}, expected {dest.shape}")
-    dest[...] = src
 
 
 class Hierarchy(_OnlinePredictor):

@@ -16,8 +16,8 @@ from typing import Any
 
 import yaml
 
-from gwr_predictor.data.file_limits import check_file_size
 from gwr_predictor.errors import GwrPredictorError
+from gwr_predictor.file_limits import check_file_size
 
 #: A params file is settings, never data: larger than this is not one.
 MAX_PARAMS_FILE_BYTES = 1 << 20

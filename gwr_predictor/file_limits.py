@@ -68,7 +68,7 @@ def check_count(path: str | os.PathLike[str], count: int, limit: int, what: str,
     """`count` (of frames, joints, values... that `path` declares) unless it exceeds `limit`."""
     if count > limit:
         raise error(f"{path}: {count:,} {what} exceed the limit of {limit:,} "
-                    "(gwr_predictor.data.file_limits); refused before reading")
+                    "(gwr_predictor.file_limits); refused before reading")
     return count
 
 
@@ -85,7 +85,7 @@ def check_resampled(path: str | os.PathLike[str], duration_s: float, fps: float,
     frames = duration_s * fps + 1.0
     if not np.isfinite(frames) or frames > MAX_FRAMES:
         raise error(f"{path}: {duration_s:.6g} s at {fps:g} fps are {frames:,.0f} frames, over the limit of "
-                    f"{MAX_FRAMES:,} (gwr_predictor.data.file_limits; a wrong frame time?); refused before resampling")
+                    f"{MAX_FRAMES:,} (gwr_predictor.file_limits; a wrong frame time?); refused before resampling")
     return int(frames)
 
 
@@ -103,7 +103,7 @@ def check_npz_members(path: str | os.PathLike[str], limit: int, what: str,
     try:
         with zipfile.ZipFile(path) as zf:
             total = sum(info.file_size for info in zf.infolist())
-    except (zipfile.BadZipFile, OSError, ValueError):
+    except (zipfile.BadZipFile, OSError, ValueError, EOFError, NotImplementedError, RuntimeError, struct.error):
         return 0
     if total > limit:
         raise error(f"{path}: its arrays inflate to {_human(total)}, too large for a {what} "

@@ -1,0 +1,161 @@
+"""What every online learner of the package shares: one frame per `step`, counted; a missing sample
+(None or a non-finite value) as a gap; P.E./C.P.E. bookkeeping scored only when targets arrive;
+sequence resets. The paper's hierarchy (`hierarchy.py`) and the default predictor
+(`default_predictor/predictor.py`) build their own learning on it.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any, ClassVar
+
+import numpy as np
+
+from gwr_predictor.learning.gwr import InputError
+from gwr_predictor.pending import PendingPredictions
+
+
+class ErrorTracker:
+    """P.E./C.P.E. per horizon step (MSE, rad^2) and per-layer quantization errors (rad).
+
+    Predictions wait in `pending.PendingPredictions` under the step they target, so a prediction is
+    scored exactly when its target arrives. Squared errors are summed over joints here and divided
+    by the joint count in `summary`.
+    """
+
+    def __init__(self, horizon: int, n_joints: int, layers: tuple[str, ...]) -> None:
+        self.horizon = horizon
+        self.n_joints = n_joints
+        self.layers = layers
+        self._targets = np.empty((2, 1, n_joints))  # [P.E. target, C.P.E. target]
+        self._pending = PendingPredictions(horizon, n_joints)
+        self.reset()
+
+    def reset(self) -> None:
+        """Zero the accumulated errors (pending predictions stay)."""
+        self.sse = np.zeros((2, self.horizon))  # rows: P.E., C.P.E.; summed over joints
+        self.count = np.zeros(self.horizon, dtype=np.int64)
+        self.q_last = {name: math.nan for name in self.layers}
+        self.q_sum = {name: 0.0 for name in self.layers}
+        self.q_count = {name: 0 for name in self.layers}
+
+    def forget_pending(self) -> None:
+        self._pending.drop()
+
+    def expect(self, t: int, prediction: np.ndarray) -> None:
+        """File the prediction (horizon, joints) made at step t: row k targets step t + k + 1."""
+        self._pending.file(t, prediction)
+
+    def score(self, t: int, frame: np.ndarray | None, represented: np.ndarray | None) -> None:
+        """Score the predictions targeting step t (None: missing frame, they are dropped)."""
+        predicted, valid = self._pending.take(t)
+        if frame is not None and valid.any():
+            if represented is frame:  # no lower layers (P.E. = C.P.E.): one difference for both rows
+                diff = predicted - frame
+            else:
+                targets = self._targets
+                targets[0, 0] = represented
+                targets[1, 0] = frame
+                diff = predicted - targets
+            err = np.vecdot(diff, diff)
+            if not valid.all():
+                err *= valid
+            self.sse += err
+            self.count += valid
+
+    def quantization(self, layer: str, distance_rad: float) -> None:
+        self.q_last[layer] = distance_rad
+        self.q_sum[layer] += distance_rad
+        self.q_count[layer] += 1
+
+    def summary(self) -> dict[str, Any]:
+        with np.errstate(invalid="ignore", divide="ignore"):
+            pe, cpe = self.sse / (self.count * self.n_joints)
+        total = int(self.count.sum()) * self.n_joints
+        return {
+            "pe": pe.tolist(),
+            "cpe": cpe.tolist(),
+            "pe_mean": float(self.sse[0].sum() / total) if total else math.nan,
+            "cpe_mean": float(self.sse[1].sum() / total) if total else math.nan,
+            "scored": self.count.tolist(),
+            "quantization_last": dict(self.q_last),
+            "quantization_mean": {k: (self.q_sum[k] / self.q_count[k] if self.q_count[k] else math.nan)
+                                  for k in self.layers},
+        }
+
+    # persistence
+    ARRAYS = ("err.sse", "err.count", "err.pending", "err.valid")
+
+    def arrays(self) -> dict[str, np.ndarray]:
+        return dict(zip(self.ARRAYS, self._state(), strict=True))
+
+    def _state(self) -> tuple[np.ndarray, ...]:
+        return self.sse, self.count, self._pending.pending, self._pending.valid
+
+    def header(self) -> dict[str, Any]:
+        return {"q_last": self.q_last, "q_sum": self.q_sum, "q_count": self.q_count}
+
+    def restore(self, header: dict[str, Any], arrays: dict[str, np.ndarray]) -> None:
+        for name, current in zip(self.ARRAYS, self._state(), strict=True):
+            copy_into(current, arrays[name], name)
+        self.q_last = {k: float(v) for k, v in header["q_last"].items()}
+        self.q_sum = {k: float(v) for k, v in header["q_sum"].items()}
+        self.q_count = {k: int(v) for k, v in header["q_count"].items()}
+
+
+
+class OnlineLoop:
+    """Counters, gaps and error bookkeeping of an online learner; subclasses define `params` (with
+    `n_joints`), `layer_names` and `_clear_sequence` (their windows and queues)."""
+
+    layer_names: ClassVar[tuple[str, ...]]
+    params: Any
+    _COUNTERS: ClassVar[tuple[str, ...]] = ("t", "frames", "missing", "sequences", "predictions")
+
+    def _start_loop(self, horizon: int, n_joints: int) -> None:
+        self._t = self._frames = self._missing = self._sequences = self._predictions = 0
+        self._errors = ErrorTracker(horizon, n_joints, self.layer_names)
+
+    def _clear_sequence(self) -> None:
+        raise NotImplementedError
+
+    def _as_frame(self, x: np.ndarray | None) -> np.ndarray | None:
+        """The frame as floats, or None for a missing sample; InputError for a frame of another size."""
+        if x is None:
+            return None
+        frame = np.asarray(x, dtype=float)
+        if frame.shape != (self.params.n_joints,):
+            raise InputError(f"a frame must have shape ({self.params.n_joints},), got {frame.shape}")
+        return frame if math.isfinite(frame.sum()) else None
+
+    def reset_sequence(self) -> None:
+        """Sequence boundary: clear windows, queues and pending predictions (never what was learned)."""
+        self._clear_sequence()
+        self._errors.forget_pending()
+        self._sequences += 1
+
+    def reset_errors(self) -> None:
+        """Zero the error statistics (the frame counters stay)."""
+        self._errors.reset()
+
+    @property
+    def frames_seen(self) -> int:
+        return self._frames
+
+    def _counts(self) -> dict[str, int]:
+        return {"steps": self._t, "frames": self._frames, "missing": self._missing,
+                "sequences": self._sequences, "predictions": self._predictions}
+
+    def _counters_header(self) -> dict[str, int]:
+        return {name: getattr(self, f"_{name}") for name in self._COUNTERS}
+
+    def _restore_counters(self, counters: dict[str, Any]) -> None:
+        for name in self._COUNTERS:
+            setattr(self, f"_{name}", int(counters[name]))
+
+
+def copy_into(dest: np.ndarray, src: np.ndarray, name: str) -> None:
+    """`src` into `dest` (a checkpoint's array into the learner's), or InputError naming it."""
+    if src.shape != dest.shape:
+        raise InputError(f"array {name!r} has shape {src.shape}, expected {dest.shape}")
+    dest[...] = src
