@@ -42,7 +42,7 @@ from typing import TYPE_CHECKING, Any, ClassVar
 import numpy as np
 
 from gwr_predictor.default_predictor.params import DefaultPredictorError
-from gwr_predictor.learning.checkpoint import CheckpointError, read_checkpoint, write_checkpoint
+from gwr_predictor.learning.checkpoint import Checkpointed, CheckpointError
 from gwr_predictor.parameter_spec import ParamSpec, check_fields
 from gwr_predictor.pending import PendingPredictions
 from gwr_predictor.pipeline.conventions import DEFAULT_HORIZON
@@ -102,7 +102,7 @@ class GateParams:
         return long + ((self.fast_decay, self.fast_confidence),) if self.fast_decay > 0 else long
 
 
-class GatedPredictor:
+class GatedPredictor(Checkpointed):
     """`model`'s predictions shrunk towards hold-last per horizon step (see the module docstring)."""
 
     kind: ClassVar[str] = "GatedPredictor"
@@ -302,17 +302,6 @@ class GatedPredictor:
         except (KeyError, ValueError, TypeError, IndexError) as exc:
             raise CheckpointError(f"{source}: inconsistent gate checkpoint: {type(exc).__name__}: {exc}") from exc
         return gate
-
-    def save(self, path: str | os.PathLike[str]) -> None:
-        """One atomic, versioned checkpoint of the gate and its model."""
-        header, arrays = self.state()
-        write_checkpoint(path, self.kind, header, arrays)
-
-    @classmethod
-    def load(cls, path: str | os.PathLike[str]) -> GatedPredictor:
-        header, arrays = read_checkpoint(path, cls.kind, list(cls.ARRAYS))
-        return cls.from_state(header, arrays, path)
-
 
 def inner_model(model: Any) -> Any:
     """The learner behind a gate, or the model itself: what has neurons, errors and `frames_seen`."""

@@ -25,13 +25,13 @@ import numpy as np
 
 from gwr_predictor.default_predictor.network import LocalLinearPGWR
 from gwr_predictor.default_predictor.params import DefaultPredictorError, LocalLinearParams
-from gwr_predictor.learning.checkpoint import CheckpointError, read_checkpoint, require_arrays, write_checkpoint
+from gwr_predictor.learning.checkpoint import Checkpointed, CheckpointError, require_arrays
 from gwr_predictor.learning.online_loop import ErrorTracker, OnlineLoop
 from gwr_predictor.learning.rls import RecursiveLeastSquares, window_features
 from gwr_predictor.learning.scaling import InputScaling
 
 
-class LocalLinearPredictor(OnlineLoop):
+class LocalLinearPredictor(OnlineLoop, Checkpointed):
     """Online predictor: regressor = the last `order` frames (rad, newest first); output = the
     displacements of the next `horizon` frames from the newest one, read out by `LocalLinearPGWR`.
 
@@ -312,12 +312,3 @@ class LocalLinearPredictor(OnlineLoop):
             raise DefaultPredictorError("read-out queue out of step with the regressor queue")
         for flag, o, f in zip(present, outs, features, strict=True):
             self._outs.append((o.copy(), f.copy()) if flag else None)
-
-    def save(self, path: str | os.PathLike[str]) -> None:
-        header, arrays = self.state()
-        write_checkpoint(path, self.kind, header, arrays)
-
-    @classmethod
-    def load(cls, path: str | os.PathLike[str]) -> LocalLinearPredictor:
-        header, arrays = read_checkpoint(path, cls.kind, list(cls.ARRAYS))
-        return cls.from_state(header, arrays, path)

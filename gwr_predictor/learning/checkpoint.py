@@ -24,7 +24,7 @@ import tempfile
 import zipfile
 from collections.abc import Iterable, Mapping
 from pathlib import Path
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 
@@ -196,6 +196,40 @@ def _fsync_dir(folder: Path) -> None:
 
 _ZIP_LOCAL = b"PK\x03\x04"
 _FIRST_MEMBER = (HEADER_KEY + ".npy").encode()
+
+
+class Checkpointed:
+    """One way to save and load for every learner: a class names its `kind` and the arrays every one
+    of its checkpoints holds (`required_arrays`), and says what its state is (`state`) and how to
+    rebuild from it (`from_state`); writing, reading, versions and every check on the file are here."""
+
+    kind: ClassVar[str]
+    ARRAYS: ClassVar[tuple[str, ...]] = ()
+
+    @classmethod
+    def required_arrays(cls) -> list[str]:
+        """The arrays every checkpoint of this class holds (reading checks them before `from_state`)."""
+        return list(cls.ARRAYS)
+
+    def state(self) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
+        """(JSON-able header, named arrays) of the whole state; `from_state` continues bit for bit."""
+        raise NotImplementedError
+
+    @classmethod
+    def from_state(cls, header: dict[str, Any], arrays: dict[str, np.ndarray],
+                   source: str | os.PathLike[str] = "<state>") -> Any:
+        raise NotImplementedError
+
+    def save(self, path: str | os.PathLike[str]) -> None:
+        """Write the whole state atomically (CheckpointError on failure)."""
+        header, arrays = self.state()
+        write_checkpoint(path, self.kind, header, arrays)
+
+    @classmethod
+    def load(cls, path: str | os.PathLike[str]) -> Any:
+        """A model saved by `save`, continuing where it stopped; CheckpointError naming the file otherwise."""
+        header, arrays = read_checkpoint(path, cls.kind, cls.required_arrays())
+        return cls.from_state(header, arrays, path)
 
 
 def looks_like_checkpoint(path: str | os.PathLike[str]) -> bool:

@@ -31,7 +31,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from gwr_predictor.learning.checkpoint import CheckpointError, read_checkpoint, require_arrays, write_checkpoint
+from gwr_predictor.learning.checkpoint import Checkpointed, CheckpointError, require_arrays
 from gwr_predictor.learning.gwr import GWR, InputError
 from gwr_predictor.learning.online_loop import ErrorTracker, OnlineLoop, copy_into
 from gwr_predictor.learning.params import LAYERS, HierarchyParams
@@ -63,7 +63,7 @@ class _Window:
         self.fill = int(fill)
 
 
-class _OnlinePredictor(OnlineLoop):
+class _OnlinePredictor(OnlineLoop, Checkpointed):
     """Shared online loop of `Hierarchy` and `FlatPredictor`: gaps, delayed targets, predictions,
     bookkeeping, persistence. Subclasses encode frames into regressors."""
 
@@ -274,11 +274,6 @@ class _OnlinePredictor(OnlineLoop):
     def _restore_windows(self, header: dict[str, Any], arrays: dict[str, np.ndarray]) -> None:
         raise NotImplementedError
 
-    def save(self, path: str | os.PathLike[str]) -> None:
-        """Write the whole state (networks, windows, queues, errors, random state) atomically."""
-        header, arrays = self.state()
-        write_checkpoint(path, self.kind, header, arrays)
-
     def state(self) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
         """(JSON-able header, named arrays) of the whole state, as `save` writes it under `kind`. The
         arrays may share memory with the model: write or copy them before it steps again."""
@@ -310,12 +305,6 @@ class _OnlinePredictor(OnlineLoop):
         """Names of the arrays `state` always holds."""
         required = ["xbuf", "regs", *ErrorTracker.ARRAYS]
         return required + [f"{n}.{a}" for n in cls.layer_names for a in GWR.STATE_ARRAYS]
-
-    @classmethod
-    def load(cls, path: str | os.PathLike[str]) -> Any:
-        """A model saved by `save`; continues exactly where it stopped. Raises CheckpointError."""
-        header, arrays = read_checkpoint(path, cls.kind, cls.required_arrays())
-        return cls.from_state(header, arrays, path)
 
     @classmethod
     def from_state(cls, header: dict[str, Any], arrays: dict[str, np.ndarray],

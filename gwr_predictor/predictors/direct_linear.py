@@ -30,7 +30,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from gwr_predictor.learning.checkpoint import CheckpointError, read_checkpoint, require_arrays, write_checkpoint
+from gwr_predictor.learning.checkpoint import Checkpointed, CheckpointError, require_arrays
 from gwr_predictor.learning.rls import RecursiveLeastSquares, window_features
 from gwr_predictor.parameter_spec import ParamSpec, check_fields
 from gwr_predictor.pipeline.conventions import DEFAULT_HORIZON
@@ -75,7 +75,7 @@ class DirectLinearParams:
         return self.order * self.joints + 1
 
 
-class DirectLinear:
+class DirectLinear(Checkpointed):
     """Online direct multi-step linear predictor (see the module docstring); the `Predictor` protocol."""
 
     kind: ClassVar[str] = "DirectLinear"
@@ -182,16 +182,6 @@ class DirectLinear:
         except (KeyError, ValueError, TypeError, IndexError) as exc:
             raise CheckpointError(f"{source}: inconsistent direct-linear state: {type(exc).__name__}: {exc}") from exc
         return model
-
-    def save(self, path: str | os.PathLike[str]) -> None:
-        header, arrays = self.state()
-        write_checkpoint(path, self.kind, header, arrays)
-
-    @classmethod
-    def load(cls, path: str | os.PathLike[str]) -> DirectLinear:
-        header, arrays = read_checkpoint(path, cls.kind, list(cls.ARRAYS))
-        return cls.from_state(header, arrays, path)
-
 
 #: The `linear` baseline's settings in every report, chosen by `gwr-predictor experiment tune` with the
 #: same split and grid size as the default predictor's (docs/results/tune).
