@@ -250,6 +250,7 @@ class RosSession:
         self.env = ros_env(self.domain_id, self.log_dir)
         self.processes: list[NodeProcess] = []
         self._probe: Probe | None = None
+        self._diagnostics: dict[str, dict[str, str]] | None = None
         self._killed = False  # a SIGKILL leaves Fast DDS segments in /dev/shm: clean them at the end
 
     @property
@@ -297,6 +298,20 @@ class RosSession:
         proc = self.start(name, **kwargs)
         code = proc.wait(timeout)
         return code, proc.output()
+
+    @property
+    def diagnostics(self) -> dict[str, dict[str, str]]:
+        """The probe's view of /diagnostics (one subscription per test), updated while it spins."""
+        if self._diagnostics is None:
+            self._diagnostics = self.probe.subscribe_diagnostics()
+        return self._diagnostics
+
+    def start_ready(self, name: str, timeout: float = 60.0, **kwargs: Any) -> NodeProcess:
+        """`start` a node and wait for its first /diagnostics status (its topics then exist)."""
+        proc = self.start(name, **kwargs)
+        namespace = kwargs.get("namespace") or ""
+        self.wait_for_node(self.diagnostics, f"{namespace.rstrip('/')}/{name}", timeout=timeout)
+        return proc
 
     def wait_for_node(self, diagnostics: dict[str, dict[str, str]], fq_name: str, timeout: float = 30.0) -> None:
         """Ready = its first /diagnostics status arrived (so its publishers and subscriptions exist)."""

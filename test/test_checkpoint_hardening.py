@@ -228,9 +228,8 @@ def test_the_learner_moves_any_unreadable_checkpoint_aside_and_starts_fresh(ros,
     checkpoint = tmp_path / "model.npz"
     corrupt(checkpoint)
     bad = checkpoint.read_bytes()
-    diagnostics = ros.probe.subscribe_diagnostics()
-    learner = ros.start("gwr_hierarchy", params={**FAST, "checkpoint": str(checkpoint)})
-    ros.wait_for_node(diagnostics, "/gwr_hierarchy", timeout=60)
+    diagnostics = ros.diagnostics
+    learner = ros.start_ready("gwr_hierarchy", params={**FAST, "checkpoint": str(checkpoint)})
     (aside,) = tmp_path.glob("model.npz.corrupt-*")
     assert aside.read_bytes() == bad
     assert diagnostics["/gwr_hierarchy"]["checkpoint.corrupt_moved_aside"] == "1"
@@ -243,7 +242,7 @@ def test_the_learner_moves_any_unreadable_checkpoint_aside_and_starts_fresh(ros,
 def test_a_second_learner_on_the_same_checkpoint_refuses_to_start(ros, tmp_path):
     checkpoint = tmp_path / "model.npz"
     make_predictor(DEFAULT_PREDICTOR).save(checkpoint)
-    diagnostics = ros.probe.subscribe_diagnostics()
+    diagnostics = ros.diagnostics
     first = ros.start("gwr_hierarchy", label="first", params={**FAST, "checkpoint": str(checkpoint)})
     ros.wait_for_node(diagnostics, "/gwr_hierarchy", timeout=60)
     # another namespace: the duplicate detector does not apply, only the checkpoint is shared
@@ -265,7 +264,7 @@ def test_a_second_learner_on_the_same_checkpoint_refuses_to_start(ros, tmp_path)
 def test_a_stranger_taking_the_node_name_does_not_stop_it(ros):
     """A node named like the compensator publishing statuses of another 'instance' that claims to have
     started first, but with no publisher on the compensator's outputs, is not a second compensator."""
-    diagnostics = ros.probe.subscribe_diagnostics()
+    diagnostics = ros.diagnostics
     victim = ros.start("delay_compensator", params=FAST)
     ros.wait_for_node(diagnostics, "/delay_compensator", timeout=60)
     stranger = Probe(ros.domain_id, name="delay_compensator")

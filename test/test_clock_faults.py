@@ -111,11 +111,10 @@ def state_stamps(box: list) -> list[float]:
 @pytest.mark.ros
 def test_nao_sim_follows_clock_jumps_either_way_and_stays_responsive_to_sigint(ros):
     probe = ros.probe
-    diagnostics = probe.subscribe_diagnostics()
+    diagnostics = ros.diagnostics
     states = probe.subscribe(TOPIC_ROBOT_STATE, messages.JointState)
     clock = probe.publisher("/clock", messages.Clock, CLOCK_QOS)
-    sim = ros.start("nao_sim", params={**SIM, "backend": "kinematic"})
-    ros.wait_for_node(diagnostics, "/nao_sim", timeout=60)
+    sim = ros.start_ready("nao_sim", params={**SIM, "backend": "kinematic"})
 
     def run_clock(start: float, seconds: float) -> None:
         t = start
@@ -144,10 +143,8 @@ def test_nao_sim_follows_clock_jumps_either_way_and_stays_responsive_to_sigint(r
 @pytest.mark.ros
 def test_use_sim_time_changed_live_is_refused_and_the_robot_keeps_publishing(ros):
     probe = ros.probe
-    diagnostics = probe.subscribe_diagnostics()
     states = probe.subscribe(TOPIC_ROBOT_STATE, messages.JointState)
-    sim = ros.start("nao_sim", params={**FAST, "backend": "kinematic"})
-    ros.wait_for_node(diagnostics, "/nao_sim", timeout=60)
+    sim = ros.start_ready("nao_sim", params={**FAST, "backend": "kinematic"})
     result = set_param(probe, "/nao_sim", "use_sim_time", True, [sim])
     assert not result.successful and "use_sim_time" in result.reason and "restart" in result.reason, result
     assert set_param(probe, "/nao_sim", "use_sim_time", False, [sim]).successful  # no change: fine
@@ -159,7 +156,7 @@ def test_use_sim_time_changed_live_is_refused_and_the_robot_keeps_publishing(ros
 @pytest.mark.ros
 def test_compensator_stamps_follow_a_looping_clock_and_the_robot_accepts_every_loop(ros):
     probe = ros.probe
-    diagnostics = probe.subscribe_diagnostics()
+    diagnostics = ros.diagnostics
     commands = probe.subscribe(TOPIC_COMMAND, messages.JointState)
     clock = probe.publisher("/clock", messages.Clock, CLOCK_QOS)
     angles = probe.publisher(TOPIC_ANGLES, messages.JointState)
@@ -199,7 +196,7 @@ def test_compensator_stamps_follow_a_looping_clock_and_the_robot_accepts_every_l
 @pytest.mark.ros
 def test_after_sigstop_the_compensator_commands_only_the_newest_queued_observation(ros):
     probe = ros.probe
-    diagnostics = probe.subscribe_diagnostics()
+    diagnostics = ros.diagnostics
     commands = probe.subscribe(TOPIC_COMMAND, messages.JointState)
     angles = probe.publisher(TOPIC_ANGLES, messages.JointState)
     comp = ros.start("delay_compensator", params={**FAST, "mode": "fixed"})  # no predictions: observations commanded

@@ -204,9 +204,8 @@ def hri_joint_state(stamp, body, human, drop=()):
 @pytest.mark.ros
 def test_node_follows_a_discovered_body_and_publishes_its_nao_angles(ros):
     probe = ros.probe
-    diagnostics = probe.subscribe_diagnostics()
-    proc = ros.start("hri_bodies", params={"discovery_period_s": 0.2, "diagnostics_period_s": 0.2})
-    ros.wait_for_node(diagnostics, "/hri_bodies", timeout=60)
+    diagnostics = ros.diagnostics
+    proc = ros.start_ready("hri_bodies", params={"discovery_period_s": 0.2, "diagnostics_period_s": 0.2})
     angles = probe.subscribe("/arm_angles", JointState)
     tracker = probe.publisher(f"{hri_bodies.BODIES_NAMESPACE}/k3p/joint_states", JointState)
     probe.spin_until(lambda: diagnostics["/hri_bodies"].get("body") == "k3p", 20, "body k3p followed", [proc])

@@ -96,10 +96,8 @@ def test_one_huge_prediction_does_not_stop_the_compensator(ros):
     from gwr_predictor.nodes import messages
     from gwr_predictor.nodes.messages import Float64MultiArray, JointState
 
-    probe = ros.probe
-    diagnostics = probe.subscribe_diagnostics()
-    proc = ros.start("delay_compensator", params=FAST)
-    ros.wait_for_node(diagnostics, "/delay_compensator", timeout=60)
+    probe, diagnostics = ros.probe, ros.diagnostics
+    proc = ros.start_ready("delay_compensator", params=FAST)
     commands = probe.subscribe("/joint_commands", JointState)
     angles_pub = probe.publisher("/arm_angles", JointState)
     preds_pub = probe.publisher("/predictions", Float64MultiArray)
@@ -134,10 +132,8 @@ def test_a_skeleton_with_too_many_joints_is_counted_and_the_extractor_keeps_work
     from gwr_predictor.data.demonstrator import default_subjects, demonstrate_one
     from gwr_predictor.nodes.messages import Float64MultiArray, JointState
 
-    probe = ros.probe
-    diagnostics = probe.subscribe_diagnostics()
-    proc = ros.start("angle_extractor", params=FAST)
-    ros.wait_for_node(diagnostics, "/angle_extractor", timeout=60)
+    probe, diagnostics = ros.probe, ros.diagnostics
+    proc = ros.start_ready("angle_extractor", params=FAST)
     out = probe.subscribe("/arm_angles", JointState)
     pub = probe.publisher("/skeleton", Float64MultiArray)
     probe.wait_for_subscribers(pub)

@@ -71,7 +71,7 @@ def test_configs_record_and_declare_the_skeleton_twin():
 def test_skeleton_source_publishes_a_stamped_pose_array_twin_of_every_skeleton_and_the_recorder_keeps_it(
         ros, tmp_path):
     probe = ros.probe
-    diagnostics = probe.subscribe_diagnostics()
+    diagnostics = ros.diagnostics
     skeletons = probe.subscribe("/skeleton", Float64MultiArray)
     poses = probe.subscribe("/skeleton_poses", PoseArray)
     recorder = ros.start("bag_recorder", params={**FAST, "path": str(tmp_path / "bag"),
@@ -121,7 +121,7 @@ def test_skeleton_source_publishes_a_stamped_pose_array_twin_of_every_skeleton_a
 @pytest.mark.ros
 def test_predicted_trajectory_is_on_by_default_and_carries_every_prediction_at_its_stamp(ros):
     probe = ros.probe
-    diagnostics = probe.subscribe_diagnostics()
+    diagnostics = ros.diagnostics
     preds = probe.subscribe("/predictions", Float64MultiArray)
     trajectories = probe.subscribe("/predicted_trajectory", JointTrajectory)
     horizon, period = 4, 0.05
