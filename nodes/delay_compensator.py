@@ -25,6 +25,7 @@ the new compensator starts from the next command (the variable mode's history st
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import replace
 from typing import Any
 
@@ -80,7 +81,6 @@ class DelayCompensatorNode(PipelineNode):
         self.robot_state_time = -np.inf
         self.obs_stamp: float | None = None
         self.fallback_sent_for: float | None = None  # the observation last commanded as a fallback
-        self.command_stamp = 0.0  # stamp of the last command
         self.command_stamps = CommandStamps(p["max_clock_jump_s"])
         self.clock_jumps = ClockJumpWatch(p["max_clock_jump_s"])
         output = p["output"]
@@ -159,14 +159,8 @@ class DelayCompensatorNode(PipelineNode):
         """Store the newest pose (of this one and any queued behind it); command it directly in mode none or
         when no usable prediction exists."""
         self.follow_clock()
-        newest = None
-        for taken in (msg, *take_queued(self.observation_sub)):
-            accepted = self.observations.accept(*messages.joint_state_fields(taken))
-            if accepted is not None:
-                self.counters.count("arm_angles.received")
-                if newest is not None:
-                    self.counters.count("arm_angles.superseded")
-                newest = accepted
+        newest = self.newest(msg, self.observation_sub, "arm_angles",
+                             lambda m: self.observations.accept(*messages.joint_state_fields(m)))
         if newest is None:
             return
         self.obs_stamp, self.observation = newest
@@ -179,20 +173,28 @@ class DelayCompensatorNode(PipelineNode):
         """A new P(t+1..t+h) (the newest of this one and any queued behind it): command the pose it gives for
         now (fixed or Eq. 11)."""
         self.follow_clock()
-        newest = None
-        for taken in (msg, *take_queued(self.prediction_sub)):
-            accepted = self.read_prediction(taken)
-            if accepted is not None:
-                self.counters.count("predictions.received")
-                if newest is not None:
-                    self.counters.count("predictions.superseded")
-                newest = accepted
+        newest = self.newest(msg, self.prediction_sub, "predictions", self.read_prediction)
         if newest is None:
             return
         self.pred_stamp, self.predictions = newest
         if self.params["mode"] != "none":
             self.fallback_sent_for = None
             self.publish_command()
+
+    def newest(self, msg: Any, subscription: Any, input_name: str,
+               read: Callable[[Any], tuple[float, np.ndarray] | None]) -> tuple[float, np.ndarray] | None:
+        """The newest valid (stamp, angles) of `msg` and whatever queued behind it on `subscription`: every
+        message is read (and counted as `<input>.received` or rejected), the older valid ones count as
+        `<input>.superseded` and command nothing."""
+        newest = None
+        for taken in (msg, *take_queued(subscription)):
+            accepted = read(taken)
+            if accepted is not None:
+                self.counters.count(f"{input_name}.received")
+                if newest is not None:
+                    self.counters.count(f"{input_name}.superseded")
+                newest = accepted
+        return newest
 
     def read_prediction(self, msg: messages.Float64MultiArray) -> tuple[float, np.ndarray] | None:
         """(stamp, predictions in ARM_JOINTS order) of a valid message, else None (the rejection counted)."""
@@ -249,9 +251,9 @@ class DelayCompensatorNode(PipelineNode):
                                          f"commanding the latest observation: {out.fallback_reason}", "info")
         self.counters.count(f"step_used.{out.step_used}")
         self.counters.count("commands.published")
-        self.command_stamp = self.command_stamps.next(now)
+        stamp = self.command_stamps.next(now)
         if self.command_pub is not None:
-            self.command_pub.publish(messages.joint_state(self.command_stamp, ARM_JOINTS, out.angles))
+            self.command_pub.publish(messages.joint_state(stamp, ARM_JOINTS, out.angles))
         if self.trajectory_pub is not None:
             # stamp 0: the controller starts the trajectory when it arrives (one stamped in the past
             # could end in the past and be refused); the pose is reached trajectory_time_s later
@@ -266,7 +268,7 @@ class DelayCompensatorNode(PipelineNode):
         if limited:
             self.counters.count("naoqi.rate_limited")
         msg = naoqi_output.fill_message(self.naoqi_type(), safe, self.params["naoqi_speed"])
-        msg.header.stamp = messages.to_time(self.command_stamp)
+        msg.header.stamp = messages.to_time(self.command_stamps.last)
         self.naoqi_pub.publish(msg)
         self.counters.count("naoqi.published")
 
