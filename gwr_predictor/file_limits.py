@@ -173,16 +173,24 @@ def check_npy_file(path: str | os.PathLike[str], error: type[Exception]) -> None
     check_npy_declared(str(path), shape, dtype, size - header, error)
 
 
+def check_zip_directory(path: str | os.PathLike[str], limit: int, what: str, error: type[Exception]) -> bool:
+    """A zip's size, member count and inflated size, from its directory alone (nothing is inflated);
+    False when it is no zip (the reader then says why)."""
+    check_file_size(path, limit, what, error)
+    count = zip_entry_count(path)
+    if count is None:
+        return False
+    check_count(path, count, MAX_ARCHIVE_MEMBERS, "archive members", error)
+    check_npz_members(path, limit, what, error)
+    return True
+
+
 def check_archive(path: str | os.PathLike[str], limit: int, what: str, error: type[Exception]) -> None:
     """A zip (`.npz`, `.pt`): its size, member count, inflated size and, for `.npy` members, the
     arrays their headers declare; all from directories and headers, before any member is inflated.
     Archives that cannot be read are left to the reader, which says why."""
-    check_file_size(path, limit, what, error)
-    count = zip_entry_count(path)
-    if count is None:
+    if not check_zip_directory(path, limit, what, error):
         return
-    check_count(path, count, MAX_ARCHIVE_MEMBERS, "archive members", error)
-    check_npz_members(path, limit, what, error)
     try:
         zf = zipfile.ZipFile(path)
     except (zipfile.BadZipFile, OSError, EOFError, ValueError, NotImplementedError, RuntimeError, struct.error):

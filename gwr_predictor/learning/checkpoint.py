@@ -29,15 +29,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from gwr_predictor.errors import GwrPredictorError
-from gwr_predictor.file_limits import (
-    MAX_ARCHIVE_MEMBERS,
-    MAX_CHECKPOINT_BYTES,
-    check_count,
-    check_file_size,
-    check_npz_members,
-    npy_header,
-    zip_entry_count,
-)
+from gwr_predictor.file_limits import MAX_CHECKPOINT_BYTES, check_zip_directory, npy_header
 
 MAGIC = "gwr_predictor.checkpoint"
 #: The one format this build reads and writes; older files are refused with a clear message (their
@@ -261,14 +253,6 @@ def glob_escape(name: str) -> str:
     return "".join(f"[{c}]" if c in "*?[" else c for c in name)
 
 
-def prepare_checkpoint_place(path: str | os.PathLike[str]) -> list[Path]:
-    """Check, before anything is learned, that a checkpoint can be kept at `path`; returns the stale
-    temporary files of interrupted saves that it removed (`check_checkpoint_place`, then
-    `remove_stale_temp_files`; a node takes its `CheckpointLock` between the two)."""
-    check_checkpoint_place(path)
-    return remove_stale_temp_files(path)
-
-
 def check_checkpoint_place(path: str | os.PathLike[str]) -> None:
     """CheckpointError naming the path when it is a folder or a file that is not a checkpoint (never
     moved or overwritten), or when its folder (a symlink's target's) cannot be created or written to."""
@@ -306,9 +290,7 @@ def read_checkpoint(path: str | os.PathLike[str], kind: str,
     path = Path(path)
     if not path.is_file():
         raise CheckpointError(f"{path}: no such checkpoint file")
-    check_file_size(path, MAX_CHECKPOINT_BYTES, "checkpoint", CheckpointError)
-    check_count(path, zip_entry_count(path) or 0, MAX_ARCHIVE_MEMBERS, "archive members", CheckpointError)
-    check_npz_members(path, MAX_CHECKPOINT_BYTES, "checkpoint", CheckpointError)
+    check_zip_directory(path, MAX_CHECKPOINT_BYTES, "checkpoint", CheckpointError)
     arrays = _read_arrays(path)
     header = _parse_header(arrays.pop(HEADER_KEY, None), path)
     if not isinstance(header, dict) or header.get("magic") != MAGIC:
@@ -346,7 +328,7 @@ def _read_arrays(path: Path) -> dict[str, np.ndarray]:
 
 def _check_member(zf: zipfile.ZipFile, info: zipfile.ZipInfo, path: Path) -> None:
     """A member must be an npy array whose declared shape x item size is exactly the data it holds
-    (so numpy never allocates more than the member's size, which `check_npz_members` bounded)."""
+    (so numpy never allocates more than the member's size, which `check_zip_directory` bounded)."""
     if not info.filename.endswith(".npy"):
         raise CheckpointError(f"{path}: member {info.filename!r} is not an array: not a gwr_predictor checkpoint")
     with zf.open(info) as f:
