@@ -69,11 +69,9 @@ FULL = Config()
 
 
 def _gated(horizon: int, **settings: Any) -> Any:
-    from gwr_predictor.default_predictor import LocalLinearParams, LocalLinearPredictor
-    from gwr_predictor.default_predictor.gate import GatedPredictor, GateParams
+    from gwr_predictor.default_predictor import make_default
 
-    lp = LocalLinearParams(horizon=horizon).replace(**settings)
-    return GatedPredictor(LocalLinearPredictor(lp), GateParams(horizon=horizon))
+    return make_default(horizon, settings=settings)
 
 
 def _candidates(config: Config, horizon: int) -> dict[str, list[tuple[dict[str, Any], Any]]]:
