@@ -95,19 +95,9 @@ class LongReadoutPredictor(LocalLinearPredictor):
             self._long_fill = min(self._long_fill + 1, self.global_frames)
         return super().step(x, learn)
 
-    def _forecast(self, reg: np.ndarray, record: bool = False) -> np.ndarray:
-        p = self.params
-        local = self.pgwr.predict_local(reg, p.readout_k).reshape(p.horizon, p.n_joints)
-        phi = window_features(self._long, self.global_frames)
-        outs = np.empty((2, p.horizon, p.n_joints))
-        outs[0] = local
-        outs[1] = self.linear.predict(phi).reshape(p.horizon, p.n_joints)
-        if record:
-            self._outs.append((outs, phi))
-        out = outs[0] * self._mix[:, :1]
-        out += outs[1] * self._mix[:, 1:]
-        out += reg[:p.n_joints]
-        return out
+    def _global_features(self, reg: np.ndarray) -> np.ndarray:
+        """The global read-out sees the last `global_frames` frames, not the neurons' shorter regressor."""
+        return window_features(self._long, self.global_frames)
 
     def state(self) -> Any:
         raise CandidateError("a research candidate cannot be saved")
@@ -123,10 +113,9 @@ def long_model(params: Any, seed: int, global_frames: int = GLOBAL_FRAMES, globa
 
 def gate(model: Any, params: Any, **changes: Any) -> Predictor:
     """`model` behind the default's gate with `changes` to its settings."""
-    from gwr_predictor.default_predictor.gate import GatedPredictor, GateParams
+    from research.predictors import gated
 
-    hp = hierarchy_params(params)
-    return GatedPredictor(model, GateParams(horizon=hp.horizon, joints=hp.n_joints, **changes))
+    return gated(model, params, **changes)
 
 
 def _sharp_blend(members: Mapping[str, Any], params: Any, power: float) -> Any:

@@ -23,12 +23,12 @@ def local_linear_params(params: Any, **changes: Any) -> Any:
     return LocalLinearParams(horizon=hp.horizon, n_joints=hp.n_joints).replace(**changes)
 
 
-def gated(model: Any, params: Any) -> Predictor:
-    """`model` behind the default's confidence gate."""
+def gated(model: Any, params: Any, **changes: Any) -> Predictor:
+    """`model` behind the default's confidence gate (with `changes` to the gate's settings)."""
     from gwr_predictor.default_predictor.gate import GatedPredictor, GateParams
 
     hp = hierarchy_params(params)
-    return GatedPredictor(model, GateParams(horizon=hp.horizon, joints=hp.n_joints))
+    return GatedPredictor(model, GateParams(horizon=hp.horizon, joints=hp.n_joints, **changes))
 
 
 def _flat(params: Any, seed: int) -> Predictor:

@@ -153,12 +153,17 @@ class LocalLinearPredictor(OnlineLoop, Checkpointed):
         w /= det
         return w
 
+    def _global_features(self, reg: np.ndarray) -> np.ndarray:
+        """What the global read-out sees of regressor `reg`: its newest `global_order` frames and their changes."""
+        p = self.params
+        return window_features(reg.reshape(p.order, p.n_joints), p.global_order)
+
     def _forecast(self, reg: np.ndarray, record: bool = False) -> np.ndarray:
         """The prediction for regressor `reg`; `record` files both read-outs to be scored later."""
         p = self.params
         local = self.pgwr.predict_local(reg, p.readout_k).reshape(p.horizon, p.n_joints)
         if self.linear is not None:
-            phi = window_features(reg.reshape(p.order, p.n_joints), p.global_order)
+            phi = self._global_features(reg)
             outs = np.empty((2, p.horizon, p.n_joints))
             outs[0] = local
             outs[1] = self.linear.predict(phi).reshape(p.horizon, p.n_joints)
