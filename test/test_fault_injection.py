@@ -115,8 +115,14 @@ def test_each_node_killed_and_restarted_the_pipeline_recovers_and_keeps_what_it_
         statuses = [messages.read_diagnostics(m).get("/bag_recorder", {}) for m in all_diagnostics[n_diag:]]
         return any(all(int(v.get(f"recorded./{t}", "0")) >= FLOW for t in STREAMS) for v in statuses)
 
-    probe.spin_until(new_recorder_records_every_stream, 30, "the restarted recorder to record every stream",
-                     everyone)
+    def recorded_so_far() -> str:
+        latest = {}
+        for m in all_diagnostics[n_diag:]:
+            latest.update(messages.read_diagnostics(m).get("/bag_recorder", {}))
+        return ("the restarted recorder to record every stream; recorded so far: "
+                + ", ".join(f"{t} {latest.get(f'recorded./{t}', '0')}" for t in STREAMS))
+
+    probe.spin_until(new_recorder_records_every_stream, 30, recorded_so_far, everyone)
 
     # --- learning went on through the dropouts and the crashes -----------------------------------
     source = diagnostics["/skeleton_source"]
