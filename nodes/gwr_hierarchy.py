@@ -254,8 +254,10 @@ class GwrHierarchyNode(PipelineNode):
         values["pe_mean_mse"] = float(errors["pe_mean"])
         values["cpe_mean_mse"] = float(errors["cpe_mean"])
         values[f"cpe_h{self.horizon}_mse"] = float(errors["cpe"][-1])
-        for name, w in errors.get("mix_weights", {}).items():  # the default's local / global read-outs
+        for name, w in errors.get("mix_weights", {}).items():  # the network's local / global read-outs
             values[f"mix_weight_{name}_h{self.horizon}"] = float(w[-1])
+        for name, w in errors.get("expert_weights", {}).items():  # the default's experts
+            values[f"expert_weight_{name}_h{self.horizon}"] = float(w[-1])
         times = self.step_times or [0.0]
         values["step_ms_mean"] = 1e3 * float(np.mean(times))
         values["step_ms_max"] = 1e3 * self.step_max  # both since the last status

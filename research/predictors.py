@@ -90,6 +90,16 @@ def _gated_hierarchy(params: Any, seed: int) -> Predictor:
     return gated(Hierarchy(hierarchy_params(params), seed=seed), params)
 
 
+def _experts_ungated(params: Any, seed: int) -> Predictor:
+    """The default's experts and weighting without any gate: what the gates add is the difference."""
+    from gwr_predictor.default_predictor import make_default
+
+    hp = hierarchy_params(params)
+    gated = make_default(hp.horizon, hp.n_joints, seed)
+    return type(gated.model)({name: member.model for name, member in gated.model.members.items()},
+                             gated.model.params)
+
+
 def register_all() -> None:
     """Register every research predictor once (importing `research` does)."""
     if "pgwr_flat" in registry.names():
@@ -100,6 +110,7 @@ def register_all() -> None:
         make, load = _blend(name)
         registry.register(name, make, label, load)
     registry.register("llm_gwr", _llm, "local-linear P-GWR (ungated)", _load_llm)
+    registry.register("experts_ungated", _experts_ungated, "GWR experts (ungated)")
     registry.register("gated_hierarchy", _gated_hierarchy, "gate around the GWR hierarchy", gate_loader("Hierarchy"))
     registry.register("gated_vqtam", _gated_vqtam, "gated P-GWR, displacements, no local models")
     registry.register("gated_llm_local", _gated_llm_local, "gated local-linear P-GWR, local read-outs only")

@@ -76,7 +76,8 @@ SEGMENTS: tuple[Segment, ...] = (
 )
 SEEDS = (100, 101, 102)
 COLD_PATTERNS = ("raise_lateral_both", "wave_both")
-BASELINES = ("hold", "rls_ar", common.LINEAR, common.LLM, common.BLEND_FLAT, common.BLEND, common.DEFAULT)
+BASELINES = ("hold", "rls_ar", common.LINEAR, common.LLM, common.BLEND_FLAT, common.BLEND, common.GATED,
+             common.EXPERTS_UNGATED, common.DEFAULT)
 Factory = Callable[[Any, int], Any]
 LIN3 = ("llm", "linear", "rls")
 

@@ -1,15 +1,20 @@
-"""The default predictor: a growing network of local linear experts behind a confidence gate.
+"""The default predictor: growing networks that remember movements, and linear models that
+extrapolate them, each heard per horizon step by how well it did lately, behind a confidence gate.
 
-What a robot runs unless told otherwise (`make_default`; registry name `gated_llm_gwr`). Read it in
-this order:
+What a robot runs unless told otherwise (`make_default`; registry name `gwr_experts`). Its experts:
 
-- `params.py`: every setting, declared once; `settings.py`: the same as the node's flat parameters;
-- `network.py`: the Predictive GWR whose neurons carry local linear models, consolidate with
-  experience and recruit new neurons for movements they have not seen (beyond the paper);
-- `predictor.py`: the online loop, one frame at a time, with a global linear read-out mixed per
-  horizon step with the neurons' read-out, and its checkpoints;
-- `gate.py`: the confidence gate that falls back to holding the pose wherever the model has not
-  recently beaten holding it.
+- the local-linear P-GWR (`network.py`, `predictor.py`): the Predictive GWR whose neurons carry local
+  linear models, consolidate with experience and recruit new neurons for movements they have not
+  seen, with a global linear read-out mixed in per horizon step;
+- the snippet memory (`memory.py`): a growing memory of short movement snippets, read out by the
+  nearest ones at the present speed, so a movement seen once is anticipated when it comes again;
+- the `rls_ar` and `linear` baselines (`gwr_predictor.predictors`): linear models of the last frames,
+  which are best while a person's movements are still new.
+
+Each expert sits behind its own confidence gate (`gate.py`: it falls back to holding the pose where
+the expert has not recently beaten holding it); `experts.py` weights them per horizon step by their
+recent errors; a last gate guards the combination. `params.py` and `settings.py` declare every setting
+once. The network behind one gate alone is `make_gated_network` (registry name `gated_llm_gwr`).
 
 The paper's own method (GWR1 -> GWR2 -> P-GWR) is `gwr_predictor.learning.hierarchy`.
 """
@@ -35,17 +40,44 @@ _EXPORTS = {
     "GateError": "gate",
     "inner_model": "gate",
     "parameter_specs": "settings",
+    "experts_parameter_specs": "settings",
+    "Experts": "experts",
+    "ExpertsParams": "experts",
+    "TrajectoryMemory": "memory",
+    "MemoryParams": "memory",
 }
 __getattr__, __dir__ = lazy_exports(__name__, _EXPORTS)
-__all__ = ["make_default", *sorted(_EXPORTS)]
+__all__ = ["make_default", "make_gated_network", *sorted(_EXPORTS)]
 
 
 def make_default(horizon: int = 6, joints: int = 8, seed: int = 0,
                  settings: Mapping[str, Any] | None = None) -> GatedPredictor:
-    """The default predictor, fresh: the local-linear P-GWR with its global read-out, behind the gate.
+    """The default predictor, fresh: the gated experts, weighted, behind the gate.
 
-    `settings`: flat parameters (`parameter_specs()`: e.g. `order`, `gwr.eps_b`, `gate.decay`); the
-    others keep their defaults."""
+    `settings`: flat parameters (`experts_parameter_specs()`: e.g. `network.order`, `memory.k`,
+    `experts.power`, `gate.decay`); the others keep their defaults."""
+    from gwr_predictor.default_predictor.experts import Experts
+    from gwr_predictor.default_predictor.gate import GatedPredictor
+    from gwr_predictor.default_predictor.memory import TrajectoryMemory
+    from gwr_predictor.default_predictor.predictor import LocalLinearPredictor
+    from gwr_predictor.default_predictor.settings import from_experts_settings
+    from gwr_predictor.predictors.baselines import TUNED_RLS, RLSAutoregressive
+    from gwr_predictor.predictors.direct_linear import TUNED_LINEAR, DirectLinear
+
+    network, memory, weighting, expert_gate, gate = from_experts_settings(settings or {}, horizon, joints)
+    experts = {"network": LocalLinearPredictor(network, seed=seed),
+               "linear": DirectLinear(TUNED_LINEAR.replace(horizon=horizon, joints=joints)),
+               "rls_ar": RLSAutoregressive(TUNED_RLS, horizon, joints),
+               "memory": TrajectoryMemory(memory)}
+    gated = {name: GatedPredictor(model, expert_gate) for name, model in experts.items()}
+    return GatedPredictor(Experts(gated, weighting), gate)
+
+
+def make_gated_network(horizon: int = 6, joints: int = 8, seed: int = 0,
+                       settings: Mapping[str, Any] | None = None) -> GatedPredictor:
+    """The local-linear P-GWR with its global read-out behind one gate (`gated_llm_gwr`).
+
+    `settings`: flat parameters (`parameter_specs()`: e.g. `order`, `gwr.eps_b`, `gate.decay`)."""
     from gwr_predictor.default_predictor.gate import GatedPredictor
     from gwr_predictor.default_predictor.predictor import LocalLinearPredictor
     from gwr_predictor.default_predictor.settings import from_settings

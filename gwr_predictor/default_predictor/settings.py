@@ -1,10 +1,17 @@
-"""The default predictor's settings as flat, named parameters: its own, its network's GWR step
-(`gwr.*`) and its gate's (`gate.*`), each declared once by the ParamSpec its dataclass validates with.
+"""The predictors' settings as flat, named parameters, each declared once by the ParamSpec its
+dataclass validates with.
 
-The learner node declares exactly these (under `gated_llm_gwr.`) when it runs the default; the
-horizon and the joints are the node's, not the predictor's. The GWR step's activation threshold is
-not among them: the default inserts by `insertion_scale` x the data's own motion scale, which cancels
-any a_T (see `predictor.py`), so a parameter for it would have no effect.
+- the gated network (`gated_llm_gwr`): the network's own settings, its GWR step's (`gwr.*`) and its
+  gate's (`gate.*`);
+- the default (`gwr_experts`): the network's settings under `network.`, the snippet memory's under
+  `memory.`, the weighting's under `experts.`, the gate in front of each expert under `expert_gate.`
+  and the gate on the combination under `gate.`. The two linear experts run with the tuned settings of
+  the `rls_ar` and `linear` baselines.
+
+The learner node declares exactly these (under `<predictor>.`) when it runs one; the horizon and the
+joints are the node's, not the predictor's. The GWR step's activation threshold is not among them:
+the network inserts by `insertion_scale` x the data's own motion scale, which cancels any a_T (see
+`predictor.py`), so a parameter for it would have no effect.
 """
 
 from __future__ import annotations
@@ -13,7 +20,9 @@ import dataclasses
 from collections.abc import Mapping
 from typing import Any
 
+from gwr_predictor.default_predictor.experts import EXPERTS_SPECS, ExpertsParams
 from gwr_predictor.default_predictor.gate import GATE_SPECS, GateParams
+from gwr_predictor.default_predictor.memory import MEMORY_SPECS, MemoryParams
 from gwr_predictor.default_predictor.params import (
     LOCAL_LINEAR_SPECS,
     DefaultPredictorError,
@@ -25,44 +34,88 @@ from gwr_predictor.parameter_spec import ParamSpec
 
 #: Set by the node (or `make_default`'s arguments), not by the predictor's settings.
 FROM_THE_DATA = ("horizon", "n_joints", "joints")
+#: The gate in front of each expert: a ~20-frame memory that opens on little evidence, so an expert
+#: that has just become good is heard within a performance (chosen on the tuning set, docs/experiments.md).
+EXPERT_GATE = {"decay": 0.95, "prior": 0.001, "confidence": 1.0}
+#: The gate on the combination: the gated network's, opening on less evidence.
+OUTER_GATE = {"prior": 0.001, "confidence": 1.0}
 #: The GWR step's settings the default's network uses (not the activation threshold: see above).
 GWR_USED = ("firing_threshold", "eps_b", "eps_n", "rho_b", "rho_n", "kappa", "max_edge_age", "max_neurons")
 
 
-def parameter_specs() -> tuple[ParamSpec, ...]:
-    """Every setting of the default, flat: its own names, `gwr.<name>` and `gate.<name>`."""
+def network_specs() -> tuple[ParamSpec, ...]:
+    """The local-linear network's settings, flat: its own names and `gwr.<name>`."""
     own = [s for name, s in LOCAL_LINEAR_SPECS.items() if name not in FROM_THE_DATA]
     gwr = default_gwr()
     steps = [dataclasses.replace(GWR_SPECS[name], name=f"gwr.{name}", default=_flat(getattr(gwr, name)),
                                  description=f"GWR step: {GWR_SPECS[name].description}") for name in GWR_USED]
-    gate = [dataclasses.replace(s, name=f"gate.{name}", description=f"gate: {s.description}")
-            for name, s in GATE_SPECS.items() if name not in FROM_THE_DATA]
-    return (*own, *steps, *gate)
+    return (*own, *steps)
+
+
+def parameter_specs() -> tuple[ParamSpec, ...]:
+    """Every setting of the gated network, flat: the network's and `gate.<name>`."""
+    return (*network_specs(), *_prefixed("gate", GATE_SPECS, "gate"))
+
+
+def experts_parameter_specs() -> tuple[ParamSpec, ...]:
+    """Every setting of the default, flat (see the module docstring)."""
+    network = [dataclasses.replace(s, name=f"network.{s.name}", description=f"network: {s.description}")
+               for s in network_specs()]
+    return (*network, *_prefixed("memory", MEMORY_SPECS, "snippet memory"),
+            *_prefixed("experts", EXPERTS_SPECS, "weighting"),
+            *_prefixed("expert_gate", GATE_SPECS, "each expert's gate", EXPERT_GATE),
+            *_prefixed("gate", GATE_SPECS, "gate", OUTER_GATE))
+
+
+def _prefixed(prefix: str, specs: Mapping[str, ParamSpec], what: str,
+              defaults: Mapping[str, Any] | None = None) -> list[ParamSpec]:
+    return [dataclasses.replace(s, name=f"{prefix}.{name}", description=f"{what}: {s.description}",
+                                default=(defaults or {}).get(name, s.default))
+            for name, s in specs.items() if name not in FROM_THE_DATA]
 
 
 def _flat(value: Any) -> Any:
     return 0 if value is None else value  # max_neurons: None (unlimited) is 0 as a parameter
 
 
-def from_settings(settings: Mapping[str, Any], horizon: int, joints: int) -> tuple[LocalLinearParams, GateParams]:
-    """The model's and the gate's parameters for flat `settings` (any subset of `parameter_specs()`;
-    missing ones keep their defaults). Unknown names or bad values raise DefaultPredictorError naming them."""
-    specs = {s.name: s for s in parameter_specs()}
-    unknown = sorted(set(settings) - set(specs))
+def _grouped(settings: Mapping[str, Any], specs: tuple[ParamSpec, ...], what: str) -> dict[str, dict[str, Any]]:
+    """Flat `settings`, checked against `specs`, grouped by their first name part ('' for unprefixed)."""
+    known = {s.name: s for s in specs}
+    unknown = sorted(set(settings) - set(known))
     if unknown:
-        raise DefaultPredictorError(f"unknown settings of the default predictor {unknown}; known: {', '.join(specs)}")
-    own: dict[str, Any] = {}
-    gwr: dict[str, Any] = {}
-    gate: dict[str, Any] = {}
+        raise DefaultPredictorError(f"unknown settings of {what} {unknown}; known: {', '.join(known)}")
+    groups: dict[str, dict[str, Any]] = {}
     for name, value in settings.items():
-        specs[name].check(value)
+        known[name].check(value)
         group, _, key = name.partition(".")
-        if not key:
-            own[name] = value
-        elif group == "gwr":
-            gwr[key] = None if key == "max_neurons" and value == 0 else value
+        if key:
+            groups.setdefault(group, {})[key] = value
         else:
-            gate[key] = value
-    model = LocalLinearParams(horizon=horizon, n_joints=joints, gwr=default_gwr().replace(**gwr), **own)
-    return model, GateParams(horizon=horizon, joints=joints, **gate)
+            groups.setdefault("", {})[name] = value
+    return groups
+
+
+def _network(groups: Mapping[str, Mapping[str, Any]], horizon: int, joints: int) -> LocalLinearParams:
+    gwr = {k: None if k == "max_neurons" and v == 0 else v for k, v in groups.get("gwr", {}).items()}
+    return LocalLinearParams(horizon=horizon, n_joints=joints, gwr=default_gwr().replace(**gwr), **groups.get("", {}))
+
+
+def from_settings(settings: Mapping[str, Any], horizon: int, joints: int) -> tuple[LocalLinearParams, GateParams]:
+    """The gated network's model and gate parameters for flat `settings` (any subset of `parameter_specs()`;
+    missing ones keep their defaults). Unknown names or bad values raise DefaultPredictorError naming them."""
+    groups = _grouped(settings, parameter_specs(), "the gated network")
+    return _network(groups, horizon, joints), GateParams(horizon=horizon, joints=joints, **groups.get("gate", {}))
+
+
+def from_experts_settings(settings: Mapping[str, Any], horizon: int, joints: int
+                          ) -> tuple[LocalLinearParams, MemoryParams, ExpertsParams, GateParams, GateParams]:
+    """The default's parts' parameters for flat `settings` (any subset of `experts_parameter_specs()`):
+    network, memory, weighting, each expert's gate, the combination's gate."""
+    groups = _grouped(settings, experts_parameter_specs(), "the default predictor")
+    network = {k.partition(".")[2]: v for k, v in settings.items() if k.startswith("network.")}
+    return (_network(_grouped(network, network_specs(), "the network"), horizon, joints),
+            MemoryParams(horizon=horizon, n_joints=joints, **groups.get("memory", {})),
+            ExpertsParams(horizon=horizon, n_joints=joints, **groups.get("experts", {})),
+            GateParams(horizon=horizon, joints=joints, **{**EXPERT_GATE, **groups.get("expert_gate", {})}),
+            GateParams(horizon=horizon, joints=joints, **{**OUTER_GATE, **groups.get("gate", {})}))
 

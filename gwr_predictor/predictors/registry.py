@@ -7,7 +7,9 @@ predictor` (the `Predictor` protocol), a label for tables and, for the predictor
 a checkpoint loader; those are the `learner_names()` the node and `pretrain` accept.
 
 Built in: the baselines `hold`, `const_velocity`, `rls_ar`, `linear` (direct multi-step linear
-model), the paper's `hierarchy` (GWR1 -> GWR2 -> P-GWR) and the default `gated_llm_gwr`.
+model), the paper's `hierarchy` (GWR1 -> GWR2 -> P-GWR), `gated_llm_gwr` (the local-linear P-GWR
+behind a confidence gate) and the default `gwr_experts` (that network, a snippet memory and the two
+linear models, weighted per step by their recent errors, behind a gate).
 `register` adds one: the research part of the repository (research/, not installed) registers its
 ablations and blends this way.
 """
@@ -87,9 +89,9 @@ predictor_names = names  # the name exported at the package's top level
 
 
 #: What the gwr_hierarchy node, pretrain and demo.sh run unless told otherwise (`-p predictor:=...`):
-#: the gated local-linear P-GWR (registered below); `evaluate` and `experiment real` always score it
-#: and name it (`default_method`).
-DEFAULT_PREDICTOR = "gated_llm_gwr"
+#: the gated experts (registered below); `evaluate` and `experiment real` always score it and name it
+#: (`default_method`).
+DEFAULT_PREDICTOR = "gwr_experts"
 
 
 def default_name() -> str:
@@ -184,22 +186,30 @@ register("linear", _linear, "direct linear (RLS)")
 register("hierarchy", _hierarchy, "GWR hierarchy", _load_hierarchy, _hierarchy_settings)
 
 
-# --- the default predictor (beyond the paper) ------------------------------------------------------
-def _default(params: Any, seed: int) -> Predictor:
-    from gwr_predictor.default_predictor import make_default
+# --- the default predictor and its network alone (beyond the paper) -------------------------------
+def _made_by(maker: str) -> Factory:
+    """A factory calling `gwr_predictor.default_predictor.<maker>(horizon, joints, seed, settings)`."""
+    def make(params: Any, seed: int) -> Predictor:
+        import gwr_predictor.default_predictor as default
 
-    if params is None:
-        return make_default(seed=seed)
-    if isinstance(params, Mapping):
-        own = {k: v for k, v in params.items() if k not in DATA_PARAMETERS}
-        return make_default(params.get("horizon", 6), params.get("n_joints", 8), seed, own)
-    return make_default(params.horizon, params.n_joints, seed)  # HierarchyParams: only these apply
+        build = getattr(default, maker)
+        if params is None:
+            return build(seed=seed)  # type: ignore[no-any-return]
+        if isinstance(params, Mapping):
+            own = {k: v for k, v in params.items() if k not in DATA_PARAMETERS}
+            return build(params.get("horizon", 6), params.get("n_joints", 8), seed, own)  # type: ignore[no-any-return]
+        return build(params.horizon, params.n_joints, seed)  # type: ignore[no-any-return]  # HierarchyParams
+
+    return make
 
 
-def _default_settings() -> tuple[ParamSpec, ...]:
-    from gwr_predictor.default_predictor.settings import parameter_specs
+def _settings_of(specs: str) -> Settings:
+    def settings() -> tuple[ParamSpec, ...]:
+        from gwr_predictor.default_predictor import settings as module
 
-    return parameter_specs()
+        return getattr(module, specs)()  # type: ignore[no-any-return]
+
+    return settings
 
 
 def gate_loader(wraps: str) -> Loader:
@@ -217,8 +227,10 @@ def gate_loader(wraps: str) -> Loader:
     return load
 
 
-register(DEFAULT_PREDICTOR, _default, "gated local-linear P-GWR (default)", gate_loader("LocalLinearPredictor"),
-         _default_settings)
+register("gated_llm_gwr", _made_by("make_gated_network"), "gated local-linear P-GWR",
+         gate_loader("LocalLinearPredictor"), _settings_of("parameter_specs"))
+register(DEFAULT_PREDICTOR, _made_by("make_default"), "GWR experts (default)", gate_loader("Experts"),
+         _settings_of("experts_parameter_specs"))
 
 #: The product's predictors: the ones registered above, whatever registers itself later (research/).
 PRODUCT: tuple[str, ...] = tuple(_REGISTRY)

@@ -48,7 +48,7 @@ SEGMENTS: tuple[Segment, ...] = (
     Segment("kneel", 4.1, 7.1, "kneeling down"),
 )
 METHODS = ("hold", "const_velocity", "rls_ar", common.LINEAR, common.HIERARCHY, common.LLM, common.BLEND_FLAT,
-           common.BLEND)
+           common.BLEND, common.GATED, common.EXPERTS_UNGATED)
 CLOSED_LOOP_RULES = ("none", "fixed_true", "guarded_true")
 #: phase -> name in the per-phase table (a frame's phase is where the prediction is made from)
 PHASES = {PAUSE: "pause", PERFORM: "performance", RETURN: "way back"}

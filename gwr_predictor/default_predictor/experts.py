@@ -1,0 +1,178 @@
+"""Several online predictors side by side, weighted per horizon step by how well each did lately.
+
+No one model is best everywhere. On a movement a person has just started to repeat, a global linear
+model of the last frames extrapolates well after a few seconds; once the movement has come back a few
+times, the growing networks that remember it (the local-linear P-GWR, the snippet memory) know where
+it goes. `Experts` runs every member on every frame and returns, per horizon step k, the members'
+predictions weighted by 1 / MSE_k^`power`, with MSE_k each member's running squared error at step k
+(decayed by `decay` per scored frame). A large power puts nearly all the weight on the member that is
+best at that step now, without a hard switch that flickers between near-equal members. A member not
+scored yet at a step gets the scored members' mean MSE (all equal weights while none is scored).
+
+Predictions are scored only against frames observed later (`PendingPredictions`: no peeking), and a
+member that predicts nothing at a frame (None) is left out of that frame's weights.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any, ClassVar
+
+import numpy as np
+
+from gwr_predictor.default_predictor.params import DefaultPredictorError
+from gwr_predictor.learning.params import DEFAULT_HORIZON, MAX_HORIZON
+from gwr_predictor.parameter_spec import ParamSpec, check_fields
+from gwr_predictor.pending import PendingPredictions
+
+EXPERTS_SPECS = {spec.name: spec for spec in (
+    ParamSpec("decay", 0.99, "forgetting of each member's running squared error per scored frame", 0.0, 1.0,
+              lo_open=True, hi_open=True),
+    ParamSpec("power", 16.0, "weights go as 1 / MSE^power (1: inverse MSE; large: nearly the best member)",
+              0.0, 64.0, lo_open=True),
+    ParamSpec("floor", 1e-6, "lower bound of the running MSE (rad^2) before it is inverted", 0.0, 1.0, lo_open=True),
+    ParamSpec("horizon", DEFAULT_HORIZON, "steps predicted", 1, MAX_HORIZON),
+    ParamSpec("n_joints", 8, "joints per frame", 1),
+)}
+
+
+@dataclass(frozen=True)
+class ExpertsParams:
+    """Settings of `Experts` (see `EXPERTS_SPECS`)."""
+
+    decay: float = EXPERTS_SPECS["decay"].default
+    power: float = EXPERTS_SPECS["power"].default
+    floor: float = EXPERTS_SPECS["floor"].default
+    horizon: int = EXPERTS_SPECS["horizon"].default
+    n_joints: int = EXPERTS_SPECS["n_joints"].default
+
+    def __post_init__(self) -> None:
+        check_fields(self, EXPERTS_SPECS.values(), DefaultPredictorError)
+
+    def replace(self, **changes: Any) -> ExpertsParams:
+        return dataclasses.replace(self, **changes)
+
+    def to_dict(self) -> dict[str, Any]:
+        return dataclasses.asdict(self)
+
+
+class Experts:
+    """Per-step weighted mean of `members`' predictions (see the module docstring)."""
+
+    kind: ClassVar[str] = "Experts"
+
+    def __init__(self, members: Mapping[str, Any], params: ExpertsParams | None = None) -> None:
+        if not members:
+            raise DefaultPredictorError("Experts needs at least one member")
+        for name, m in members.items():
+            if not (callable(getattr(m, "step", None)) and callable(getattr(m, "reset_sequence", None))):
+                raise DefaultPredictorError(f"member {name!r} does not implement step/reset_sequence")
+        self.members = dict(members)
+        self.names = tuple(self.members)
+        self.params = p = params or ExpertsParams()
+        n = len(self.names)
+        self.sse = np.zeros((n, p.horizon))  # decayed sums of squared errors (mean over joints)
+        self.weight = np.zeros((n, p.horizon))  # decayed counts of scored predictions
+        self.scored = np.zeros((n, p.horizon), dtype=np.int64)
+        self._pending = PendingPredictions(p.horizon, p.n_joints, (n,))
+        self._outputs = np.full((n, p.horizon, p.n_joints), np.nan)
+        self._t = 0
+
+    def reset_sequence(self) -> None:
+        """Sequence boundary: members reset, pending predictions dropped (the running errors stay)."""
+        for m in self.members.values():
+            m.reset_sequence()
+        self._pending.drop()
+        self._outputs.fill(np.nan)
+
+    def step(self, x: np.ndarray | None, learn: bool = True) -> np.ndarray | None:
+        from gwr_predictor.predictors.baselines import observation
+
+        obs = observation(x, self.params.n_joints)
+        due, valid = self._pending.take(self._t)
+        if obs is not None:
+            self._score(obs, due, valid)
+        self._collect([m.step(obs, learn=learn) for m in self.members.values()])
+        self._pending.file(self._t, self._outputs, np.isfinite(self._outputs).all(axis=-1))
+        self._t += 1
+        return self._combine(self._outputs)
+
+    def _score(self, obs: np.ndarray, due: np.ndarray, valid: np.ndarray) -> None:
+        err = np.mean((due - obs) ** 2, axis=2)  # (members, horizon); NaN where a member did not predict
+        scored = valid & np.isfinite(err)
+        decay = np.where(scored, self.params.decay, 1.0)
+        self.sse *= decay
+        self.sse += np.where(scored, err, 0.0)
+        self.weight *= decay
+        self.weight += scored
+        self.scored += scored
+
+    def _collect(self, outputs: list[Any]) -> None:
+        p, out = self.params, self._outputs
+        out.fill(np.nan)
+        for i, o in enumerate(outputs):
+            if o is None:
+                continue
+            o = np.asarray(o, dtype=float)
+            if o.ndim != 2 or o.shape[0] < p.horizon or o.shape[1] != p.n_joints:
+                raise DefaultPredictorError(f"member {self.names[i]!r} returned shape {o.shape}; need at least "
+                                            f"({p.horizon}, {p.n_joints})")
+            out[i] = o[:p.horizon]
+
+    def running_mse(self) -> np.ndarray:
+        """(members, horizon) running MSE (rad^2, mean over joints); NaN where nothing was scored yet."""
+        known = self.weight > 0
+        return np.where(known, self.sse / np.where(known, self.weight, 1.0), np.nan)
+
+    def weights(self, available: np.ndarray | None = None) -> np.ndarray:
+        """(members, horizon) weights summing to 1 per step over the `available` members (default all)."""
+        p = self.params
+        avail = np.ones(self.sse.shape, dtype=bool) if available is None else available
+        mse = np.where(avail, self.running_mse(), np.nan)
+        known = np.isfinite(mse)
+        n_known = known.sum(axis=0)
+        mean = np.where(known, mse, 0.0).sum(axis=0) / np.maximum(n_known, 1)
+        mse = np.where(known, mse, np.where(n_known > 0, mean, 1.0)[None, :])
+        mse = np.maximum(mse, p.floor)
+        best = np.where(avail, mse, np.inf).min(axis=0, keepdims=True)  # relative: no overflow at any power
+        best[~np.isfinite(best)] = 1.0  # a step no member predicts gets no weight anyway
+        inv = np.where(avail, (best / mse) ** p.power, 0.0)
+        return inv / inv.sum(axis=0, keepdims=True)
+
+    def _combine(self, preds: np.ndarray) -> np.ndarray | None:
+        avail = np.isfinite(preds).all(axis=2)  # (members, horizon)
+        if not avail.any():
+            return None
+        w = self.weights(avail)
+        return np.einsum("mh,mhj->hj", w, np.where(avail[:, :, None], preds, 0.0))
+
+    # --- introspection: the first member that learns like the hierarchy speaks for the frames ---------
+    @property
+    def learner(self) -> Any:
+        """The first member (behind its gate, if any) that counts frames and P.E./C.P.E.: the network."""
+        for m in self.members.values():
+            inner = getattr(m, "model", m)
+            if hasattr(inner, "frames_seen"):
+                return inner
+        raise DefaultPredictorError(f"none of the members {', '.join(self.names)} counts frames")
+
+    @property
+    def frames_seen(self) -> int:
+        return int(self.learner.frames_seen)
+
+    def reset_errors(self) -> None:
+        self.learner.reset_errors()
+
+    @property
+    def neuron_counts(self) -> tuple[int, ...] | None:
+        counts = getattr(self.learner, "neuron_counts", None)
+        return None if counts is None else tuple(counts)
+
+    def errors(self) -> dict[str, Any]:
+        """The learner's errors (counts, neurons, P.E./C.P.E.), and per member its running MSE and its
+        weight per step (`expert_mse`, `expert_weights`)."""
+        mse, w = self.running_mse(), self.weights()
+        return {**self.learner.errors(), "expert_mse": {n: mse[i].tolist() for i, n in enumerate(self.names)},
+                "expert_weights": {n: w[i].tolist() for i, n in enumerate(self.names)}}

@@ -1,0 +1,173 @@
+"""A growing memory of movement snippets, read out by the nearest ones at the present speed.
+
+A person who repeats a movement passes the same poses in the same order, but never at the same
+speed twice. The memory stores snippets: a key (the newest pose and its changes over the last few
+frames) and the `future` frames that followed it, as displacements from the key's pose. A snippet is
+stored when no stored key lies within `insert_scale` x the running motion scale of it (it grows when
+required, like the GWR; nothing is forgotten; at `capacity` it stops growing). To predict, the `k`
+nearest keys are read out at the present speed: a movement made r times as fast as a stored one
+reaches the stored step k r at our step k, with r the least-squares ratio of the present changes to
+the stored ones (clipped to [`min_ratio`, `max_ratio`]), read by linear interpolation between stored
+frames. The neighbours are weighted by inverse squared distance.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections import deque
+from dataclasses import dataclass
+from typing import Any, ClassVar
+
+import numpy as np
+
+from gwr_predictor.default_predictor.params import DefaultPredictorError
+from gwr_predictor.learning.params import DEFAULT_HORIZON, MAX_HORIZON
+from gwr_predictor.parameter_spec import ParamSpec, check_fields
+
+#: Frames back whose changes the key holds: the newest pose minus the pose 1, 2 and 4 frames before.
+LAGS = (1, 2, 4)
+
+MEMORY_SPECS = {spec.name: spec for spec in (
+    ParamSpec("horizon", DEFAULT_HORIZON, "frames predicted", 1, MAX_HORIZON),
+    ParamSpec("n_joints", 8, "joints per frame", 1),
+    ParamSpec("k", 3, "nearest snippets read out", 1, 64),
+    ParamSpec("future", 12, "frames stored after each key (>= horizon x max_ratio to read the fastest motion)",
+              1, 4 * MAX_HORIZON),
+    ParamSpec("velocity_weight", 0.5, "weight of the key's changes against its pose in the distance", 0.0, 100.0),
+    ParamSpec("insert_scale", 0.5, "a snippet is stored when no key is within this x the motion scale", 0.0, 1e3),
+    ParamSpec("capacity", 20000, "snippets at most (the memory stops growing there)", 1, 10**7),
+    ParamSpec("min_ratio", 0.6, "slowest speed, against a stored snippet's, read out", 0.0, 1.0, lo_open=True),
+    ParamSpec("max_ratio", 1.6, "fastest speed, against a stored snippet's, read out", 1.0, 10.0),
+    ParamSpec("noise_floor", 0.01, "lower bound of the motion scale (rad)", 0.0, 10.0, lo_open=True),
+    ParamSpec("motion_decay", 0.999, "forgetting of the motion scale per frame", 0.0, 1.0, lo_open=True,
+              hi_open=True),
+)}
+
+
+@dataclass(frozen=True)
+class MemoryParams:
+    """Settings of `TrajectoryMemory` (see the module docstring and `MEMORY_SPECS`)."""
+
+    horizon: int = MEMORY_SPECS["horizon"].default
+    n_joints: int = MEMORY_SPECS["n_joints"].default
+    k: int = MEMORY_SPECS["k"].default
+    future: int = MEMORY_SPECS["future"].default
+    velocity_weight: float = MEMORY_SPECS["velocity_weight"].default
+    insert_scale: float = MEMORY_SPECS["insert_scale"].default
+    capacity: int = MEMORY_SPECS["capacity"].default
+    min_ratio: float = MEMORY_SPECS["min_ratio"].default
+    max_ratio: float = MEMORY_SPECS["max_ratio"].default
+    noise_floor: float = MEMORY_SPECS["noise_floor"].default
+    motion_decay: float = MEMORY_SPECS["motion_decay"].default
+
+    def __post_init__(self) -> None:
+        check_fields(self, MEMORY_SPECS.values(), DefaultPredictorError)
+        if self.future < self.horizon:
+            raise DefaultPredictorError(f"MemoryParams.future {self.future} is shorter than the horizon "
+                                        f"{self.horizon}")
+        if self.capacity < self.k:
+            raise DefaultPredictorError(f"MemoryParams.capacity {self.capacity} is below k {self.k}")
+
+    def replace(self, **changes: Any) -> MemoryParams:
+        return dataclasses.replace(self, **changes)
+
+    def to_dict(self) -> dict[str, Any]:
+        return dataclasses.asdict(self)
+
+
+class TrajectoryMemory:
+    """Online: stores each snippet once its future is observed (no peeking), predicts (horizon, J)
+    from the snippets stored so far (None until it holds `k`). A missing sample (None/NaN) ends the
+    present snippet; what is stored stays."""
+
+    kind: ClassVar[str] = "TrajectoryMemory"
+
+    def __init__(self, params: MemoryParams | None = None) -> None:
+        self.params = p = params or MemoryParams()
+        self._lags = np.asarray(LAGS)
+        self._span = max(LAGS) + 1
+        self._key_weights = np.concatenate([np.ones(p.n_joints), np.full(len(LAGS) * p.n_joints, p.velocity_weight)])
+        self._grid = np.arange(1, p.horizon + 1, dtype=float)
+        size = min(p.capacity, 256)
+        self.keys = np.empty((size, (1 + len(LAGS)) * p.n_joints))  # pose, then its changes (unweighted)
+        self.futures = np.empty((size, p.future + 1, p.n_joints))  # displacements from the key's pose, step 0..future
+        self.size = 0
+        self._motion_ms = p.noise_floor ** 2  # running mean of ||x(t) - x(t-1)||^2
+        self._recent: deque[np.ndarray] = deque(maxlen=self._span + p.future)
+
+    def reset_sequence(self) -> None:
+        self._recent.clear()
+
+    @property
+    def motion_rms(self) -> float:
+        return math.sqrt(self._motion_ms)
+
+    def step(self, x: np.ndarray | None, learn: bool = True) -> np.ndarray | None:
+        from gwr_predictor.predictors.baselines import observation
+
+        p = self.params
+        obs = observation(x, p.n_joints)
+        recent = self._recent
+        if obs is None:
+            recent.clear()
+            return None
+        if recent:
+            d = obs - recent[-1]
+            self._motion_ms += (1.0 - p.motion_decay) * (float(d @ d) - self._motion_ms)
+        recent.append(obs)
+        if learn and len(recent) == recent.maxlen:
+            frames = np.asarray(recent)
+            self._store(self._key(frames[:self._span]), frames[self._span - 1:] - frames[self._span - 1])
+        if len(recent) < self._span or self.size < p.k:
+            return None
+        return obs + self._read(self._key(np.asarray(list(recent)[-self._span:])))
+
+    def _key(self, window: np.ndarray) -> np.ndarray:
+        """The key of a (span, J) window, oldest first: its newest pose, then that pose minus each lagged one."""
+        now = window[-1]
+        return np.concatenate([now, (now - window[-1 - self._lags]).reshape(-1)])
+
+    def _distances(self, key: np.ndarray) -> np.ndarray:
+        diff = self.keys[:self.size] - key
+        diff *= self._key_weights
+        return np.einsum("nd,nd->n", diff, diff)
+
+    def _store(self, key: np.ndarray, future: np.ndarray) -> None:
+        p = self.params
+        if self.size >= p.capacity:
+            return
+        if self.size:
+            radius = max(self.motion_rms, p.noise_floor) * p.insert_scale
+            if self._distances(key).min() <= radius * radius * len(key) / p.n_joints:
+                return
+        if self.size == len(self.keys):
+            grow = min(2 * len(self.keys), p.capacity)
+            self.keys = np.resize(self.keys, (grow, self.keys.shape[1]))
+            self.futures = np.resize(self.futures, (grow, *self.futures.shape[1:]))
+        self.keys[self.size] = key
+        self.futures[self.size] = future
+        self.size += 1
+
+    def _read(self, key: np.ndarray) -> np.ndarray:
+        """(horizon, J) displacements: the k nearest snippets' futures at the present speed, weighted."""
+        p = self.params
+        d2 = self._distances(key)
+        nearest = np.argpartition(d2, p.k - 1)[:p.k] if self.size > p.k else np.arange(self.size)
+        w = 1.0 / (d2[nearest] + 1e-6)
+        w /= w.sum()
+        stored = self.keys[nearest, p.n_joints:]  # (k, lags * J) changes
+        power = np.einsum("kd,kd->k", stored, stored)
+        ratio = np.where(power > 1e-8, (stored @ key[p.n_joints:]) / np.maximum(power, 1e-8), 1.0)
+        np.clip(ratio, p.min_ratio, p.max_ratio, out=ratio)
+        at = np.minimum(ratio[:, None] * self._grid, p.future)  # (k, horizon) stored steps to read
+        lo = at.astype(int)
+        hi = np.minimum(lo + 1, p.future)
+        frac = (at - lo)[..., None]
+        rows = np.arange(len(nearest))[:, None]
+        fut = self.futures[nearest]
+        read = fut[rows, lo] * (1.0 - frac) + fut[rows, hi] * frac  # (k, horizon, J)
+        return np.einsum("k,khj->hj", w, read)
+
+    def errors(self) -> dict[str, Any]:
+        return {"snippets": self.size, "motion_rms_rad": self.motion_rms}

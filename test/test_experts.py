@@ -1,0 +1,159 @@
+"""The default's parts of its own: the snippet memory and the per-step weighting of the experts."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from gwr_predictor.default_predictor import (
+    DefaultPredictorError,
+    Experts,
+    ExpertsParams,
+    MemoryParams,
+    TrajectoryMemory,
+    make_default,
+)
+from gwr_predictor.default_predictor.settings import experts_parameter_specs
+from gwr_predictor.errors import GwrPredictorError
+from gwr_predictor.evaluation.online import compare_online
+from gwr_predictor.predictors.baselines import HoldLast
+
+
+def _movement(speed: float, n: int = 40) -> np.ndarray:
+    """One smooth out-and-back movement of every joint, `speed` times as fast as at 1.0."""
+    t = np.arange(n) * 0.1 * speed
+    phase = np.clip(t / 3.0, 0.0, 1.0)
+    return 0.2 + 0.6 * np.sin(np.pi * phase)[:, None] * np.linspace(0.5, 1.0, 8)[None, :]
+
+
+def _mae_600(model, x: np.ndarray) -> float:
+    """MAE at the last step over the frames where the model predicted."""
+    errs = []
+    for t, f in enumerate(x):
+        out = model.step(f, learn=False)
+        if out is not None and t + 6 < len(x):
+            errs.append(np.abs(out[-1] - x[t + 6]).mean())
+    return float(np.mean(errs))
+
+
+def test_the_memory_anticipates_a_movement_it_has_seen_once():
+    memory = TrajectoryMemory()
+    first = _movement(1.0)
+    for f in first:
+        memory.step(f)
+    assert memory.size > 10
+    memory.reset_sequence()
+    again = _movement(1.0)
+    hold = float(np.mean(np.abs(again[:-6] - again[6:]).mean(axis=1)[4:]))
+    assert _mae_600(memory, again) < 0.3 * hold
+
+
+def test_the_memory_reads_a_faster_performance_at_its_own_speed():
+    """A performance 1.25 x as fast: reading the stored snippets at the estimated speed ratio beats
+    reading them at the stored speed (the ratio fixed at 1)."""
+    tuned, fixed = TrajectoryMemory(), TrajectoryMemory(MemoryParams(min_ratio=1.0, max_ratio=1.0))
+    for model in (tuned, fixed):
+        for f in _movement(1.0):
+            model.step(f)
+        model.reset_sequence()
+    faster = _movement(1.25)
+    assert _mae_600(tuned, faster) < 0.9 * _mae_600(fixed, faster)  # measured 0.81 x
+
+
+def test_the_memory_grows_only_when_required_and_keeps_what_it_stored():
+    memory = TrajectoryMemory(MemoryParams(capacity=500))
+    for _ in range(3):
+        for f in _movement(1.0):
+            memory.step(f)
+        memory.reset_sequence()
+    once = TrajectoryMemory()
+    for f in _movement(1.0):
+        once.step(f)
+    assert memory.size < 1.5 * once.size  # the same movement again adds (almost) nothing
+    stored = memory.size
+    assert memory.step(None) is None and memory.size == stored  # a gap ends the snippet, not the memory
+    small = TrajectoryMemory(MemoryParams(capacity=5, k=3))
+    for f in np.cumsum(np.random.default_rng(0).normal(scale=0.05, size=(200, 8)), axis=0):
+        small.step(f)
+    assert small.size == 5
+
+
+def test_the_memory_never_reads_the_future():
+    x = _movement(1.0, 60)
+    y = x.copy()
+    y[45:] += 1.0
+    a, b = TrajectoryMemory(), TrajectoryMemory()
+    for t in range(45):
+        pa, pb = a.step(x[t]), b.step(y[t])
+        assert (pa is None and pb is None) or np.array_equal(pa, pb)
+
+
+class _Constant:
+    """A member that predicts `offset` away from the newest pose at every step."""
+
+    def __init__(self, offset: float) -> None:
+        self.offset = offset
+
+    def step(self, x, learn=True):
+        return None if x is None else np.repeat(np.asarray(x)[None] + self.offset, 6, axis=0)
+
+    def reset_sequence(self) -> None:
+        pass
+
+
+def test_the_weights_go_to_the_member_that_has_been_right():
+    """On a ramp of 0.01 rad per frame, the member predicting the ramp gets nearly all the weight."""
+    class Ramp(_Constant):
+        def step(self, x, learn=True):
+            return None if x is None else np.asarray(x)[None] + 0.01 * np.arange(1, 7)[:, None]
+
+    experts = Experts({"wrong": _Constant(-0.05), "ramp": Ramp(0.0)})
+    ramp = 0.01 * np.arange(100)[:, None] * np.ones(8)
+    for f in ramp:
+        out = experts.step(f)
+    w = experts.weights()
+    assert np.all(w[1] > 0.999)
+    np.testing.assert_allclose(out, ramp[-1] + 0.01 * np.arange(1, 7)[:, None], atol=1e-6)
+    assert experts.scored.min() > 0
+
+
+def test_weights_stay_finite_at_any_power_and_unscored_members_share_the_mean():
+    experts = Experts({"a": _Constant(0.0), "b": _Constant(0.1)}, ExpertsParams(power=64.0))
+    w = experts.weights()
+    np.testing.assert_array_equal(w, 0.5)  # nothing scored: equal weights
+    for f in np.zeros((20, 8)):
+        experts.step(f)
+    w = experts.weights()
+    assert np.isfinite(w).all() and np.allclose(w.sum(axis=0), 1.0) and np.all(w[0] > 0.99)
+
+
+def test_a_member_without_a_prediction_is_left_out():
+    class Silent(_Constant):
+        def step(self, x, learn=True):
+            return None
+
+    experts = Experts({"silent": Silent(0.0), "hold": _Constant(0.0)})
+    out = experts.step(np.ones(8))
+    np.testing.assert_array_equal(out, np.ones((6, 8)))
+
+
+def test_the_default_wins_on_a_repeated_movement_varied_in_speed():
+    x = np.concatenate([_movement(s, 50) for s in (1.0, 0.9, 1.1, 1.0, 0.85, 1.15)])
+    res = compare_online({"hold": HoldLast(), "default": make_default()}, [x], progress=False)
+    assert res["default"].stats.mae[-1] < 0.6 * res["hold"].stats.mae[-1]
+
+
+def test_the_default_takes_its_settings_by_flat_name():
+    specs = {s.name for s in experts_parameter_specs()}
+    assert {"network.order", "network.gwr.eps_b", "memory.k", "experts.power", "expert_gate.decay",
+            "gate.confidence"} <= specs
+    model = make_default(settings={"memory.k": 5, "experts.power": 4.0, "network.order": 3,
+                                   "expert_gate.decay": 0.9, "gate.confidence": 1.5})
+    experts = model.model
+    assert experts.members["memory"].model.params.k == 5 and experts.params.power == 4.0
+    assert experts.members["network"].model.params.order == 3
+    assert experts.members["rls_ar"].params.decay == 0.9 and model.params.confidence == 1.5
+    with pytest.raises(DefaultPredictorError, match=r"memory\.kk"):
+        make_default(settings={"memory.kk": 5})
+    with pytest.raises(GwrPredictorError, match=r"memory\.k"):
+        make_default(settings={"memory.k": 0})
