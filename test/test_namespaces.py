@@ -26,6 +26,7 @@ from ros_harness import ROOT, Probe, allocate_domain_id, release_domain_id, ros_
 
 from gwr_predictor.nodes import messages
 from gwr_predictor.nodes.messages import JointState
+from gwr_predictor.robot.nao import ARM_JOINTS
 
 SCRIPT = ROOT / "scripts" / "run_pipeline.sh"
 #: a different motion per pipeline, so a crossed stream is visible in the values
@@ -39,7 +40,7 @@ SAME = 1e-9
 def stamped_values(msgs: Sequence[JointState]) -> tuple[np.ndarray, np.ndarray]:
     """(stamps (n,), values (n, joints)) of JointStates in arrival order."""
     read = [messages.read_joint_state(m) for m in msgs]
-    return np.array([r[0] for r in read]), np.array([r[2] for r in read]).reshape(len(read), -1)
+    return np.array([r[0] for r in read]), np.array([r[2] for r in read]).reshape(len(read), len(ARM_JOINTS))
 
 
 def distances(values: np.ndarray, frames: np.ndarray) -> np.ndarray:
@@ -184,6 +185,8 @@ def test_commands_of_frames_sent_before_the_probe_listened_or_still_on_the_way_a
     mask = comparable(commands, received(own, 3))
     assert mask.tolist() == [False] * 3 + [True] * 6 + [False]
     assert crossing_problems(commands, received(own, 3), other) == []
+    nothing = stamped_values([])  # before the first message
+    assert comparable(nothing, received(own, 3)).size == 0 and crossing_problems(nothing, nothing, nothing) == []
 
 
 def test_a_command_from_the_other_pipeline_is_a_crossing_wherever_it_is():
