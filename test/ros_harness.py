@@ -8,12 +8,14 @@ The test process talks to them through a `Probe`: a node on its own rclpy Contex
 
 from __future__ import annotations
 
+import fcntl
 import itertools
 import os
 import shutil
 import signal
 import subprocess
 import sys
+import tempfile
 import time
 from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
@@ -37,6 +39,12 @@ os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
 PROBE_DEPTH = 1000
 _domain_counter = itertools.count()
 _used_domains: set[int] = set()
+#: One lock file per domain id for every test run on this machine: a run holds an id's lock while a test
+#: uses the domain, so concurrent runs (checkouts, CI jobs) with overlapping ranges never share a domain
+#: (their nodes have the same names and would read each other's streams and statuses).
+DOMAIN_LOCKS = Path(tempfile.gettempdir()) / "gwr_predictor_ros_domains"
+DOMAIN_WAIT_S = 120.0
+_held_domains: dict[int, int] = {}  # domain id -> descriptor of its locked file
 
 
 def _domain_range() -> tuple[int, int]:
@@ -48,26 +56,52 @@ def _domain_range() -> tuple[int, int]:
     return lo, hi
 
 
+def _lock_domain(domain: int) -> bool:
+    """Take the machine-wide lock of `domain` (True; also if this process holds it), False if another does.
+    The lock goes with the process: a run that dies leaves no id taken."""
+    if domain in _held_domains:
+        return True
+    DOMAIN_LOCKS.mkdir(exist_ok=True)
+    fd = os.open(DOMAIN_LOCKS / f"{domain}.lock", os.O_RDWR | os.O_CREAT, 0o666)
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except OSError:
+        os.close(fd)
+        return False
+    _held_domains[domain] = fd
+    return True
+
+
 def allocate_domain_id() -> int:
-    """A domain id not used before in this pytest run (spread over runs by the pid).
+    """A domain id not used before in this pytest run (spread over runs by the pid) and not in use by
+    another run on this machine (waits up to DOMAIN_WAIT_S for one).
 
     Once the whole range is used it starts over: tests run one after another and each stops its
     processes at teardown, so a small range (GWR_TEST_DOMAINS=90-99) still runs the whole suite."""
     lo, hi = _domain_range()
     size = hi - lo + 1
-    if len(_used_domains) >= size:
-        _used_domains.clear()
-    for _ in range(size):
-        domain = (os.getpid() * 7 + next(_domain_counter)) % size + lo
-        if domain not in _used_domains:
-            _used_domains.add(domain)
-            return domain
-    raise RuntimeError(f"no free ROS domain id in {lo}..{hi}")  # unreachable: the set was cleared
+    deadline = time.monotonic() + DOMAIN_WAIT_S
+    while True:
+        if len(_used_domains) >= size:
+            _used_domains.clear()
+        for _ in range(size):
+            domain = (os.getpid() * 7 + next(_domain_counter)) % size + lo
+            if domain not in _used_domains and _lock_domain(domain):
+                _used_domains.add(domain)
+                return domain
+        if time.monotonic() > deadline:
+            raise RuntimeError(f"no free ROS domain id in {lo}..{hi}: other test runs on this machine hold "
+                               f"them (locks in {DOMAIN_LOCKS}); give this run its own GWR_TEST_DOMAINS")
+        _used_domains.clear()  # the ids this run used are its own to reuse, as when the range is used up
+        time.sleep(0.2)
 
 
 def release_domain_id(domain: int) -> None:
-    """Give an id back early (a session or an in-process fixture that is done with it)."""
+    """Give an id back (a session or an in-process fixture that is done with it): other runs may take it."""
     _used_domains.discard(domain)
+    fd = _held_domains.pop(domain, None)
+    if fd is not None:
+        os.close(fd)  # releases the lock
 
 
 def ros_env(domain_id: int, log_dir: Path, extra: dict[str, str] | None = None) -> dict[str, str]:

@@ -5,6 +5,11 @@ uncompensated pair in <ns>/uncompensated reading <ns>/arm_angles. Two pipelines 
 demonstrator motions run in one domain; each robot's commands must come from its own pipeline only
 (graph: publishers and subscribers of each topic are that pipeline's nodes; content: every
 uncompensated command is one of its own pipeline's angle frames, none of the other's).
+
+The probe starts listening before the pipelines, but under load its subscription may match a publisher
+only after the first frames went out, and a command can arrive before the frame it repeats: the content
+check therefore compares with its own stream only the commands whose frame the probe must have received
+(`comparable`); every command, those included, must be none of the other pipeline's frames.
 """
 
 from __future__ import annotations
@@ -12,6 +17,7 @@ from __future__ import annotations
 import os
 import signal
 import subprocess
+from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
@@ -20,10 +26,56 @@ from ros_harness import ROOT, Probe, allocate_domain_id, release_domain_id, ros_
 
 from gwr_predictor.nodes import messages
 from gwr_predictor.nodes.messages import JointState
+from gwr_predictor.robot.nao import ARM_JOINTS
 
 SCRIPT = ROOT / "scripts" / "run_pipeline.sh"
 #: a different motion per pipeline, so a crossed stream is visible in the values
 MOTIONS = {"/robot_a": "raise_front_both", "/robot_b": "rotate_cw_both"}
+#: commands per robot compared with its own stream
+COMPARED = 8
+#: a command repeats a frame exactly (mode none)
+SAME = 1e-9
+
+
+def stamped_values(msgs: Sequence[JointState]) -> tuple[np.ndarray, np.ndarray]:
+    """(stamps (n,), values (n, joints)) of JointStates in arrival order."""
+    read = [messages.read_joint_state(m) for m in msgs]
+    return np.array([r[0] for r in read]), np.array([r[2] for r in read]).reshape(len(read), len(ARM_JOINTS))
+
+
+def distances(values: np.ndarray, frames: np.ndarray) -> np.ndarray:
+    """Per row of `values`: the largest joint difference to the nearest of `frames` (inf without frames)."""
+    if len(frames) == 0:
+        return np.full(len(values), np.inf)
+    return np.abs(values[:, None, :] - frames[None, :, :]).max(axis=2).min(axis=1)
+
+
+def comparable(commands: tuple[np.ndarray, np.ndarray], own: tuple[np.ndarray, np.ndarray]) -> np.ndarray:
+    """Which commands (arrival order) repeat a frame the probe must have received in `own` (its angle frames).
+
+    Those before the first command that is a received frame may repeat frames published before the probe's
+    subscription matched (the compensator commands its frames in order, and both streams arrive in order);
+    those stamped at or after the newest received frame may repeat a frame still on its way (a frame stamped
+    after a command was captured after the command went out, so it follows that command's frame)."""
+    (cmd_stamps, cmd_values), (frame_stamps, frame_values) = commands, own
+    if len(frame_stamps) == 0:
+        return np.zeros(len(cmd_stamps), dtype=bool)
+    seen = distances(cmd_values, frame_values) < SAME
+    started = np.cumsum(seen) > 0
+    return started & (cmd_stamps < frame_stamps.max())
+
+
+def crossing_problems(commands: tuple[np.ndarray, np.ndarray], own: tuple[np.ndarray, np.ndarray],
+                      other: tuple[np.ndarray, np.ndarray]) -> list[str]:
+    """Why a robot's commands are not its own pipeline's frames: any command that is a frame of the other
+    pipeline, or a comparable one that is none of its own; empty when the streams did not cross."""
+    values = commands[1]
+    theirs = distances(values, other[1])
+    problems = [f"command {i} is a frame of the other pipeline" for i in np.flatnonzero(theirs < SAME)]
+    mine = distances(values, own[1])
+    problems += [f"command {i} is none of its own pipeline's frames (nearest {mine[i]:.3g} rad, the other's "
+                 f"{theirs[i]:.3g} rad)" for i in np.flatnonzero(comparable(commands, own) & (mine >= SAME))]
+    return problems
 
 
 def scenario(path: Path, pattern: str) -> Path:
@@ -67,11 +119,22 @@ def test_two_namespaced_pipelines_share_a_domain_without_crossing(tmp_path):
         def logs() -> str:
             return "\n".join(f"--- {p.name}\n{p.read_text()[-2000:]}" for p in sorted(tmp_path.glob("*.log")))
 
-        def enough() -> bool:
-            assert all(p.poll() is None for p in pipelines.values()), f"a pipeline stopped:\n{logs()}"
-            return all(len(commands[ns]) >= 8 for ns in MOTIONS)
+        def streams(ns: str) -> tuple[tuple[np.ndarray, np.ndarray], ...]:
+            other = next(o for o in MOTIONS if o != ns)
+            return stamped_values(commands[ns]), stamped_values(angles[ns]), stamped_values(angles[other])
 
-        probe.spin_until(enough, 45, lambda: f"8 uncompensated commands per robot:\n{logs()}")
+        def enough() -> bool:
+            """COMPARED comparable commands per robot, or a crossing already (then fail at once)."""
+            assert all(p.poll() is None for p in pipelines.values()), f"a pipeline stopped:\n{logs()}"
+            views = {ns: streams(ns) for ns in MOTIONS}
+            crossed = any(distances(cmds[1], other[1]).min(initial=np.inf) < SAME for cmds, _, other in views.values())
+            return crossed or all(comparable(cmds, own).sum() >= COMPARED for cmds, own, _ in views.values())
+
+        def problems() -> dict[str, list[str]]:
+            return {ns: crossing_problems(*streams(ns)) for ns in MOTIONS}
+
+        probe.spin_until(enough, 45, lambda: f"{COMPARED} comparable uncompensated commands per robot "
+                         f"({problems()}):\n{logs()}")
         node = probe.node
         for ns in MOTIONS:
             # each shared topic has its own pipeline's publisher, and only its own pipeline's subscribers
@@ -87,13 +150,7 @@ def test_two_namespaced_pipelines_share_a_domain_without_crossing(tmp_path):
         assert node.count_publishers("/arm_angles") == 0 and node.count_publishers("/uncompensated/joint_commands") == 0
 
         # mode none commands the latest observation: each one is a frame of its own pipeline's person
-        frames = {ns: np.stack([messages.read_joint_state(m)[2] for m in angles[ns]]) for ns in MOTIONS}
-        for ns, other in (("/robot_a", "/robot_b"), ("/robot_b", "/robot_a")):
-            for msg in commands[ns]:
-                values = messages.read_joint_state(msg)[2]
-                own = np.abs(frames[ns] - values).max(axis=1).min()
-                theirs = np.abs(frames[other] - values).max(axis=1).min()
-                assert own < 1e-9 < theirs, f"{ns}: a command {own=} {theirs=}"
+        assert problems() == {ns: [] for ns in MOTIONS}
     finally:
         for proc in pipelines.values():
             stop(proc)
@@ -101,3 +158,49 @@ def test_two_namespaced_pipelines_share_a_domain_without_crossing(tmp_path):
         release_domain_id(domain)
     for ns, proc in pipelines.items():
         assert proc.returncode in (0, 130), f"{ns}: run_pipeline.sh exit code {proc.returncode}"
+
+
+# --- the content check itself, on made-up streams ---------------------------------------------------
+
+def made_up(offset: float, n: int = 10) -> tuple[np.ndarray, np.ndarray]:
+    """n frames 0.1 s apart, a different motion per `offset`."""
+    stamps = 100.0 + 0.1 * np.arange(n)
+    return stamps, offset + 0.01 * np.arange(n)[:, None] * np.ones((1, 8))
+
+
+def commands_of(frames: tuple[np.ndarray, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+    """What mode none sends for these frames: each one again, stamped when it went out (a little later)."""
+    return frames[0] + 0.05, frames[1].copy()
+
+
+def received(frames: tuple[np.ndarray, np.ndarray], first: int) -> tuple[np.ndarray, np.ndarray]:
+    """The probe's view of a stream whose subscription matched before frame `first`."""
+    return frames[0][first:], frames[1][first:]
+
+
+def test_commands_of_frames_sent_before_the_probe_listened_or_still_on_the_way_are_not_compared():
+    own, other = made_up(0.0), made_up(1.0)
+    commands = commands_of(own)
+    # the probe missed frames 0-2; command 9 went out after the newest frame the probe has (stamp 100.9)
+    mask = comparable(commands, received(own, 3))
+    assert mask.tolist() == [False] * 3 + [True] * 6 + [False]
+    assert crossing_problems(commands, received(own, 3), other) == []
+    nothing = stamped_values([])  # before the first message
+    assert comparable(nothing, received(own, 3)).size == 0 and crossing_problems(nothing, nothing, nothing) == []
+
+
+def test_a_command_from_the_other_pipeline_is_a_crossing_wherever_it_is():
+    own, other = made_up(0.0), made_up(1.0)
+    for i in (1, 5, 9):  # before the first comparable command, among them, after them
+        commands = commands_of(own)
+        commands[1][i] = other[1][i]
+        assert f"command {i} is a frame of the other pipeline" in crossing_problems(commands, received(own, 3), other)
+
+
+def test_a_wholly_crossed_stream_and_a_command_of_no_frame_are_problems():
+    own, other = made_up(0.0), made_up(1.0)
+    assert len(crossing_problems(commands_of(other), received(own, 3), other)) == 10
+    commands = commands_of(own)
+    commands[1][6] += 0.2  # after the first comparable command: a pose no pipeline sent
+    assert crossing_problems(commands, received(own, 3), other) == [
+        "command 6 is none of its own pipeline's frames (nearest 0.17 rad, the other's 0.74 rad)"]
