@@ -108,19 +108,20 @@ class Persistent:
         parameters returns a new object instead. `where`: the key prefix, for messages."""
         decl = self.PERSIST
         for a in decl.values:
-            setattr(self, a, like(getattr(self, a), header[key(a)], where + key(a)))
+            setattr(self, a, like(getattr(self, a), field_of(header, key(a), where), where + key(a)))
         for a in decl.arrays:
             copy_into(getattr(self, a), arrays[key(a)], where + key(a))
         for a in decl.optional:
             setattr(self, a, np.array(arrays[key(a)], dtype=float) if key(a) in arrays else None)
         for attr, row_shape in decl.queues.items():
-            fill_queue(getattr(self, attr), header[f"{key(attr)}_present"], arrays[key(attr)], row_shape(self),
-                       where + key(attr))
+            present = field_of(header, f"{key(attr)}_present", where)
+            fill_queue(getattr(self, attr), present, arrays[key(attr)], row_shape(self), where + key(attr))
         for attr, name in decl.members.items():
             member = getattr(self, attr)
             if member is not None:
                 prefix = f"{where}{name}." if name else where
-                setattr(self, attr, member._restored(header[name] if name else header, sub(arrays, name), prefix))
+                saved = field_of(header, name, where) if name else header
+                setattr(self, attr, member._restored(saved, sub(arrays, name), prefix))
         self._load_extra(header, arrays)
         return self
 
@@ -248,6 +249,13 @@ def fill_queue(queue: deque[np.ndarray | None], present: Any, rows: np.ndarray, 
     if not np.can_cast(rows.dtype, float, "same_kind"):
         raise CheckpointError(f"queue {name!r} is {rows.dtype}, expected float")
     queue.extend(np.array(row, dtype=float) if flag else None for flag, row in zip(present, rows, strict=True))
+
+
+def field_of(header: Mapping[str, Any], name: str, where: str) -> Any:
+    """header[name], or CheckpointError naming the field (with its member's prefix) if it is not there."""
+    if not isinstance(header, Mapping) or name not in header:
+        raise CheckpointError(f"missing value {where + name!r}")
+    return header[name]
 
 
 def _merge(into: dict[str, Any], more: Mapping[str, Any], owner: str) -> None:
