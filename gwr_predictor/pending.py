@@ -13,13 +13,15 @@ from __future__ import annotations
 
 import numpy as np
 
+from gwr_predictor.learning.persistence import Persist, Persistent
+
 
 def target_steps(t: int | np.ndarray, horizon: int) -> np.ndarray:
     """The steps targeted by the h rows of a prediction made at step t: t + 1 ... t + h."""
     return np.asarray(t)[..., None] + 1 + np.arange(horizon)
 
 
-class PendingPredictions:
+class PendingPredictions(Persistent):
     """Predictions not yet scored, filed by the step they target.
 
     `pending[..., s, k, :]` is row k of the prediction whose row k targets a step t with
@@ -28,6 +30,8 @@ class PendingPredictions:
     (observed or not): it hands back what targets t and empties those entries, so a slot is free
     again when the next prediction files into it.
     """
+
+    PERSIST = Persist(arrays=("pending", "valid"))
 
     def __init__(self, horizon: int, joints: int, lead: tuple[int, ...] = ()) -> None:
         self.horizon = horizon

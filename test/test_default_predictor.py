@@ -289,7 +289,7 @@ def test_bad_checkpoint_and_bad_output_are_named(tmp_path):
     from gwr_predictor.learning.checkpoint import read_checkpoint, write_checkpoint
 
     header, arrays = read_checkpoint(path, "GatedPredictor", [])
-    arrays["model:matrices"] = np.zeros((1, 2, 3))
+    arrays["model.matrices"] = np.zeros((1, 2, 3))
     write_checkpoint(path, "GatedPredictor", {k: v for k, v in header.items()
                                               if k not in ("magic", "kind", "format_version")}, arrays)
     with pytest.raises(CheckpointError, match="local models"):
@@ -396,3 +396,24 @@ def test_data_loss_does_not_hurt_what_is_learned():
 def test_settings_out_of_range_are_refused_with_the_field_and_the_allowed_range(cls, error, field, value):
     with pytest.raises(error, match=rf"{cls.__name__}\.{field} must be"):
         cls(**{field: value})
+
+
+@pytest.mark.parametrize("gate", [GateParams(), GateParams(per_joint=True, fast_decay=0.0)])
+def test_a_gated_model_loaded_mid_stream_continues_bit_for_bit(tmp_path, gate):
+    """The gate's statistics, pending predictions and last pose, and its model, survive a save."""
+    x = _periodic(400) + 0.1 * _walk(400)
+    x[150] = np.nan
+    model = make_gated_llm(gate=gate)
+    for f in x[:200]:
+        model.step(f)
+    model.save(tmp_path / "m.npz")
+    twin = GatedPredictor.load(tmp_path / "m.npz")
+    assert model.alpha().max() > 0.1  # the gate has something to lose
+    np.testing.assert_array_equal(model.alpha(), twin.alpha())
+    for t, f in enumerate(x[200:]):
+        if t == 100:
+            model.reset_sequence()
+            twin.reset_sequence()
+        a, b = model.step(f), twin.step(f)
+        assert (a is None and b is None) or np.array_equal(a, b)
+    np.testing.assert_array_equal(model.alpha(), twin.alpha())

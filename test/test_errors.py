@@ -69,8 +69,8 @@ def test_a_checkpoint_whose_read_out_queue_disagrees_with_its_regressors_is_refu
     for ti in t:
         model.step(0.3 * np.sin(ti + np.arange(8)))
     header, arrays = model.state()
-    assert header["reg_present"] and all(header["reg_present"])
-    header["global"]["outs_present"][0] = False
+    assert header["regs_present"] and all(header["regs_present"])
+    header["outs_present"][0] = False
     with pytest.raises(CheckpointError, match="read-out queue"):
         LocalLinearPredictor.from_state(header, arrays)
 

@@ -34,15 +34,15 @@ adapting when `step` is called with learn=False (they are running statistics, no
 
 from __future__ import annotations
 
-import dataclasses
-import os
+from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
 
 from gwr_predictor.default_predictor.params import DefaultPredictorError
-from gwr_predictor.learning.checkpoint import Checkpointed, CheckpointError
+from gwr_predictor.learning.checkpoint import CheckpointError
+from gwr_predictor.learning.persistence import Checkpointed, Persist, params_from_json
 from gwr_predictor.parameter_spec import ParamSpec, check_fields
 from gwr_predictor.pending import PendingPredictions
 from gwr_predictor.pipeline.conventions import DEFAULT_HORIZON
@@ -255,53 +255,26 @@ class GatedPredictor(Checkpointed):
         return out
 
     # --- persistence --------------------------------------------------------------------------------
-    #: The gate's own arrays in every checkpoint (the model's follow under "model:").
-    ARRAYS: ClassVar[tuple[str, ...]] = ("gate:stats", "gate:scored", "gate:pending", "gate:valid")
-
-    def state(self) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
-        """(header, arrays) of the gate and its model (which needs `state`, `kind`, `from_state`)."""
-        state = getattr(self.model, "state", None)
-        model_cls = _model_classes().get(getattr(self.model, "kind", ""))
-        if not callable(state) or model_cls is None:
-            raise CheckpointError(f"a gate around {type(self.model).__name__} cannot be saved; supported "
-                                  f"models: {', '.join(_model_classes())}")
-        m_header, m_arrays = state()
-        header = {"gate": dataclasses.asdict(self.params), "model_kind": self.model.kind, "model": m_header,
-                  "last": None if self._last is None else self._last.tolist(),
-                  "out_diff": self._out_diff is not None, "t": self._t}
-        arrays = {f"model:{k}": v for k, v in m_arrays.items()}
-        arrays.update({"gate:stats": self._stats, "gate:scored": self._scored,
-                       "gate:pending": self._pending.pending, "gate:valid": self._pending.valid})
-        if self._out_diff is not None:
-            arrays["gate:out_diff"] = self._out_diff
-        return header, arrays
+    PARAMS = GateParams
+    PERSIST = Persist(arrays=("_stats", "_scored"), values=("_t",), optional=("_last", "_out_diff"),
+                      members={"model": "model", "_pending": ""})
 
     @classmethod
-    def from_state(cls, header: dict[str, Any], arrays: dict[str, np.ndarray],
-                   source: str | os.PathLike[str] = "<state>") -> GatedPredictor:
-        try:
-            model_cls = _model_classes().get(header["model_kind"])
-            if model_cls is None:
-                raise CheckpointError(f"{source}: the gate wraps a {header['model_kind']!r}; this build "
-                                      f"restores {', '.join(_model_classes())}")
-            sub = {k[len("model:"):]: v for k, v in arrays.items() if k.startswith("model:")}
-            gate = cls(model_cls.from_state(header["model"], sub, f"{source} (gated model)"),
-                       GateParams(**header["gate"]))
-            gate._t = int(header["t"])
-            targets = {"scored": gate._scored, "stats": gate._stats, "pending": gate._pending.pending,
-                       "valid": gate._pending.valid}
-            for name, dest in targets.items():
-                src = arrays[f"gate:{name}"]
-                if np.shape(src) != dest.shape:
-                    raise ValueError(f"array gate:{name} has shape {np.shape(src)}, expected {dest.shape}")
-                dest[...] = src
-            gate._last = None if header["last"] is None else np.asarray(header["last"], dtype=float)
-            gate._out_diff = np.array(arrays["gate:out_diff"], dtype=float) if header["out_diff"] else None
-        except CheckpointError:
-            raise
-        except (KeyError, ValueError, TypeError, IndexError) as exc:
-            raise CheckpointError(f"{source}: inconsistent gate checkpoint: {type(exc).__name__}: {exc}") from exc
-        return gate
+    def _fresh(cls, header: Mapping[str, Any]) -> GatedPredictor:
+        model_cls = _model_classes().get(header["model_kind"])
+        if model_cls is None:
+            raise GateError(f"the gate wraps a {header['model_kind']!r}; this build restores "
+                                  f"{', '.join(_model_classes())}")
+        return cls(model_cls._fresh(header["model"]), params_from_json(GateParams, header["params"]))
+
+    def _save_extra(self) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
+        """The model's kind (which class to rebuild); only models that can be restored are saved."""
+        kind = getattr(self.model, "kind", "")
+        if kind not in _model_classes() or not isinstance(self.model, Checkpointed):
+            raise CheckpointError(f"a gate around {type(self.model).__name__} cannot be saved; supported "
+                                  f"models: {', '.join(_model_classes())}")
+        return {"model_kind": kind}, {}
+
 
 def inner_model(model: Any) -> Any:
     """The learner behind a gate, or the model itself: what has neurons, errors and `frames_seen`."""

@@ -45,6 +45,7 @@ matrices and visit counts move with their neurons in the same vectorised steps.
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from typing import Any, ClassVar
 
 import numpy as np
@@ -269,6 +270,26 @@ class LocalLinearPGWR(PredictiveGWR):
         return (wts / wts.sum()) @ ys
 
     # --- persistence -------------------------------------------------------------------------------
+    def _capture(self) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
+        """The network as a checkpoint member: its settings come from its owner's parameters."""
+        arrays = {"weights": self.weights.copy(), "matrices": self.matrices.copy(), "visits": self.visits.copy(),
+                  "readout_mse": self.readout_mse.copy(), "surprise_streaks": self.surprise_streaks.copy(),
+                  "counters": self.counters.copy(), "edges": self.edge_array()}
+        return {"distance_factor": self.distance_factor, "recruited": self.recruited}, arrays
+
+    def _restored(self, header: Mapping[str, Any], arrays: Mapping[str, np.ndarray],
+                  where: str = "") -> LocalLinearPGWR:
+        """The saved network with this (fresh) one's settings; DefaultPredictorError if it does not fit."""
+        net = self.from_parts(
+            arrays["weights"], arrays["matrices"], self.params, edges=arrays["edges"], counters=arrays["counters"],
+            match_dim=self.match_dim, distance_factor=float(header["distance_factor"]), rate=self.rate,
+            delta=self.delta, visits=arrays["visits"], consolidate_after=self.consolidate_after,
+            readout_mse=arrays["readout_mse"], recruit_surprise=self.recruit_surprise,
+            recruited=int(header["recruited"]), streaks=arrays["surprise_streaks"], recruit_after=self.recruit_after)
+        if net.out_dim != self.out_dim:
+            raise DefaultPredictorError(f"outputs are {net.out_dim}-d, the parameters say {self.out_dim}")
+        return net
+
     @classmethod
     def from_parts(cls, weights: np.ndarray, matrices: np.ndarray, params: GWRParams, *, edges: Any,
                    counters: np.ndarray, match_dim: int, distance_factor: float, rate: float,

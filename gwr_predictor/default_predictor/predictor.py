@@ -17,16 +17,16 @@ the global one carries the prediction until the network has learned the movement
 from __future__ import annotations
 
 import math
-import os
 from collections import deque
+from collections.abc import Mapping
 from typing import Any, ClassVar
 
 import numpy as np
 
 from gwr_predictor.default_predictor.network import LocalLinearPGWR
 from gwr_predictor.default_predictor.params import DefaultPredictorError, LocalLinearParams
-from gwr_predictor.learning.checkpoint import Checkpointed, CheckpointError, require_arrays
-from gwr_predictor.learning.online_loop import ErrorTracker, OnlineLoop
+from gwr_predictor.learning.online_loop import OnlineLoop
+from gwr_predictor.learning.persistence import Checkpointed, fill_queue, stack_queue
 from gwr_predictor.learning.rls import RecursiveLeastSquares, window_features
 from gwr_predictor.learning.scaling import InputScaling
 
@@ -210,110 +210,31 @@ class LocalLinearPredictor(OnlineLoop, Checkpointed):
         return {**out, **self._errors.summary()}
 
     # --- persistence --------------------------------------------------------------------------------
-    #: The arrays every checkpoint has (and, with a global read-out, GLOBAL_ARRAYS).
-    ARRAYS: ClassVar[tuple[str, ...]] = ("weights", "matrices", "visits", "readout_mse", "surprise_streaks",
-                                         "counters", "edges", "win", "hist", "regs", *ErrorTracker.ARRAYS)
-    GLOBAL_ARRAYS: ClassVar[tuple[str, ...]] = ("global:weights", "global:p", "mix_sxx", "mix_sxy", "outs",
-                                                "out_features")
+    PARAMS = LocalLinearParams
+    PERSIST = OnlineLoop.PERSIST.extend(
+        arrays=("_win", "_mix_sxx", "_mix_sxy", "_mix"), values=("_motion_ms", "_fill"),
+        members={"pgwr": "", "linear": "global"},
+        queues={"_regs": lambda m: (m.pgwr.in_dim,), "_hist": lambda m: (m.params.n_joints,)})
 
-    def state(self) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
-        """(JSON-able header, arrays) of the whole state; `from_state` continues bit for bit."""
-        g = self.pgwr
-        regs = list(self._regs)
-        reg_arr = np.array([np.zeros(g.in_dim) if r is None else r for r in regs]).reshape(len(regs), g.in_dim)
-        hist = np.array(list(self._hist)).reshape(len(self._hist), self.params.n_joints)
-        header = {"params": self.params.to_dict(), "distance_factor": g.distance_factor,
-                  "motion_ms": self._motion_ms, "fill": self._fill, "reg_present": [r is not None for r in regs],
-                  "last_reg": self._last_reg is not None,
-                  "counters": self._counters_header(),
-                  "errors": self._errors.header(), "recruited": g.recruited}
-        arrays = {"weights": g.weights, "matrices": g.matrices.copy(), "visits": g.visits.copy(),
-                  "readout_mse": g.readout_mse.copy(), "surprise_streaks": g.surprise_streaks.copy(),
-                  "counters": g.counters.copy(),
-                  "edges": g.edge_array(), "win": self._win.copy(), "hist": hist, "regs": reg_arr,
-                  **{k: v.copy() for k, v in self._errors.arrays().items()}}
-        if self.linear is not None:
-            queued = list(self._outs)
-            shape = (2, self.params.horizon, self.params.n_joints)
-            features = self.linear.weights.shape[0]
-            rls_header, rls_arrays = self.linear.state()
-            header["global"] = {"rls": rls_header, "outs_present": [q is not None for q in queued]}
-            arrays.update({f"global:{k}": v for k, v in rls_arrays.items()})
-            arrays.update(mix_sxx=self._mix_sxx.copy(), mix_sxy=self._mix_sxy.copy(),
-                          outs=np.array([np.zeros(shape) if q is None else q[0] for q in queued]).reshape(
-                              len(queued), *shape),
-                          out_features=np.array([np.zeros(features) if q is None else q[1] for q in queued]).reshape(
-                              len(queued), features))
-        return header, arrays
+    def _save_extra(self) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
+        """The queued read-outs: pairs (read-outs, features) filed in step with the regressors."""
+        if self.linear is None:
+            return {}, {}
+        p = self.params
+        present, outs = stack_queue(deque(None if q is None else q[0] for q in self._outs), (2, p.horizon, p.n_joints))
+        _, features = stack_queue(deque(None if q is None else q[1] for q in self._outs), (self.linear.p.shape[0],))
+        return {"outs_present": present}, {"outs": outs, "out_features": features}
 
-    @classmethod
-    def from_state(cls, header: dict[str, Any], arrays: dict[str, np.ndarray],
-                   source: str | os.PathLike[str] = "<state>") -> LocalLinearPredictor:
-        """The predictor of a `state()`; CheckpointError naming `source` if it does not fit."""
-        require_arrays(cls.ARRAYS, arrays, source)
-        try:
-            params = LocalLinearParams.from_dict(header["params"])
-            model = cls.__new__(cls)
-            model.params = params
-            model.pgwr = LocalLinearPGWR.from_parts(
-                arrays["weights"], arrays["matrices"], params.gwr, edges=arrays["edges"],
-                counters=arrays["counters"], match_dim=params.order * params.n_joints,
-                distance_factor=float(header["distance_factor"]), rate=params.rate, delta=1e-4,
-                visits=arrays["visits"], consolidate_after=params.consolidate_after,
-                readout_mse=arrays["readout_mse"], recruit_surprise=params.recruit_surprise,
-                recruited=int(header["recruited"]), streaks=arrays["surprise_streaks"],
-                recruit_after=params.recruit_after)
-            if model.pgwr.out_dim != params.horizon * params.n_joints:
-                raise ValueError(f"outputs are {model.pgwr.out_dim}-d, parameters say "
-                                 f"{params.horizon * params.n_joints}")
-            model._motion_ms = float(header["motion_ms"])
-            model._restore_counters(header["counters"])
-            model._errors = ErrorTracker(params.horizon, params.n_joints, cls.layer_names)
-            model._errors.restore(header["errors"], arrays)
-            model._clear_sequence()
-            if np.shape(arrays["win"]) != model._win.shape:
-                raise ValueError(f"array 'win' has shape {np.shape(arrays['win'])}, expected {model._win.shape}")
-            model._win[...] = arrays["win"]
-            model._fill = int(header["fill"])
-            for row in np.asarray(arrays["hist"], dtype=float).reshape(-1, params.n_joints):
-                model._hist.append(row.copy())
-            present = header["reg_present"]
-            regs = np.asarray(arrays["regs"], dtype=float)
-            if len(present) != len(regs) or len(regs) > params.horizon:
-                raise ValueError(f"regressor queue of {len(regs)} entries does not fit the parameters")
-            for flag, reg in zip(present, regs, strict=True):
-                model._regs.append(reg.copy() if flag else None)
-            model._last_reg = model._regs[-1] if header["last_reg"] else None
-            model._init_global()
-            if model.linear is not None:
-                model._restore_global(model.linear, header["global"], arrays)
-        except CheckpointError:
-            raise
-        except (KeyError, ValueError, TypeError, IndexError) as exc:
-            raise CheckpointError(f"{source}: inconsistent local-linear checkpoint: "
-                                  f"{type(exc).__name__}: {exc}") from exc
-        return model
-
-    def _restore_global(self, linear: RecursiveLeastSquares, header: dict[str, Any],
-                        arrays: dict[str, np.ndarray]) -> None:
-        missing = sorted(set(self.GLOBAL_ARRAYS) - arrays.keys())
-        if missing:
-            raise DefaultPredictorError(f"missing arrays {missing} of the global read-out")
-        prefix = "global:"
-        linear.restore(header["rls"], {k[len(prefix):]: v for k, v in arrays.items() if k.startswith(prefix)})
-        for name, dest in (("mix_sxx", self._mix_sxx), ("mix_sxy", self._mix_sxy)):
-            if np.shape(arrays[name]) != dest.shape:
-                raise DefaultPredictorError(f"array {name!r} has shape {np.shape(arrays[name])}, expected {dest.shape}")
-            dest[...] = arrays[name]
-        self._mix = self._mix_weights()
-        present, outs = header["outs_present"], np.asarray(arrays["outs"], dtype=float)
-        features = np.asarray(arrays["out_features"], dtype=float)
-        shape = (len(self._regs), 2, self.params.horizon, self.params.n_joints)
-        n_features = linear.weights.shape[0]
-        if len(present) != len(outs) or outs.shape != shape or features.shape != (len(outs), n_features):
-            raise DefaultPredictorError(f"read-out queue of shapes {outs.shape}, {features.shape} does not fit the "
-                                   f"regressor queue {shape}")
-        if [bool(flag) for flag in present] != [r is not None for r in self._regs]:
+    def _load_extra(self, header: Mapping[str, Any], arrays: Mapping[str, np.ndarray]) -> None:
+        self._last_reg = self._regs[-1] if self._regs else None  # the newest regressor is the last queued
+        if self.linear is None:
+            return
+        p = self.params
+        outs: deque[np.ndarray | None] = deque(maxlen=p.horizon)
+        features: deque[np.ndarray | None] = deque(maxlen=p.horizon)
+        fill_queue(outs, header["outs_present"], arrays["outs"], (2, p.horizon, p.n_joints), "outs")
+        fill_queue(features, header["outs_present"], arrays["out_features"], (self.linear.p.shape[0],), "out_features")
+        if [o is not None for o in outs] != [r is not None for r in self._regs]:
             raise DefaultPredictorError("read-out queue out of step with the regressor queue")
-        for flag, o, f in zip(present, outs, features, strict=True):
-            self._outs.append((o.copy(), f.copy()) if flag else None)
+        for o, f in zip(outs, features, strict=True):
+            self._outs.append(None if o is None or f is None else (o, f))

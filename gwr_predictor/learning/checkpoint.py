@@ -2,8 +2,9 @@
 
 Layout: an uncompressed .npz whose member `__header__` holds UTF-8 JSON with `magic`, `kind`
 (the model class), `format_version` and whatever plain values the model adds; every other member
-is a named array. Writing goes to a temporary file in the destination folder, is fsynced and then
-renamed over the target, so a crash leaves either the old or the new file, never half of one.
+is a named array (which header keys and arrays a model writes: `persistence.py`). Writing goes to a
+temporary file in the destination folder, is fsynced and then renamed over the target, so a crash
+leaves either the old or the new file, never half of one.
 Anything wrong on reading (missing, truncated, not a checkpoint, another kind or version, missing
 arrays, and whatever else a hostile or damaged file makes the zip, npy or JSON readers raise) raises
 `CheckpointError` naming the file and the problem: every array's declared size is checked against the
@@ -24,7 +25,7 @@ import tempfile
 import zipfile
 from collections.abc import Iterable, Mapping
 from pathlib import Path
-from typing import Any, ClassVar
+from typing import Any
 
 import numpy as np
 
@@ -33,9 +34,8 @@ from gwr_predictor.file_limits import MAX_CHECKPOINT_BYTES, check_zip_directory,
 
 MAGIC = "gwr_predictor.checkpoint"
 #: The one format this build reads and writes; older files are refused with a clear message (their
-#: history: CHANGELOG.md). 3: every model's arrays and header keys as the classes write them now, with
-#: no fallbacks for files of earlier development builds.
-FORMAT_VERSION = 3
+#: history: CHANGELOG.md). 4: the layout `persistence.py` makes from each class's declaration.
+FORMAT_VERSION = 4
 HEADER_KEY = "__header__"
 #: The JSON header holds parameters and small per-layer values (a few kB); arrays are members.
 MAX_HEADER_BYTES = 4 << 20
@@ -188,40 +188,6 @@ def _fsync_dir(folder: Path) -> None:
 
 _ZIP_LOCAL = b"PK\x03\x04"
 _FIRST_MEMBER = (HEADER_KEY + ".npy").encode()
-
-
-class Checkpointed:
-    """One way to save and load for every learner: a class names its `kind` and the arrays every one
-    of its checkpoints holds (`required_arrays`), and says what its state is (`state`) and how to
-    rebuild from it (`from_state`); writing, reading, versions and every check on the file are here."""
-
-    kind: ClassVar[str]
-    ARRAYS: ClassVar[tuple[str, ...]] = ()
-
-    @classmethod
-    def required_arrays(cls) -> list[str]:
-        """The arrays every checkpoint of this class holds (reading checks them before `from_state`)."""
-        return list(cls.ARRAYS)
-
-    def state(self) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
-        """(JSON-able header, named arrays) of the whole state; `from_state` continues bit for bit."""
-        raise NotImplementedError
-
-    @classmethod
-    def from_state(cls, header: dict[str, Any], arrays: dict[str, np.ndarray],
-                   source: str | os.PathLike[str] = "<state>") -> Any:
-        raise NotImplementedError
-
-    def save(self, path: str | os.PathLike[str]) -> None:
-        """Write the whole state atomically (CheckpointError on failure)."""
-        header, arrays = self.state()
-        write_checkpoint(path, self.kind, header, arrays)
-
-    @classmethod
-    def load(cls, path: str | os.PathLike[str]) -> Any:
-        """A model saved by `save`, continuing where it stopped; CheckpointError naming the file otherwise."""
-        header, arrays = read_checkpoint(path, cls.kind, cls.required_arrays())
-        return cls.from_state(header, arrays, path)
 
 
 def looks_like_checkpoint(path: str | os.PathLike[str]) -> bool:

@@ -33,12 +33,14 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from collections.abc import Mapping
 from typing import Any, NamedTuple, TypeVar
 
 import numpy as np
 
 from gwr_predictor.errors import GwrPredictorError
 from gwr_predictor.learning.params import MAX_EDGE_AGE_LIMIT, GWRParams
+from gwr_predictor.learning.persistence import Persistent
 
 _G = TypeVar("_G", bound="GWR")
 
@@ -118,7 +120,7 @@ class Prepared(NamedTuple):
     rate_scale: np.ndarray | None = None
     scaled: int = 0
 
-class GWR:
+class GWR(Persistent):
     """A GWR network over `dim`-dimensional vectors; see the module docstring for the step."""
 
     # the storage `_alloc` (re)builds: [w | ||w||^2], carried weights, firing counters, edge ages
@@ -469,3 +471,18 @@ class GWR:
         params = GWRParams(**state["params"])
         return cls.from_arrays(state["weights"], params, edges=state["edges"], counters=state["counters"],
                                match_dim=int(state["match_dim"]), distance_factor=float(state["distance_factor"]))
+
+    def _capture(self) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
+        """A network as a checkpoint member: `state`, its arrays apart."""
+        state = self.state()
+        return state, {a: state.pop(a) for a in self.STATE_ARRAYS}
+
+    def _restored(self, header: Mapping[str, Any], arrays: Mapping[str, np.ndarray], where: str = "") -> GWR:
+        """The saved network in place of this one (built from the owner's parameters), which it must
+        match in size, matching part, distance factor and parameters (a network's size is not fixed)."""
+        net = type(self).from_state({**header, **{a: arrays[a] for a in self.STATE_ARRAYS}})
+        for what in ("dim", "match_dim", "distance_factor", "params"):
+            if getattr(net, what) != getattr(self, what):
+                raise InputError(f"layer {where.rstrip('.')} has {what} {getattr(net, what)!r}, "
+                                 f"the parameters say {getattr(self, what)!r}")
+        return net

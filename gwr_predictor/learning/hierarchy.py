@@ -25,25 +25,26 @@ sequence boundary and also drops those pending predictions. Networks are never c
 
 from __future__ import annotations
 
-import os
 from collections import deque
+from collections.abc import Mapping
 from typing import Any, ClassVar
 
 import numpy as np
 
-from gwr_predictor.learning.checkpoint import Checkpointed, CheckpointError, require_arrays
 from gwr_predictor.learning.gwr import GWR, InputError
-from gwr_predictor.learning.online_loop import ErrorTracker, OnlineLoop, copy_into
+from gwr_predictor.learning.online_loop import OnlineLoop
 from gwr_predictor.learning.params import LAYERS, HierarchyParams
+from gwr_predictor.learning.persistence import Checkpointed, Persist, Persistent
 from gwr_predictor.learning.predictive_gwr import PredictiveGWR
 from gwr_predictor.learning.scaling import InputScaling
 
 
-class _Window:
+class _Window(Persistent):
     """Eq. 5's window in time: the last `tau` rows, newest first; `flat` (a view) is their
     concatenation o(t) = w_b(t) + w_b(t-1) + ... + w_b(t-tau+1) once `full`."""
 
     __slots__ = ("fill", "flat", "rows")
+    PERSIST = Persist(arrays=("rows",), values=("fill",))
 
     def __init__(self, tau: int, dim: int) -> None:
         self.rows = np.zeros((tau, dim))
@@ -57,10 +58,6 @@ class _Window:
         rows[0] = row
         self.fill = min(self.fill + 1, len(rows))
         return self.fill == len(rows)
-
-    def restore(self, rows: np.ndarray, fill: int, name: str) -> None:
-        copy_into(self.rows, rows, name)
-        self.fill = int(fill)
 
 
 class _OnlinePredictor(OnlineLoop, Checkpointed):
@@ -268,89 +265,17 @@ class _OnlinePredictor(OnlineLoop, Checkpointed):
                 **self._errors.summary()}
 
     # --- persistence ----------------------------------------------------------------------------
-    def _window_arrays(self) -> dict[str, np.ndarray]:
-        raise NotImplementedError
+    PARAMS = HierarchyParams
+    PERSIST = OnlineLoop.PERSIST.extend(arrays=("_xbuf",), values=("_xfill",),
+                                        queues={"_regs": lambda m: (m.pgwr.in_dim,)})
 
-    def _restore_windows(self, header: dict[str, Any], arrays: dict[str, np.ndarray]) -> None:
-        raise NotImplementedError
+    def _save_extra(self) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
+        return {"rng": self._rng.bit_generator.state, "frozen": sorted(self._frozen)}, {}
 
-    def state(self) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
-        """(JSON-able header, named arrays) of the whole state, as `save` writes it under `kind`. The
-        arrays may share memory with the model: write or copy them before it steps again."""
-        regs = list(self._regs)
-        reg_dim = self.pgwr.in_dim
-        reg_arr = np.array([np.zeros(reg_dim) if r is None else r for r in regs]).reshape(len(regs), reg_dim)
-        header = {
-            "params": self.params.to_flat(),
-            "rng": self._rng.bit_generator.state,
-            "counters": self._counters_header(),
-            "frozen": sorted(self._frozen),
-            "xfill": self._xfill,
-            "reg_present": [r is not None for r in regs],
-            "last_reg": self._last_reg is not None,
-            "errors": self._errors.header(),
-        }
-        arrays: dict[str, np.ndarray] = {"xbuf": self._xbuf, "regs": reg_arr, **self._errors.arrays(),
-                                         **self._window_arrays()}
-        layers: dict[str, Any] = {}
-        for name in self.layer_names:  # each layer in its own format, GWR.state
-            net_state = getattr(self, name).state()
-            arrays.update({f"{name}.{a}": net_state.pop(a) for a in GWR.STATE_ARRAYS})
-            layers[name] = net_state
-        header["layers"] = layers
-        return header, arrays
-
-    @classmethod
-    def required_arrays(cls) -> list[str]:
-        """Names of the arrays `state` always holds."""
-        required = ["xbuf", "regs", *ErrorTracker.ARRAYS]
-        return required + [f"{n}.{a}" for n in cls.layer_names for a in GWR.STATE_ARRAYS]
-
-    @classmethod
-    def from_state(cls, header: dict[str, Any], arrays: dict[str, np.ndarray],
-                   source: str | os.PathLike[str] = "<state>") -> Any:
-        """The model of a `state()` (header, arrays); content errors raise CheckpointError naming `source`."""
-        require_arrays(cls.required_arrays(), arrays, source)
-        try:
-            return cls._from_saved(header, arrays)
-        except CheckpointError:
-            raise
-        except (KeyError, ValueError, TypeError, IndexError) as exc:
-            raise CheckpointError(f"{source}: inconsistent checkpoint content: {type(exc).__name__}: {exc}") from exc
-
-    @classmethod
-    def _from_saved(cls, header: dict[str, Any], arrays: dict[str, np.ndarray]) -> Any:
-        model = cls.__new__(cls)
-        model.params = HierarchyParams.from_flat(header["params"])
-        model._rng = np.random.default_rng(0)  # only for the layer templates; replaced below
-        model._configure()
-        for name in cls.layer_names:
-            template = model._new_layer(name)  # sizes and distance factor from the parameters
-            saved = header["layers"][name]
-            net = type(template).from_state({**saved, **{a: arrays[f"{name}.{a}"] for a in GWR.STATE_ARRAYS}})
-            for what in ("dim", "match_dim", "distance_factor", "params"):
-                if getattr(net, what) != getattr(template, what):
-                    raise InputError(f"layer {name} has {what} {getattr(net, what)!r}, "
-                                     f"the parameters say {getattr(template, what)!r}")
-            setattr(model, name, net)
-        model._restore_counters(header["counters"])
-        model.freeze_layers(tuple(header["frozen"]))
-        model._errors = ErrorTracker(model.params.horizon, model.params.n_joints, cls.layer_names)
-        model._errors.restore(header["errors"], arrays)
-        model._clear_sequence()
-        model._restore_windows(header, arrays)
-        copy_into(model._xbuf, arrays["xbuf"], "xbuf")
-        model._xfill = int(header["xfill"])
-        present = header["reg_present"]
-        regs = arrays["regs"]
-        if len(present) != len(regs) or len(regs) > model._target_steps:
-            raise InputError(f"regressor queue of {len(regs)} entries does not fit the parameters")
-        for flag, reg in zip(present, regs, strict=True):
-            model._regs.append(reg.copy() if flag else None)
-        model._last_reg = model._regs[-1] if header["last_reg"] else None
-        model._rng = np.random.default_rng()
-        model._rng.bit_generator.state = header["rng"]
-        return model
+    def _load_extra(self, header: Mapping[str, Any], arrays: Mapping[str, np.ndarray]) -> None:
+        self.freeze_layers(tuple(header["frozen"]))
+        self._last_reg = self._regs[-1] if self._regs else None  # the newest regressor is the last queued
+        self._rng.bit_generator.state = header["rng"]
 
 
 class Hierarchy(_OnlinePredictor):
@@ -358,6 +283,8 @@ class Hierarchy(_OnlinePredictor):
 
     kind = "Hierarchy"
     layer_names = LAYERS
+    PERSIST = _OnlinePredictor.PERSIST.extend(members={"gwr1": "gwr1", "gwr2": "gwr2", "pgwr": "pgwr",
+                                                       "_window1": "win1", "_window2": "win2"})
     gwr1: GWR
     gwr2: GWR
 
@@ -436,15 +363,6 @@ class Hierarchy(_OnlinePredictor):
                 readout(wins2[s], prev, cur)
             prev = cur
 
-    def _window_arrays(self) -> dict[str, np.ndarray]:
-        w1, w2 = self._window1, self._window2
-        return {"win1": w1.rows, "win2": w2.rows, "fill": np.array([w1.fill, w2.fill])}
-
-    def _restore_windows(self, header: dict[str, Any], arrays: dict[str, np.ndarray]) -> None:
-        fill1, fill2 = arrays["fill"]
-        self._window1.restore(arrays["win1"], fill1, "win1")
-        self._window2.restore(arrays["win2"], fill2, "win2")
-
 
 class FlatPredictor(_OnlinePredictor):
     """The P-GWR alone on raw frames (ablation): regressor = the last `order` scaled frames, newest
@@ -452,6 +370,7 @@ class FlatPredictor(_OnlinePredictor):
 
     kind = "FlatPredictor"
     layer_names = ("pgwr",)
+    PERSIST = _OnlinePredictor.PERSIST.extend(members={"pgwr": "pgwr", "_window": "win"})
 
     @property
     def order(self) -> int:
@@ -475,12 +394,6 @@ class FlatPredictor(_OnlinePredictor):
             w[1:] = w[:-1]
             w[0] = out[k - 1]
             self._readout(flat, out[k - 1], out[k])
-
-    def _window_arrays(self) -> dict[str, np.ndarray]:
-        return {"win": self._window.rows, "fill": np.array([self._window.fill])}
-
-    def _restore_windows(self, header: dict[str, Any], arrays: dict[str, np.ndarray]) -> None:
-        self._window.restore(arrays["win"], arrays["fill"][0], "win")
 
 
 def _new_pgwr(p: HierarchyParams, sc: InputScaling, rng: np.random.Generator, frames: int,

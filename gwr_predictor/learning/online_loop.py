@@ -12,16 +12,19 @@ from typing import Any, ClassVar
 import numpy as np
 
 from gwr_predictor.learning.gwr import InputError
+from gwr_predictor.learning.persistence import Persist, Persistent
 from gwr_predictor.pending import PendingPredictions
 
 
-class ErrorTracker:
+class ErrorTracker(Persistent):
     """P.E./C.P.E. per horizon step (MSE, rad^2) and per-layer quantization errors (rad).
 
     Predictions wait in `pending.PendingPredictions` under the step they target, so a prediction is
     scored exactly when its target arrives. Squared errors are summed over joints here and divided
     by the joint count in `summary`.
     """
+
+    PERSIST = Persist(arrays=("sse", "count"), values=("q_last", "q_sum", "q_count"), members={"_pending": ""})
 
     def __init__(self, horizon: int, n_joints: int, layers: tuple[str, ...]) -> None:
         self.horizon = horizon
@@ -83,34 +86,14 @@ class ErrorTracker:
                                   for k in self.layers},
         }
 
-    # persistence
-    ARRAYS = ("err.sse", "err.count", "err.pending", "err.valid")
 
-    def arrays(self) -> dict[str, np.ndarray]:
-        return dict(zip(self.ARRAYS, self._state(), strict=True))
-
-    def _state(self) -> tuple[np.ndarray, ...]:
-        return self.sse, self.count, self._pending.pending, self._pending.valid
-
-    def header(self) -> dict[str, Any]:
-        return {"q_last": self.q_last, "q_sum": self.q_sum, "q_count": self.q_count}
-
-    def restore(self, header: dict[str, Any], arrays: dict[str, np.ndarray]) -> None:
-        for name, current in zip(self.ARRAYS, self._state(), strict=True):
-            copy_into(current, arrays[name], name)
-        self.q_last = {k: float(v) for k, v in header["q_last"].items()}
-        self.q_sum = {k: float(v) for k, v in header["q_sum"].items()}
-        self.q_count = {k: int(v) for k, v in header["q_count"].items()}
-
-
-
-class OnlineLoop:
+class OnlineLoop(Persistent):
     """Counters, gaps and error bookkeeping of an online learner; subclasses define `params` (with
     `n_joints`), `layer_names` and `_clear_sequence` (their windows and queues)."""
 
     layer_names: ClassVar[tuple[str, ...]]
     params: Any
-    _COUNTERS: ClassVar[tuple[str, ...]] = ("t", "frames", "missing", "sequences", "predictions")
+    PERSIST = Persist(values=("_t", "_frames", "_missing", "_sequences", "_predictions"), members={"_errors": "err"})
 
     def _start_loop(self, horizon: int, n_joints: int) -> None:
         self._t = self._frames = self._missing = self._sequences = self._predictions = 0
@@ -145,17 +128,3 @@ class OnlineLoop:
     def _counts(self) -> dict[str, int]:
         return {"steps": self._t, "frames": self._frames, "missing": self._missing,
                 "sequences": self._sequences, "predictions": self._predictions}
-
-    def _counters_header(self) -> dict[str, int]:
-        return {name: getattr(self, f"_{name}") for name in self._COUNTERS}
-
-    def _restore_counters(self, counters: dict[str, Any]) -> None:
-        for name in self._COUNTERS:
-            setattr(self, f"_{name}", int(counters[name]))
-
-
-def copy_into(dest: np.ndarray, src: np.ndarray, name: str) -> None:
-    """`src` into `dest` (a checkpoint's array into the learner's), or InputError naming it."""
-    if src.shape != dest.shape:
-        raise InputError(f"array {name!r} has shape {src.shape}, expected {dest.shape}")
-    dest[...] = src

@@ -11,20 +11,19 @@ predictor's global read-out (`default_predictor/predictor.py`).
 from __future__ import annotations
 
 import math
-from typing import Any, ClassVar
 
 import numpy as np
 
-from gwr_predictor.learning.gwr import InputError
+from gwr_predictor.learning.persistence import Persist, Persistent
 
 
-class RecursiveLeastSquares:
+class RecursiveLeastSquares(Persistent):
     """y = phi @ W, fitted to every (phi, y) pair seen, older pairs down-weighted by `forgetting`.
 
     P(0) = `delta` I is the prior variance of the weights (their ridge penalty is 1 / delta); W(0) = 0.
     """
 
-    ARRAYS: ClassVar[tuple[str, ...]] = ("weights", "p")
+    PERSIST = Persist(arrays=("weights", "p"), values=("updates", "resets"))
 
     def __init__(self, features: int, outputs: int, forgetting: float = 1.0, delta: float = 1.0,
                  max_trace: float = 1e6) -> None:
@@ -57,19 +56,6 @@ class RecursiveLeastSquares:
     def _reset_p(self) -> None:
         self.p = self.delta * np.eye(self.p.shape[0])
         self.resets += 1
-
-    # --- persistence ----------------------------------------------------------------------------
-    def state(self) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
-        return ({"updates": self.updates, "resets": self.resets},
-                {"weights": self.weights.copy(), "p": self.p.copy()})
-
-    def restore(self, header: dict[str, Any], arrays: dict[str, np.ndarray]) -> None:
-        """Load a `state()` into this (freshly built) model; InputError if the shapes do not fit."""
-        for name, dest in (("weights", self.weights), ("p", self.p)):
-            if np.shape(arrays[name]) != dest.shape:
-                raise InputError(f"RLS array {name!r} has shape {np.shape(arrays[name])}, expected {dest.shape}")
-            dest[...] = arrays[name]
-        self.updates, self.resets = int(header["updates"]), int(header["resets"])
 
 
 def window_features(window: np.ndarray, order: int) -> np.ndarray:

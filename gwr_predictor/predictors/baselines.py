@@ -11,11 +11,13 @@ All learn only from what they have observed: a step with x None (or non-finite) 
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass
+from collections.abc import Mapping
+from dataclasses import dataclass
 from typing import Any, ClassVar
 
 import numpy as np
 
+from gwr_predictor.learning.persistence import Checkpointed, Persist, params_from_json
 from gwr_predictor.pipeline.conventions import DEFAULT_HORIZON
 from gwr_predictor.predictors.registry import PredictorError
 from gwr_predictor.robot.nao import ARM_JOINTS
@@ -125,7 +127,7 @@ class RLSParams:
             raise PredictorError(f"prior must be 'hold' or 'zero', got {self.prior!r}")
 
 
-class RLSAutoregressive:
+class RLSAutoregressive(Checkpointed):
     """Online linear AR(p) predictor of all joints at once: x(t+1) = W^T [x(t), ..., x(t-p+1), 1].
 
     One P matrix is shared by the joints (they share the regressor), so an update costs O((pJ)^2).
@@ -214,36 +216,14 @@ class RLSAutoregressive:
 
     # --- persistence (used by the blend's checkpoint) -------------------------------------------
     kind: ClassVar[str] = "RLSAutoregressive"
-    STATE_ARRAYS: ClassVar[tuple[str, ...]] = ("weights", "p", "buf", "real")
-
-    def state(self) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
-        """(JSON-able header, arrays) of the whole state; `from_state` continues bit for bit."""
-        header = {"params": asdict(self.params), "horizon": self.horizon, "joints": self.joints,
-                  "updates": self.updates_, "resets": self.resets_, "started": self._started}
-        arrays = {"weights": self.weights_.copy(), "p": self.p_.copy(), "buf": self._buf.copy(),
-                  "real": self._real.copy()}
-        return header, arrays
+    PARAMS = RLSParams
+    STATE_ERROR = PredictorError
+    PERSIST = Persist(arrays=("weights_", "p_", "_buf", "_real"),
+                      values=("horizon", "joints", "updates_", "resets_", "_started"))
 
     @classmethod
-    def from_state(cls, header: dict[str, Any], arrays: dict[str, np.ndarray]) -> RLSAutoregressive:
-        """The model of a `state()`; PredictorError if the arrays do not fit the stored parameters."""
-        try:
-            model = cls(RLSParams(**header["params"]), int(header["horizon"]), int(header["joints"]))
-            expected = {"weights": model.weights_.shape, "p": model.p_.shape, "buf": model._buf.shape,
-                        "real": model._real.shape}
-            for name, shape in expected.items():
-                if name not in arrays or np.shape(arrays[name]) != shape:
-                    got = np.shape(arrays[name]) if name in arrays else "missing"
-                    raise PredictorError(f"RLS state array {name!r}: {got}, expected {shape}")
-            model.weights_ = np.array(arrays["weights"], dtype=float)
-            model.p_ = np.array(arrays["p"], dtype=float)
-            model._buf = np.array(arrays["buf"], dtype=float)
-            model._real = np.array(arrays["real"], dtype=bool)
-            model.updates_, model.resets_ = int(header["updates"]), int(header["resets"])
-            model._started = bool(header["started"])
-        except (KeyError, TypeError) as exc:
-            raise PredictorError(f"RLS state header incomplete: {type(exc).__name__}: {exc}") from exc
-        return model
+    def _fresh(cls, header: Mapping[str, Any]) -> RLSAutoregressive:
+        return cls(params_from_json(RLSParams, header["params"]), int(header["horizon"]), int(header["joints"]))
 
 
 #: RLS-AR's settings in every report, chosen by `gwr-predictor experiment tune` with the same split and

@@ -23,14 +23,13 @@ P(0) = `delta` I, reset when it winds up (trace above `max_trace`).
 from __future__ import annotations
 
 import dataclasses
-import os
 from collections import deque
 from dataclasses import dataclass
 from typing import Any, ClassVar
 
 import numpy as np
 
-from gwr_predictor.learning.checkpoint import Checkpointed, CheckpointError, require_arrays
+from gwr_predictor.learning.persistence import Checkpointed, Persist
 from gwr_predictor.learning.rls import RecursiveLeastSquares, window_features
 from gwr_predictor.parameter_spec import ParamSpec, check_fields
 from gwr_predictor.pipeline.conventions import DEFAULT_HORIZON
@@ -79,7 +78,9 @@ class DirectLinear(Checkpointed):
     """Online direct multi-step linear predictor (see the module docstring); the `Predictor` protocol."""
 
     kind: ClassVar[str] = "DirectLinear"
-    ARRAYS: ClassVar[tuple[str, ...]] = ("weights", "p", "win", "hist", "feats")
+    PARAMS = DirectLinearParams
+    PERSIST = Persist(arrays=("_win",), values=("_fill",), optional=("_last",), members={"rls": ""},
+                      queues={"_hist": lambda m: (m.params.joints,), "_feats": lambda m: (m.params.features,)})
     # the sequence state `_clear_sequence` resets: window (newest first), its fill, the frames and the
     # features of the pairs still waiting for their targets, the last features predicted from
     _win: np.ndarray
@@ -140,48 +141,6 @@ class DirectLinear(Checkpointed):
 
     def errors(self) -> dict[str, Any]:
         return {"updates": self.rls.updates, "resets": self.rls.resets}
-
-    # --- persistence ----------------------------------------------------------------------------------
-    def state(self) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
-        """(JSON-able header, arrays) of the whole state; `from_state` continues bit for bit."""
-        p = self.params
-        feats = list(self._feats)
-        rls_header, rls_arrays = self.rls.state()
-        header = {"params": dataclasses.asdict(p), "fill": self._fill, "rls": rls_header,
-                  "feat_present": [f is not None for f in feats], "last": self._last is not None}
-        arrays = {**rls_arrays, "win": self._win.copy(),
-                  "hist": np.array(list(self._hist)).reshape(len(self._hist), p.joints),
-                  "feats": np.array([np.zeros(p.features) if f is None else f for f in feats]).reshape(
-                      len(feats), p.features)}
-        if self._last is not None:
-            arrays["last"] = self._last.copy()
-        return header, arrays
-
-    @classmethod
-    def from_state(cls, header: dict[str, Any], arrays: dict[str, np.ndarray],
-                   source: str | os.PathLike[str] = "<state>") -> DirectLinear:
-        """The model of a `state()`; CheckpointError naming `source` if it does not fit."""
-        require_arrays(cls.ARRAYS, arrays, source)
-        try:
-            model = cls(DirectLinearParams(**header["params"]))
-            p = model.params
-            model.rls.restore(header["rls"], arrays)
-            if np.shape(arrays["win"]) != model._win.shape:
-                raise ValueError(f"array 'win' has shape {np.shape(arrays['win'])}, expected {model._win.shape}")
-            model._win[...] = arrays["win"]
-            model._fill = int(header["fill"])
-            for row in np.asarray(arrays["hist"], dtype=float).reshape(-1, p.joints)[-(p.horizon + 1):]:
-                model._hist.append(row.copy())
-            present = header["feat_present"]
-            feats = np.asarray(arrays["feats"], dtype=float).reshape(-1, p.features)
-            if len(present) != len(feats) or len(feats) > p.horizon:
-                raise ValueError(f"queue of {len(feats)} feature vectors does not fit the parameters")
-            for flag, f in zip(present, feats, strict=True):
-                model._feats.append(f.copy() if flag else None)
-            model._last = np.array(arrays["last"], dtype=float) if header["last"] else None
-        except (KeyError, ValueError, TypeError, IndexError) as exc:
-            raise CheckpointError(f"{source}: inconsistent direct-linear state: {type(exc).__name__}: {exc}") from exc
-        return model
 
 #: The `linear` baseline's settings in every report, chosen by `gwr-predictor experiment tune` with the
 #: same split and grid size as the default predictor's (docs/results/tune).
