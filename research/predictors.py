@@ -95,9 +95,8 @@ def _experts_ungated(params: Any, seed: int) -> Predictor:
     from gwr_predictor.default_predictor import make_default
 
     hp = hierarchy_params(params)
-    gated = make_default(hp.horizon, hp.n_joints, seed)
-    return type(gated.model)({name: member.model for name, member in gated.model.members.items()},
-                             gated.model.params)
+    experts = make_default(hp.horizon, hp.n_joints, seed)
+    return type(experts)({name: member.model for name, member in experts.members.items()}, experts.params)
 
 
 def register_all() -> None:

@@ -1,5 +1,5 @@
-"""The default predictor: growing networks that remember movements, and linear models that
-extrapolate them, each heard per horizon step by how well it did lately, behind a confidence gate.
+"""The default predictor: growing networks that remember movements and linear models that
+extrapolate them, each behind a confidence gate, heard per horizon step by how well it did lately.
 
 What a robot runs unless told otherwise (`make_default`; registry name `gwr_experts`). Its experts:
 
@@ -13,7 +13,7 @@ What a robot runs unless told otherwise (`make_default`; registry name `gwr_expe
 
 Each expert sits behind its own confidence gate (`gate.py`: it falls back to holding the pose where
 the expert has not recently beaten holding it); `experts.py` weights them per horizon step by their
-recent errors; a last gate guards the combination. `params.py` and `settings.py` declare every setting
+recent errors. `params.py` and `settings.py` declare every setting
 once. The network behind one gate alone is `make_gated_network` (registry name `gated_llm_gwr`).
 
 The paper's own method (GWR1 -> GWR2 -> P-GWR) is `gwr_predictor.learning.hierarchy`.
@@ -27,6 +27,7 @@ from typing import TYPE_CHECKING, Any
 from gwr_predictor._exports import lazy_exports
 
 if TYPE_CHECKING:
+    from gwr_predictor.default_predictor.experts import Experts
     from gwr_predictor.default_predictor.gate import GatedPredictor
 
 _EXPORTS = {
@@ -51,11 +52,11 @@ __all__ = ["make_default", "make_gated_network", *sorted(_EXPORTS)]
 
 
 def make_default(horizon: int = 6, joints: int = 8, seed: int = 0,
-                 settings: Mapping[str, Any] | None = None) -> GatedPredictor:
-    """The default predictor, fresh: the gated experts, weighted, behind the gate.
+                 settings: Mapping[str, Any] | None = None) -> Experts:
+    """The default predictor, fresh: the four experts, each behind its gate, weighted per step.
 
     `settings`: flat parameters (`experts_parameter_specs()`: e.g. `network.order`, `memory.k`,
-    `experts.power`, `gate.decay`); the others keep their defaults."""
+    `experts.power`, `expert_gate.decay`); the others keep their defaults."""
     from gwr_predictor.default_predictor.experts import Experts
     from gwr_predictor.default_predictor.gate import GatedPredictor
     from gwr_predictor.default_predictor.memory import TrajectoryMemory
@@ -64,13 +65,13 @@ def make_default(horizon: int = 6, joints: int = 8, seed: int = 0,
     from gwr_predictor.predictors.baselines import TUNED_RLS, RLSAutoregressive
     from gwr_predictor.predictors.direct_linear import TUNED_LINEAR, DirectLinear
 
-    network, memory, weighting, expert_gate, gate = from_experts_settings(settings or {}, horizon, joints)
+    network, memory, weighting, gate = from_experts_settings(settings or {}, horizon, joints)
     experts = {"network": LocalLinearPredictor(network, seed=seed),
                "linear": DirectLinear(TUNED_LINEAR.replace(horizon=horizon, joints=joints)),
                "rls_ar": RLSAutoregressive(TUNED_RLS, horizon, joints),
                "memory": TrajectoryMemory(memory)}
-    gated = {name: GatedPredictor(model, expert_gate) for name, model in experts.items()}
-    return GatedPredictor(Experts(gated, weighting), gate)
+    return Experts({name: GatedPredictor(model, gate, hold_when_silent=False) for name, model in experts.items()},
+                   weighting)
 
 
 def make_gated_network(horizon: int = 6, joints: int = 8, seed: int = 0,

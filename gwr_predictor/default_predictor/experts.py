@@ -9,8 +9,10 @@ predictions weighted by 1 / MSE_k^`power`, with MSE_k each member's running squa
 best at that step now, without a hard switch that flickers between near-equal members. A member not
 scored yet at a step gets the scored members' mean MSE (all equal weights while none is scored).
 
-Predictions are scored only against frames observed later (`PendingPredictions`: no peeking), and a
-member that predicts nothing at a frame (None) is left out of that frame's weights.
+Predictions are scored only against frames observed later (`PendingPredictions`: no peeking). A
+member that predicts nothing at a frame (None: its window refilling after a gap or a new sequence) is
+left out of that frame's weights and is not scored for it; where no member predicts, the newest pose
+is held.
 """
 
 from __future__ import annotations
@@ -23,7 +25,9 @@ from typing import Any, ClassVar
 import numpy as np
 
 from gwr_predictor.default_predictor.params import DefaultPredictorError
+from gwr_predictor.learning.checkpoint import CheckpointError
 from gwr_predictor.learning.params import DEFAULT_HORIZON, MAX_HORIZON
+from gwr_predictor.learning.persistence import Checkpointed, Persist, params_from_json, sub
 from gwr_predictor.parameter_spec import ParamSpec, check_fields
 from gwr_predictor.pending import PendingPredictions
 
@@ -58,10 +62,12 @@ class ExpertsParams:
         return dataclasses.asdict(self)
 
 
-class Experts:
+class Experts(Checkpointed):
     """Per-step weighted mean of `members`' predictions (see the module docstring)."""
 
     kind: ClassVar[str] = "Experts"
+    PARAMS = ExpertsParams
+    PERSIST = Persist(arrays=("sse", "weight", "scored", "_outputs"), values=("_t",), members={"_pending": ""})
 
     def __init__(self, members: Mapping[str, Any], params: ExpertsParams | None = None) -> None:
         if not members:
@@ -97,7 +103,10 @@ class Experts:
         self._collect([m.step(obs, learn=learn) for m in self.members.values()])
         self._pending.file(self._t, self._outputs, np.isfinite(self._outputs).all(axis=-1))
         self._t += 1
-        return self._combine(self._outputs)
+        out = self._combine(self._outputs)
+        if out is None and obs is not None:  # no member predicts yet (windows refilling): the newest pose
+            return np.repeat(obs[None, :], self.params.horizon, axis=0)
+        return out
 
     def _score(self, obs: np.ndarray, due: np.ndarray, valid: np.ndarray) -> None:
         err = np.mean((due - obs) ** 2, axis=2)  # (members, horizon); NaN where a member did not predict
@@ -176,3 +185,48 @@ class Experts:
         mse, w = self.running_mse(), self.weights()
         return {**self.learner.errors(), "expert_mse": {n: mse[i].tolist() for i, n in enumerate(self.names)},
                 "expert_weights": {n: w[i].tolist() for i, n in enumerate(self.names)}}
+
+    # --- persistence: the members by name and kind (the weighting's own state is declared above) -----
+    @classmethod
+    def _fresh(cls, header: Mapping[str, Any]) -> Experts:
+        kinds = header["member_kinds"]
+        if not isinstance(kinds, dict) or not kinds:
+            raise CheckpointError("member_kinds must name every member's kind")
+        classes = _member_classes()
+        unknown = sorted(set(kinds.values()) - set(classes))
+        if unknown:
+            raise CheckpointError(f"members of kinds {unknown}; this build restores {', '.join(classes)}")
+        members = {name: classes[kind]._fresh(header["members"][name]) for name, kind in kinds.items()}
+        return cls(members, params_from_json(ExpertsParams, header["params"]))
+
+    def _save_extra(self) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
+        classes = _member_classes()
+        header: dict[str, Any] = {"member_kinds": {}, "members": {}}
+        arrays: dict[str, np.ndarray] = {}
+        for name, member in self.members.items():
+            kind = getattr(member, "kind", None)
+            if kind not in classes or not isinstance(member, Checkpointed):
+                raise CheckpointError(f"member {name!r} ({type(member).__name__}) cannot be saved; supported: "
+                                      f"{', '.join(classes)}")
+            m_header, m_arrays = member._capture()
+            header["member_kinds"][name] = kind
+            header["members"][name] = m_header
+            arrays.update({f"member.{name}.{k}": v for k, v in m_arrays.items()})
+        return header, arrays
+
+    def _load_extra(self, header: Mapping[str, Any], arrays: Mapping[str, np.ndarray]) -> None:
+        for name, member in self.members.items():
+            saved = header["members"][name]
+            self.members[name] = member._restored(saved, sub(arrays, f"member.{name}"), f"members.{name}.")
+
+
+def _member_classes() -> dict[str, Any]:
+    """The kinds of member an `Experts` checkpoint can hold."""
+    from gwr_predictor.default_predictor.gate import GatedPredictor
+    from gwr_predictor.default_predictor.memory import TrajectoryMemory
+    from gwr_predictor.default_predictor.predictor import LocalLinearPredictor
+    from gwr_predictor.predictors.baselines import RLSAutoregressive
+    from gwr_predictor.predictors.direct_linear import DirectLinear
+
+    return {c.kind: c for c in (GatedPredictor, LocalLinearPredictor, TrajectoryMemory, RLSAutoregressive,
+                                DirectLinear)}

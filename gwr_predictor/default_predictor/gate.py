@@ -107,10 +107,13 @@ class GatedPredictor(Checkpointed):
 
     kind: ClassVar[str] = "GatedPredictor"
 
-    def __init__(self, model: Any, params: GateParams | None = None) -> None:
+    def __init__(self, model: Any, params: GateParams | None = None, hold_when_silent: bool = True) -> None:
+        """`hold_when_silent`: where the model predicts nothing (a window refilling after a gap), the
+        newest pose; False: None, for a member of `Experts`, which weighs and scores only predictions."""
         if not (callable(getattr(model, "step", None)) and callable(getattr(model, "reset_sequence", None))):
             raise DefaultPredictorError(f"{type(model).__name__} does not implement step/reset_sequence")
         self.model = model
+        self.hold_when_silent = hold_when_silent
         self.params = p = params or GateParams()
         horizon = getattr(getattr(model, "params", None), "horizon", p.horizon)
         if horizon < p.horizon:
@@ -175,7 +178,7 @@ class GatedPredictor(Checkpointed):
         if self._last is None:
             return None
         if diff is None:
-            return np.repeat(self._last[None, :], self.params.horizon, axis=0)
+            return np.repeat(self._last[None, :], self.params.horizon, axis=0) if self.hold_when_silent else None
         out = self.alpha()
         out *= diff
         out += self._last
@@ -256,7 +259,7 @@ class GatedPredictor(Checkpointed):
 
     # --- persistence --------------------------------------------------------------------------------
     PARAMS = GateParams
-    PERSIST = Persist(arrays=("_stats", "_scored"), values=("_t",), optional=("_last", "_out_diff"),
+    PERSIST = Persist(arrays=("_stats", "_scored"), values=("_t", "hold_when_silent"), optional=("_last", "_out_diff"),
                       members={"model": "model", "_pending": ""})
 
     @classmethod
@@ -281,8 +284,13 @@ def inner_model(model: Any) -> Any:
     return model.model if isinstance(model, GatedPredictor) else model
 
 
-def _model_classes() -> dict[str, type[LocalLinearPredictor] | type[Hierarchy] | type[FlatPredictor]]:
+def _model_classes() -> dict[str, type[Checkpointed]]:
+    """The kinds of model a gate's checkpoint can hold: the learners and the default's experts."""
+    from gwr_predictor.default_predictor.memory import TrajectoryMemory
     from gwr_predictor.default_predictor.predictor import LocalLinearPredictor
     from gwr_predictor.learning.hierarchy import FlatPredictor, Hierarchy
+    from gwr_predictor.predictors.baselines import RLSAutoregressive
+    from gwr_predictor.predictors.direct_linear import DirectLinear
 
-    return {c.kind: c for c in (LocalLinearPredictor, Hierarchy, FlatPredictor)}
+    return {c.kind: c for c in (LocalLinearPredictor, Hierarchy, FlatPredictor, TrajectoryMemory, RLSAutoregressive,
+                                DirectLinear)}

@@ -17,12 +17,15 @@ import dataclasses
 import math
 from collections import deque
 from dataclasses import dataclass
+from collections.abc import Mapping
 from typing import Any, ClassVar
 
 import numpy as np
 
 from gwr_predictor.default_predictor.params import DefaultPredictorError
+from gwr_predictor.learning.checkpoint import CheckpointError
 from gwr_predictor.learning.params import DEFAULT_HORIZON, MAX_HORIZON
+from gwr_predictor.learning.persistence import Checkpointed, Persist
 from gwr_predictor.parameter_spec import ParamSpec, check_fields
 
 #: Frames back whose changes the key holds: the newest pose minus the pose 1, 2 and 4 frames before.
@@ -76,12 +79,14 @@ class MemoryParams:
         return dataclasses.asdict(self)
 
 
-class TrajectoryMemory:
+class TrajectoryMemory(Checkpointed):
     """Online: stores each snippet once its future is observed (no peeking), predicts (horizon, J)
     from the snippets stored so far (None until it holds `k`). A missing sample (None/NaN) ends the
     present snippet; what is stored stays."""
 
     kind: ClassVar[str] = "TrajectoryMemory"
+    PARAMS = MemoryParams
+    PERSIST = Persist(values=("size", "_motion_ms"), queues={"_recent": lambda m: (m.params.n_joints,)})
 
     def __init__(self, params: MemoryParams | None = None) -> None:
         self.params = p = params or MemoryParams()
@@ -171,3 +176,20 @@ class TrajectoryMemory:
 
     def errors(self) -> dict[str, Any]:
         return {"snippets": self.size, "motion_rms_rad": self.motion_rms}
+
+    # --- persistence: the stored snippets (as many as there are; the rest is declared above) ---------
+    def _save_extra(self) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
+        return {}, {"keys": self.keys[:self.size].copy(), "futures": self.futures[:self.size].copy()}
+
+    def _load_extra(self, header: Mapping[str, Any], arrays: Mapping[str, np.ndarray]) -> None:
+        n, p = self.size, self.params
+        keys, futures = np.asarray(arrays["keys"]), np.asarray(arrays["futures"])
+        if not 0 <= n <= p.capacity or keys.shape != (n, self.keys.shape[1]) or \
+                futures.shape != (n, *self.futures.shape[1:]):
+            raise CheckpointError(f"snippets of shapes {keys.shape}, {futures.shape} do not fit size {n} and the "
+                                  f"parameters (keys {self.keys.shape[1]}-d, futures {self.futures.shape[1:]})")
+        room = max(n, len(self.keys))
+        self.keys = np.resize(self.keys, (room, self.keys.shape[1]))
+        self.futures = np.resize(self.futures, (room, *self.futures.shape[1:]))
+        self.keys[:n] = keys
+        self.futures[:n] = futures
