@@ -8,6 +8,7 @@ synthetic arm demonstrations.
 from gwr_predictor._exports import lazy_exports
 
 _EXPORTS = {
+    "DataError": "errors",
     "demonstrate": "demonstrator",
     "demonstrate_one": "demonstrator",
     "default_subjects": "demonstrator",

@@ -42,7 +42,7 @@ from typing import TYPE_CHECKING, Any, ClassVar
 import numpy as np
 
 from gwr_predictor.default_predictor.params import DefaultPredictorError
-from gwr_predictor.learning.checkpoint import Checkpointed, CheckpointError
+from gwr_predictor.learning.checkpoint import Checkpointed, CheckpointError, raise_state_error
 from gwr_predictor.parameter_spec import ParamSpec, check_fields
 from gwr_predictor.pending import PendingPredictions
 from gwr_predictor.pipeline.conventions import DEFAULT_HORIZON
@@ -283,7 +283,7 @@ class GatedPredictor(Checkpointed):
             model_cls = _model_classes().get(header["model_kind"])
             if model_cls is None:
                 raise CheckpointError(f"{source}: the gate wraps a {header['model_kind']!r}; this build "
-                                      f"restores {', '.join(_model_classes())}")
+                                      f"restores {', '.join(_model_classes())}", source=source)
             sub = {k[len("model:"):]: v for k, v in arrays.items() if k.startswith("model:")}
             gate = cls(model_cls.from_state(header["model"], sub, f"{source} (gated model)"),
                        GateParams(**header["gate"]))
@@ -297,10 +297,8 @@ class GatedPredictor(Checkpointed):
                 dest[...] = src
             gate._last = None if header["last"] is None else np.asarray(header["last"], dtype=float)
             gate._out_diff = np.array(arrays["gate:out_diff"], dtype=float) if header["out_diff"] else None
-        except CheckpointError:
-            raise
         except (KeyError, ValueError, TypeError, IndexError) as exc:
-            raise CheckpointError(f"{source}: inconsistent gate checkpoint: {type(exc).__name__}: {exc}") from exc
+            raise_state_error(exc, source, "inconsistent gate checkpoint")
         return gate
 
 def inner_model(model: Any) -> Any:

@@ -25,7 +25,7 @@ import numpy as np
 
 from gwr_predictor.default_predictor.network import LocalLinearPGWR
 from gwr_predictor.default_predictor.params import DefaultPredictorError, LocalLinearParams
-from gwr_predictor.learning.checkpoint import Checkpointed, CheckpointError, require_arrays
+from gwr_predictor.learning.checkpoint import Checkpointed, raise_state_error, require_arrays
 from gwr_predictor.learning.online_loop import ErrorTracker, OnlineLoop
 from gwr_predictor.learning.rls import RecursiveLeastSquares, window_features
 from gwr_predictor.learning.scaling import InputScaling
@@ -287,11 +287,8 @@ class LocalLinearPredictor(OnlineLoop, Checkpointed):
             model._init_global()
             if model.linear is not None:
                 model._restore_global(model.linear, header["global"], arrays)
-        except CheckpointError:
-            raise
         except (KeyError, ValueError, TypeError, IndexError) as exc:
-            raise CheckpointError(f"{source}: inconsistent local-linear checkpoint: "
-                                  f"{type(exc).__name__}: {exc}") from exc
+            raise_state_error(exc, source, "inconsistent local-linear checkpoint")
         return model
 
     def _restore_global(self, linear: RecursiveLeastSquares, header: dict[str, Any],

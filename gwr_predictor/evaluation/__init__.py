@@ -6,7 +6,7 @@ from gwr_predictor._exports import lazy_exports
 _EXPORTS = {
     "Predictor": "online",
     "OnlineResult": "online",
-    "EvaluationError": "online",
+    "EvaluationError": "errors",
     "compare_online": "online",
     "evaluate_online": "online",
     "train_online": "online",

@@ -11,6 +11,7 @@ _EXPORTS = {
     "GWRParams": "params",
     "HierarchyParams": "params",
     "GWR": "gwr",
+    "LearningError": "errors",
     "InputError": "gwr",
     "PredictiveGWR": "predictive_gwr",
     "Hierarchy": "hierarchy",
@@ -18,7 +19,6 @@ _EXPORTS = {
     "ErrorTracker": "online_loop",
     "InputScaling": "scaling",
     "CheckpointError": "checkpoint",
-    "KindMismatchError": "checkpoint",
     "read_checkpoint": "checkpoint",
     "write_checkpoint": "checkpoint",
 }

@@ -31,7 +31,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from gwr_predictor.learning.checkpoint import Checkpointed, CheckpointError, require_arrays
+from gwr_predictor.learning.checkpoint import Checkpointed, raise_state_error, require_arrays
 from gwr_predictor.learning.gwr import GWR, InputError
 from gwr_predictor.learning.online_loop import ErrorTracker, OnlineLoop, copy_into
 from gwr_predictor.learning.params import LAYERS, HierarchyParams
@@ -313,10 +313,8 @@ class _OnlinePredictor(OnlineLoop, Checkpointed):
         require_arrays(cls.required_arrays(), arrays, source)
         try:
             return cls._from_saved(header, arrays)
-        except CheckpointError:
-            raise
         except (KeyError, ValueError, TypeError, IndexError) as exc:
-            raise CheckpointError(f"{source}: inconsistent checkpoint content: {type(exc).__name__}: {exc}") from exc
+            raise_state_error(exc, source, "inconsistent checkpoint content")
 
     @classmethod
     def _from_saved(cls, header: dict[str, Any], arrays: dict[str, np.ndarray]) -> Any:

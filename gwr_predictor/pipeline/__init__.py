@@ -5,6 +5,7 @@ videos.
 from gwr_predictor._exports import lazy_exports
 
 _EXPORTS = {
+    "PipelineError": "errors",
     "pack_skeleton": "conventions",
     "unpack_skeleton": "conventions",
     "pack_predictions": "conventions",

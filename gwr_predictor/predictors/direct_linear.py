@@ -30,7 +30,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from gwr_predictor.learning.checkpoint import Checkpointed, CheckpointError, require_arrays
+from gwr_predictor.learning.checkpoint import Checkpointed, raise_state_error, require_arrays
 from gwr_predictor.learning.rls import RecursiveLeastSquares, window_features
 from gwr_predictor.parameter_spec import ParamSpec, check_fields
 from gwr_predictor.pipeline.conventions import DEFAULT_HORIZON
@@ -180,7 +180,7 @@ class DirectLinear(Checkpointed):
                 model._feats.append(f.copy() if flag else None)
             model._last = np.array(arrays["last"], dtype=float) if header["last"] else None
         except (KeyError, ValueError, TypeError, IndexError) as exc:
-            raise CheckpointError(f"{source}: inconsistent direct-linear state: {type(exc).__name__}: {exc}") from exc
+            raise_state_error(exc, source, "inconsistent direct-linear state")
         return model
 
 #: The `linear` baseline's settings in every report, chosen by `gwr-predictor experiment tune` with the

@@ -18,7 +18,7 @@ _EXPORTS = {
     "RobotParams": "delayed_arm",
     "MotorParams": "delayed_arm",
     "DelayLine": "delayed_arm",
-    "RobotError": "delayed_arm",
+    "RobotError": "errors",
     "DelayCompensator": "compensator",
     "CompensatorParams": "compensator",
     "CompensatorOutput": "compensator",

@@ -12,12 +12,7 @@ from typing import NamedTuple
 import numpy as np
 
 from gwr_predictor.arm_joints import ARM_JOINT_LIMITS, ARM_JOINT_SUFFIXES, ARM_JOINTS, SIDES
-from gwr_predictor.errors import GwrPredictorError
-
-
-class RobotError(GwrPredictorError, ValueError):
-    """Invalid robot / delay parameters or inputs; the message names the field and its range."""
-
+from gwr_predictor.robot.errors import RobotError
 
 #: All 10 actuated arm joints of the robot model.
 ROBOT_ARM_JOINTS: tuple[str, ...] = tuple(
