@@ -1,4 +1,6 @@
-"""Measuring prediction quality: the one online evaluation loop, metrics, and the experiments.
+"""Measuring prediction quality: the one online evaluation loop, metrics, and the experiments' outputs.
+
+What it cannot evaluate, score or write is an `EvaluationError` (`errors.py`).
 """
 
 from gwr_predictor._exports import lazy_exports

@@ -1,7 +1,8 @@
 """The paper's learner (Sec. III-B..D), readable top-down: params -> gwr -> predictive_gwr -> hierarchy.
 
 `scaling` maps radians to the units the layers measure distances in; `checkpoint` is the one
-versioned file format every learner saves to.
+versioned file format every learner saves to. What a learner refuses (an input, a checkpoint) is a
+`LearningError` (`errors.py`).
 """
 
 from gwr_predictor._exports import lazy_exports

@@ -1,5 +1,5 @@
 """What the ROS pipeline shares without ROS: message conventions, input gates, bags, run reports, latency, plots,
-videos.
+videos. Its one error class is `PipelineError` (`errors.py`; `reason` tells a too-large message apart).
 """
 
 from gwr_predictor._exports import lazy_exports
