@@ -9,16 +9,11 @@ from typing import Any
 
 import numpy as np
 
-from gwr_predictor.errors import GwrPredictorError
-
-
-class NotJsonError(GwrPredictorError, TypeError):
-    """An object with no JSON form; the message names its type."""
-
 
 def to_jsonable(obj: Any) -> Any:
     """Plain JSON types from numpy arrays/scalars, dataclasses, tuples and paths; NaN/inf -> None
-    (recursively), so a missing figure reads as null rather than as invalid JSON."""
+    (recursively), so a missing figure reads as null rather than as invalid JSON. An object with no
+    JSON form is the caller's bug: TypeError naming its type, as `json.dumps` raises."""
     if dataclasses.is_dataclass(obj) and not isinstance(obj, type):
         return to_jsonable(dataclasses.asdict(obj))
     if isinstance(obj, dict):
@@ -38,4 +33,4 @@ def to_jsonable(obj: Any) -> Any:
         return str(obj)
     if obj is None or isinstance(obj, str):
         return obj
-    raise NotJsonError(f"cannot write {type(obj).__name__} to JSON")
+    raise TypeError(f"cannot write {type(obj).__name__} to JSON")

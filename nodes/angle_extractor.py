@@ -22,7 +22,7 @@ from gwr_predictor.data.skeleton_files import MAX_PLAUSIBLE_METRES
 from gwr_predictor.data.smoothing import MedianOf3
 from gwr_predictor.parameter_spec import ParamSpec
 from gwr_predictor.pipeline import conventions
-from gwr_predictor.pipeline.conventions import SKELETON_JOINTS, LayoutError, TooLargeError
+from gwr_predictor.pipeline.conventions import SKELETON_JOINTS, LayoutError
 from gwr_predictor.pipeline.gates import SkeletonReorder
 from gwr_predictor.pipeline.markers import SKELETON_FRAME, skeleton_figure
 from gwr_predictor.robot.nao import ARM_JOINTS
@@ -66,7 +66,9 @@ class AngleExtractorNode(PipelineNode):
         """Body-tracking markers -> the nearest body's skeleton, then the skeleton path (same checks)."""
         try:
             stamp, _, ids, xyz = standard_messages.read_body_markers(msg)
-        except TooLargeError as exc:
+        except LayoutError as exc:  # only the bound on markers is checked before reading
+            if exc.reason != "too_large":
+                raise
             self.counters.reject("body_tracking.too_large", str(exc))
             return
         try:
@@ -113,11 +115,8 @@ class AngleExtractorNode(PipelineNode):
         """(stamp, positions in SKELETON_JOINTS order) or None, by the rules in docs/pipeline.md."""
         try:
             stamp, names, positions = messages.read_skeleton(msg)
-        except TooLargeError as exc:
-            self.counters.reject("skeleton.too_large", str(exc))
-            return None
         except LayoutError as exc:
-            self.counters.reject("skeleton.layout", str(exc))
+            self.counters.reject("skeleton.too_large" if exc.reason == "too_large" else "skeleton.layout", str(exc))
             return None
         if np.any(np.isinf(positions)):
             self.counters.reject("skeleton.non_finite", "infinite coordinates (NaN marks an untracked joint)")

@@ -34,7 +34,7 @@ import numpy as np
 from gwr_predictor.parameter_spec import ParamSpec
 from gwr_predictor.pipeline import conventions
 from gwr_predictor.pipeline.clock_jumps import CLOCK_JUMP_SPEC, ClockJumpWatch, CommandStamps
-from gwr_predictor.pipeline.conventions import LayoutError, TooLargeError
+from gwr_predictor.pipeline.conventions import LayoutError
 from gwr_predictor.pipeline.trajectory import command_trajectory
 from gwr_predictor.robot import compensator, naoqi_output
 from gwr_predictor.robot.nao import ARM_JOINTS
@@ -202,11 +202,9 @@ class DelayCompensatorNode(PipelineNode):
             stamp, names, preds = messages.read_predictions(msg)
             if names != ARM_JOINTS:
                 preds = preds[:, [names.index(n) for n in ARM_JOINTS]]
-        except TooLargeError as exc:
-            self.counters.reject("predictions.too_large", str(exc))
-            return None
-        except (LayoutError, ValueError) as exc:
-            self.counters.reject("predictions.layout", str(exc))
+        except ValueError as exc:  # a LayoutError (too large ones counted apart) or an arm joint missing
+            too_large = isinstance(exc, LayoutError) and exc.reason == "too_large"
+            self.counters.reject("predictions.too_large" if too_large else "predictions.layout", str(exc))
             return None
         if not np.all(np.isfinite(preds)):
             self.counters.reject("predictions.non_finite", "NaN or inf in the predictions")

@@ -36,7 +36,6 @@ from gwr_predictor.default_predictor.gate import GatedPredictor, inner_model
 from gwr_predictor.learning.checkpoint import (
     CheckpointError,
     CheckpointLock,
-    KindMismatchError,
     check_checkpoint_place,
     remove_stale_temp_files,
     set_aside,
@@ -174,13 +173,13 @@ class GwrHierarchyNode(PipelineNode):
             return self.create(settings)
         try:
             model = load_predictor(self.params["predictor"], path)
-        except KindMismatchError as exc:
-            raise NodeFatalError(f"checkpoint {path} does not fit parameter predictor="
-                                 f"{self.params['predictor']!r} ({exc}); set 'predictor' to match it or use "
-                                 "another checkpoint path") from None
         except Exception as exc:  # whatever an unreadable file raises: set it aside, start fresh
-            if not isinstance(exc, CheckpointError):
-                exc = CheckpointError(f"{path}: not a readable checkpoint: {type(exc).__name__}: {exc}")
+            if isinstance(exc, CheckpointError) and exc.kind_mismatch:  # a sound file of another predictor
+                raise NodeFatalError(f"checkpoint {path} does not fit parameter predictor="
+                                     f"{self.params['predictor']!r} ({exc}); set 'predictor' to match it or use "
+                                     "another checkpoint path") from None
+            if not (isinstance(exc, CheckpointError) and exc.source is not None):
+                exc = CheckpointError(f"{path}: not a readable checkpoint: {type(exc).__name__}: {exc}", source=path)
             try:
                 aside = set_aside(path)
             except OSError as move_exc:

@@ -75,7 +75,7 @@ def figure_markers(stamp: float, frame_id: str, ns: str, figure: Figure,
 def read_body_markers(msg: MarkerArray) -> tuple[float | None, str, np.ndarray, np.ndarray]:
     """A body-tracking MarkerArray -> (stamp of its first joint marker or None, its frame, ids (n,),
     positions (n, 3)). Only ADD markers count: DELETE / DELETEALL markers carry no joint. More than
-    `conventions.MAX_MARKERS` markers raise TooLargeError before any is read."""
+    `conventions.MAX_MARKERS` markers raise LayoutError (reason `too_large`) before any is read."""
     conventions.check_size("markers", len(msg.markers), conventions.MAX_MARKERS)
     adds = [m for m in msg.markers if m.action == Marker.ADD]
     if not adds:
@@ -121,7 +121,7 @@ def pose_array(stamp: float, frame_id: str, positions: np.ndarray) -> PoseArray:
 
 def read_pose_array(msg: PoseArray) -> tuple[float, str, np.ndarray]:
     """PoseArray -> (stamp s, frame_id, positions (n, 3)); more than `conventions.MAX_JOINTS` poses raise
-    TooLargeError before any is read."""
+    LayoutError (reason `too_large`) before any is read."""
     conventions.check_size("poses", len(msg.poses), conventions.MAX_JOINTS)
     xyz = np.array([(p.position.x, p.position.y, p.position.z) for p in msg.poses], dtype=np.float64)
     return from_time(msg.header.stamp), msg.header.frame_id, xyz.reshape(-1, 3)

@@ -26,7 +26,7 @@ from typing import Any
 import numpy as np
 
 from gwr_predictor.errors import GwrPredictorError
-from gwr_predictor.learning.checkpoint import CheckpointError, read_checkpoint, write_checkpoint
+from gwr_predictor.learning.checkpoint import CheckpointError, raise_state_error, read_checkpoint, write_checkpoint
 from gwr_predictor.parameter_spec import ParamSpec, check_fields
 from gwr_predictor.pending import PendingPredictions
 from gwr_predictor.pipeline.conventions import DEFAULT_HORIZON
@@ -198,7 +198,7 @@ class BlendedPredictor:
             state = getattr(m, "state", None)
             if not callable(state) or _member_class(getattr(m, "kind", None)) is None:
                 raise CheckpointError(f"{path}: member {name!r} ({type(m).__name__}) cannot be saved: "
-                                      f"supported members are {', '.join(_member_kinds())}")
+                                      f"supported members are {', '.join(_member_kinds())}", source=path)
             header, member_arrays = state()
             members.append({"name": name, "kind": m.kind, "header": header})
             arrays.update({f"{name}:{k}": v for k, v in member_arrays.items()})
@@ -226,7 +226,7 @@ class BlendedPredictor:
                 member_cls = _member_class(kind)
                 if member_cls is None:
                     raise CheckpointError(f"{path}: member {name!r} is a {kind!r}; this build restores "
-                                          f"{', '.join(_member_kinds())}")
+                                          f"{', '.join(_member_kinds())}", source=path)
                 prefix = f"{name}:"
                 sub = {k[len(prefix):]: v for k, v in arrays.items() if k.startswith(prefix)}
                 if kind == "RLSAutoregressive":
@@ -251,10 +251,8 @@ class BlendedPredictor:
                         raise ValueError(f"array blend:{a} has shape {arrays[f'blend:{a}'].shape}, "
                                          f"expected {dest.shape}")
                     dest[...] = arrays[f"blend:{a}"]
-        except CheckpointError:
-            raise
         except (KeyError, ValueError, TypeError, IndexError) as exc:  # BlendError, BaselineError are ValueErrors
-            raise CheckpointError(f"{path}: inconsistent blend checkpoint: {type(exc).__name__}: {exc}") from exc
+            raise_state_error(exc, path, "inconsistent blend checkpoint")
         return blend
 
     @classmethod
@@ -361,16 +359,17 @@ def make_blend(kind: str = "blend_hierarchy_rls", params: Any = None, seed: int 
 
 
 def load_blend(kind: str, path: str | os.PathLike[str]) -> BlendedPredictor:
-    """The blend `kind` (a `BLENDS` name) saved at `path`; KindMismatchError if it holds other members."""
-    from gwr_predictor.learning.checkpoint import KindMismatchError
+    """The blend `kind` (a `BLENDS` name) saved at `path`; a CheckpointError with `kind_mismatch` if it holds
+    other members."""
+    from gwr_predictor.learning.checkpoint import CheckpointError
 
     if kind not in BLENDS:
         raise BlendError(f"unknown blend kind {kind!r}; choose from {', '.join(BLENDS)}")
     model = BlendedPredictor.load(path)
     expected = (BLENDS[kind], "rls")
     if tuple(model.names) != expected:
-        raise KindMismatchError(f"{path}: holds a blend of {list(model.names)}, expected one of {list(expected)}",
-                                model.names, kind)
+        raise CheckpointError(f"{path}: holds a blend of {list(model.names)}, expected one of {list(expected)}",
+                              source=path, found=model.names, expected=kind)
     return model
 
 

@@ -207,12 +207,14 @@ def test_a_corrupt_symlinked_checkpoint_is_moved_aside_beside_its_target(tmp_pat
 def test_one_lock_per_checkpoint_path_released_on_close(tmp_path):
     path = tmp_path / "model.npz"
     first = ckpt.CheckpointLock(path)
-    with pytest.raises(ckpt.CheckpointLockedError, match=rf"model\.npz is in use by process {os.getpid()}"):
+    with pytest.raises(CheckpointError, match=rf"model\.npz is in use by process {os.getpid()}") as locked:
         ckpt.CheckpointLock(path)
+    assert locked.value.locked and locked.value.source == path
     link = tmp_path / "link.npz"
     link.symlink_to(path)
-    with pytest.raises(ckpt.CheckpointLockedError):  # another name of the same file
+    with pytest.raises(CheckpointError) as locked:  # another name of the same file
         ckpt.CheckpointLock(link)
+    assert locked.value.locked
     first.release()
     first.release()  # idempotent
     ckpt.CheckpointLock(path).release()
@@ -284,3 +286,31 @@ def test_a_stranger_taking_the_node_name_does_not_stop_it(ros):
         stranger.close()
     code, _ = victim.stop(signal.SIGINT)
     assert code == 0
+
+
+def test_a_state_a_network_refuses_is_a_checkpoint_error_naming_its_source():
+    # the network's own refusal (NaN weights) is rewrapped to name the file; errors that already name
+    # one (a missing array) pass through as they are
+    model = Hierarchy(HierarchyParams(), seed=0)
+    header, arrays = model.state()
+    arrays["gwr1.weights"] = arrays["gwr1.weights"].copy()
+    arrays["gwr1.weights"][0, 0] = np.nan
+    with pytest.raises(CheckpointError, match=r"^saved\.npz: inconsistent checkpoint content: .*NaN"):
+        Hierarchy.from_state(header, arrays, "saved.npz")
+    del arrays["xbuf"]
+    with pytest.raises(CheckpointError, match=r"^saved\.npz: missing arrays \['xbuf'\]$") as missing:
+        Hierarchy.from_state(header, arrays, "saved.npz")
+    assert missing.value.source == "saved.npz" and not missing.value.kind_mismatch
+
+
+@pytest.mark.ros
+def test_the_learner_stops_on_a_readable_checkpoint_of_another_predictor_and_leaves_it(ros, tmp_path):
+    checkpoint = tmp_path / "model.npz"
+    make_predictor("hierarchy", HierarchyParams(), seed=0).save(checkpoint)
+    saved = checkpoint.read_bytes()
+    code, output = ros.run("gwr_hierarchy", params={**FAST, "checkpoint": str(checkpoint),
+                                                    "predictor": DEFAULT_PREDICTOR}, timeout=60)
+    assert code == 1, output
+    assert "does not fit parameter predictor" in output and "ready" not in output
+    assert checkpoint.read_bytes() == saved
+    assert not list(tmp_path.glob("model.npz.corrupt-*"))

@@ -300,17 +300,20 @@ def test_make_predictor_names_the_hierarchy_and_both_blends():
 
 
 def test_load_predictor_refuses_a_blend_of_other_members(tmp_path):
-    from gwr_predictor.learning.checkpoint import KindMismatchError
+    from gwr_predictor.learning.checkpoint import CheckpointError
     from gwr_predictor.predictors.registry import load_predictor, make_predictor
 
     path = tmp_path / "flat.npz"
     make_predictor("blend_flat_rls").save(path)
     assert tuple(load_predictor("blend_flat_rls", path).names) == ("flat", "rls")
-    with pytest.raises(KindMismatchError, match=r"holds a blend of \['flat', 'rls'\], expected one of "
-                                                r"\['hierarchy', 'rls'\]"):
+    with pytest.raises(CheckpointError, match=r"holds a blend of \['flat', 'rls'\], expected one of "
+                                              r"\['hierarchy', 'rls'\]") as other:
         load_predictor("blend_hierarchy_rls", path)
-    with pytest.raises(KindMismatchError, match="expected a 'Hierarchy'"):
+    assert other.value.kind_mismatch and other.value.expected == "blend_hierarchy_rls"
+    assert tuple(other.value.found) == ("flat", "rls")
+    with pytest.raises(CheckpointError, match="expected a 'Hierarchy'") as other:
         load_predictor("hierarchy", path)
+    assert other.value.kind_mismatch and (other.value.found, other.value.expected) == ("BlendedPredictor", "Hierarchy")
 
 
 def test_registered_predictor_is_available_to_evaluate_by_name(tmp_path, capsys):

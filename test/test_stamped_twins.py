@@ -51,8 +51,9 @@ def test_pose_array_round_trip_keeps_nan_for_untracked_joints_and_refuses_oversi
     assert stamp == 12.25 and frame_id == "kinect"
     np.testing.assert_array_equal(back, positions)  # NaN where NaN (assert_array_equal treats NaN as equal)
     msg.poses = msg.poses * (conventions.MAX_JOINTS // 15 + 1)
-    with pytest.raises(conventions.TooLargeError):
+    with pytest.raises(conventions.LayoutError) as too_large:
         standard_messages.read_pose_array(msg)
+    assert too_large.value.reason == "too_large"
 
 
 def test_configs_record_and_declare_the_skeleton_twin():

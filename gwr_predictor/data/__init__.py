@@ -2,12 +2,13 @@
 
 Also mocap recordings (BVH, ASF/AMC, joint positions, .pt) onto the same skeleton stream, the
 angle CSV files, the memoised demonstrator data set, simulated sensor faults and the bench's
-synthetic arm demonstrations.
+synthetic arm demonstrations. Data the package cannot use is a `DataError` (`errors.py`).
 """
 
 from gwr_predictor._exports import lazy_exports
 
 _EXPORTS = {
+    "DataError": "errors",
     "demonstrate": "demonstrator",
     "demonstrate_one": "demonstrator",
     "default_subjects": "demonstrator",

@@ -15,14 +15,13 @@ from typing import TextIO
 
 import numpy as np
 
+from gwr_predictor.data.errors import DataError
 from gwr_predictor.data.skeleton_files import parse_float_table
-from gwr_predictor.errors import GwrPredictorError
 from gwr_predictor.file_limits import MAX_CSV_BYTES, check_file_size
 from gwr_predictor.robot.nao import ARM_JOINTS, JOINT_LIMITS
 
-
-class AngleFileError(GwrPredictorError, ValueError):
-    """An angle file that cannot be used; the message names the file, line and column."""
+#: DataError, for an angle file that cannot be used; the message names the file, line and column.
+AngleFileError = DataError
 
 
 def save_angles_csv(path: str | Path, t: np.ndarray, angles: np.ndarray,

@@ -37,7 +37,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from gwr_predictor.errors import GwrPredictorError
+from gwr_predictor.data.errors import DataError
 from gwr_predictor.pipeline.conventions import SKELETON_JOINTS
 from gwr_predictor.robot.nao import ARM_JOINTS, clip_to_limits, limits_array
 
@@ -46,8 +46,8 @@ YAW_SINGULAR_WIDTH = 0.7  # reach of the elbow-yaw bias in sin(elbow bend): bend
 _MIN_LENGTH = 1e-3  # m: shorter segments are degenerate
 
 
-class AngleExtractionError(GwrPredictorError, ValueError):
-    """Positions or joint names that angle extraction cannot use; the message says which."""
+#: DataError, for positions or joint names that angle extraction cannot use; the message says which.
+AngleExtractionError = DataError
 
 
 def _unit(v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -26,8 +26,8 @@ from typing import NamedTuple
 
 import numpy as np
 
+from gwr_predictor.data.errors import DataError
 from gwr_predictor.data.skeleton_files import CAMERA_CONVENTION, SkeletonSequence
-from gwr_predictor.errors import GwrPredictorError
 from gwr_predictor.pipeline.conventions import SKELETON_FPS, SKELETON_JOINTS
 from gwr_predictor.robot.nao import rot_x, rot_y, rot_z
 
@@ -49,8 +49,8 @@ HUMAN_RANGES: dict[str, tuple[float, float]] = {
 }
 
 
-class DemonstratorError(GwrPredictorError, ValueError):
-    """A bad pattern name, subject profile or generation parameter; the message names it."""
+#: DataError, for a bad pattern name, subject profile or generation parameter; the message names it.
+DemonstratorError = DataError
 
 
 class ArmAngles(NamedTuple):

@@ -11,15 +11,15 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from gwr_predictor.errors import GwrPredictorError
+from gwr_predictor.data.errors import DataError
 from gwr_predictor.pipeline.conventions import ANGLE_FPS
 
 #: One second of 10 fps frames, the chunk the paper removes.
 CHUNK_FRAMES = int(ANGLE_FPS)
 
 
-class FaultParameterError(GwrPredictorError, ValueError):
-    """A fault-injection parameter outside its range; the message names it and the range."""
+#: DataError, for a fault-injection parameter outside its range; the message names it and the range.
+FaultParameterError = DataError
 
 
 def _rng(rng: np.random.Generator | int | None) -> np.random.Generator:

@@ -30,7 +30,7 @@ from collections.abc import Iterable, Mapping, Sequence
 import numpy as np
 
 from gwr_predictor.data.angles import arm_angles
-from gwr_predictor.errors import GwrPredictorError
+from gwr_predictor.data.errors import DataError
 from gwr_predictor.robot.nao import SIDES, clip_to_limits, rot_x, rot_y, rot_z
 
 #: REP-155's namespace of the bodies and its topics below it.
@@ -53,13 +53,8 @@ _ID_PATTERN = re.compile(r"[A-Za-z0-9_]+")
 SELECTIONS = ("first", "nearest")
 
 
-class HriBodiesError(GwrPredictorError, ValueError):
-    """Joint states or ids that cannot be a REP-155 body; the message says which, `reason` names the rule
-    (layout, missing_joints, non_finite) for rejection counters."""
-
-    def __init__(self, message: str, reason: str = "layout") -> None:
-        super().__init__(message)
-        self.reason = reason
+#: DataError, for joint states or ids that cannot be a REP-155 body; the message says which, `reason` the rule broken.
+HriBodiesError = DataError
 
 
 def valid_body_id(body_id: str) -> bool:
@@ -86,13 +81,13 @@ def body_arm_joints(names: Sequence[str], positions: np.ndarray, body_id: str) -
     order. Names are `<joint>_<id>` (hri_fullbody) or bare `<joint>`; the other joints are ignored."""
     positions = np.asarray(positions, dtype=np.float64).ravel()
     if positions.size != len(names):
-        raise HriBodiesError(f"{len(names)} joint names but {positions.size} positions")
+        raise HriBodiesError(f"{len(names)} joint names but {positions.size} positions", "layout")
     index: dict[str, int] = {}
     suffix = f"_{body_id}"
     for i, name in enumerate(names):
         bare = name[: -len(suffix)] if body_id and name.endswith(suffix) else name
         if bare in index:
-            raise HriBodiesError(f"joint {bare!r} appears twice")
+            raise HriBodiesError(f"joint {bare!r} appears twice", "layout")
         index[bare] = i
     missing = [j for j in HUMAN_ARM_JOINTS if j not in index]
     if missing:

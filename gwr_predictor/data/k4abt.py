@@ -23,7 +23,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from gwr_predictor.errors import GwrPredictorError
+from gwr_predictor.data.errors import DataError
 from gwr_predictor.pipeline.conventions import SKELETON_JOINTS
 
 #: The 32 joints of the Azure Kinect Body Tracking SDK, in index order (k4abt_joint_id_t).
@@ -64,8 +64,8 @@ CAMERA_TO_SKELETON = np.diag([-1.0, -1.0, 1.0])
 _PELVIS = K4ABT_JOINTS.index("PELVIS")
 
 
-class K4abtError(GwrPredictorError, ValueError):
-    """Marker ids or positions that cannot be body-tracking joints; the message says which."""
+#: DataError, for marker ids or positions that cannot be body-tracking joints; the message says which.
+K4abtError = DataError
 
 
 class TrackedBody(NamedTuple):

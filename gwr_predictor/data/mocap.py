@@ -25,6 +25,7 @@ from pathlib import Path
 import numpy as np
 
 from gwr_predictor import file_limits as limits
+from gwr_predictor.data.errors import DataError
 from gwr_predictor.data.skeleton_files import SkeletonFileError, SkeletonSequence
 from gwr_predictor.pipeline.conventions import SKELETON_FPS, SKELETON_JOINTS
 
@@ -37,8 +38,8 @@ TYPICAL_HEIGHT_M = 1.6
 CAMERA_DISTANCE_M = 2.0
 
 
-class MocapError(SkeletonFileError):
-    """A mocap file that cannot be used; the message names the file, the joint and what is wrong."""
+#: DataError, for a mocap file that cannot be used; the message names the file, the joint and what is wrong.
+MocapError = DataError
 
 
 @dataclass(frozen=True)

@@ -30,7 +30,7 @@ from pathlib import Path
 
 import numpy as np
 
-from gwr_predictor.errors import GwrPredictorError
+from gwr_predictor.data.errors import DataError
 from gwr_predictor.file_limits import (
     MAX_CSV_BYTES,
     MAX_FRAMES,
@@ -51,8 +51,8 @@ MAX_PLAUSIBLE_METRES = 20.0
 AXES = ("x", "y", "z")
 
 
-class SkeletonFileError(GwrPredictorError, ValueError):
-    """A skeleton file that cannot be used; the message names the file and the offending field."""
+#: DataError, for a skeleton file that cannot be used; the message names the file and the offending field.
+SkeletonFileError = DataError
 
 
 @dataclass

@@ -12,14 +12,14 @@ from __future__ import annotations
 
 import numpy as np
 
-from gwr_predictor.errors import GwrPredictorError
+from gwr_predictor.data.errors import DataError
 
 GROUP = 3
 MIN_TRACKED = 2
 
 
-class SmoothingError(GwrPredictorError, ValueError):
-    """Inputs whose shapes do not fit together; the message names the argument."""
+#: DataError, for inputs whose shapes do not fit together; the message names the argument.
+SmoothingError = DataError
 
 
 def _median_groups(frames: np.ndarray) -> np.ndarray:

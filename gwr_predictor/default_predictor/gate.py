@@ -49,8 +49,7 @@ from gwr_predictor.pipeline.conventions import DEFAULT_HORIZON
 from gwr_predictor.predictors.baselines import N_JOINTS, observation
 
 if TYPE_CHECKING:
-    from gwr_predictor.default_predictor.predictor import LocalLinearPredictor
-    from gwr_predictor.learning.hierarchy import FlatPredictor, Hierarchy
+    pass
 
 
 #: The same class under the gate's name.

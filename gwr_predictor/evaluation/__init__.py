@@ -1,4 +1,6 @@
-"""Measuring prediction quality: the one online evaluation loop, metrics, and the experiments.
+"""Measuring prediction quality: the one online evaluation loop, metrics, and the experiments' outputs.
+
+What it cannot evaluate, score or write is an `EvaluationError` (`errors.py`).
 """
 
 from gwr_predictor._exports import lazy_exports
@@ -6,7 +8,7 @@ from gwr_predictor._exports import lazy_exports
 _EXPORTS = {
     "Predictor": "online",
     "OnlineResult": "online",
-    "EvaluationError": "online",
+    "EvaluationError": "errors",
     "compare_online": "online",
     "evaluate_online": "online",
     "train_online": "online",

@@ -12,12 +12,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from gwr_predictor.errors import GwrPredictorError
+from gwr_predictor.evaluation.errors import EvaluationError
 from gwr_predictor.pending import target_steps
 
-
-class MetricsError(GwrPredictorError, ValueError):
-    """Arrays whose shapes or contents cannot be scored; the message names what differs."""
+#: EvaluationError, for arrays whose shapes or contents cannot be scored; the message names what differs.
+MetricsError = EvaluationError
 
 
 @dataclass(frozen=True)

@@ -18,14 +18,10 @@ from typing import Any
 import numpy as np
 from tqdm import tqdm
 
-from gwr_predictor.errors import GwrPredictorError
+from gwr_predictor.evaluation.errors import EvaluationError
 from gwr_predictor.evaluation.metrics import HorizonStats, future_windows, horizon_stats
 from gwr_predictor.pipeline.conventions import DEFAULT_HORIZON
 from gwr_predictor.protocol import Predictor
-
-
-class EvaluationError(GwrPredictorError, ValueError):
-    """Inputs the evaluation loop cannot use (shapes, horizons); the message names the culprit."""
 
 
 @dataclass(frozen=True)

@@ -20,11 +20,10 @@ from typing import Any
 import numpy as np
 
 from gwr_predictor import json_safe
-from gwr_predictor.errors import GwrPredictorError
+from gwr_predictor.evaluation.errors import EvaluationError
 
-
-class ExperimentOutputError(GwrPredictorError, RuntimeError):
-    """An output that cannot be written; the message names the file."""
+#: EvaluationError, for an output that cannot be written; the message names the file.
+ExperimentOutputError = EvaluationError
 
 
 @dataclass
@@ -44,7 +43,7 @@ def to_jsonable(obj: Any) -> Any:
     """`json_safe.to_jsonable`, raising ExperimentOutputError for an object with no JSON form."""
     try:
         return json_safe.to_jsonable(obj)
-    except json_safe.NotJsonError as exc:
+    except TypeError as exc:
         raise ExperimentOutputError(str(exc)) from None
 
 

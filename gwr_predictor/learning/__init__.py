@@ -1,7 +1,8 @@
 """The paper's learner (Sec. III-B..D), readable top-down: params -> gwr -> predictive_gwr -> hierarchy.
 
 `scaling` maps radians to the units the layers measure distances in; `checkpoint` is the one
-versioned file format every learner saves to.
+versioned file format every learner saves to. What a learner refuses (an input, a checkpoint) is a
+`LearningError` (`errors.py`).
 """
 
 from gwr_predictor._exports import lazy_exports
@@ -11,6 +12,7 @@ _EXPORTS = {
     "GWRParams": "params",
     "HierarchyParams": "params",
     "GWR": "gwr",
+    "LearningError": "errors",
     "InputError": "gwr",
     "PredictiveGWR": "predictive_gwr",
     "Hierarchy": "hierarchy",
@@ -18,7 +20,6 @@ _EXPORTS = {
     "ErrorTracker": "online_loop",
     "InputScaling": "scaling",
     "CheckpointError": "checkpoint",
-    "KindMismatchError": "checkpoint",
     "read_checkpoint": "checkpoint",
     "write_checkpoint": "checkpoint",
 }

@@ -25,12 +25,12 @@ import tempfile
 import zipfile
 from collections.abc import Iterable, Mapping
 from pathlib import Path
-from typing import Any
+from typing import Any, NoReturn
 
 import numpy as np
 
-from gwr_predictor.errors import GwrPredictorError
 from gwr_predictor.file_limits import MAX_CHECKPOINT_BYTES, check_zip_directory, npy_header
+from gwr_predictor.learning.errors import LearningError
 
 MAGIC = "gwr_predictor.checkpoint"
 #: The one format this build reads and writes; older files are refused with a clear message (their
@@ -43,20 +43,8 @@ MAX_HEADER_BYTES = 4 << 20
 MAX_HEADER_DEPTH = 32
 
 
-class CheckpointError(GwrPredictorError):
-    """A checkpoint that cannot be written or read; the message names the file and the cause."""
-
-
-class KindMismatchError(CheckpointError):
-    """A readable checkpoint of another model kind (e.g. a Hierarchy where a BlendedPredictor was asked)."""
-
-    def __init__(self, message: str, found: Any, expected: str) -> None:
-        super().__init__(message)
-        self.found, self.expected = found, expected
-
-
-class CheckpointLockedError(CheckpointError):
-    """Another process holds the checkpoint's lock: two writers would overwrite each other's learning."""
+#: LearningError, for a checkpoint that cannot be written or read; `source` names the file.
+CheckpointError = LearningError
 
 
 class CheckpointLock:
@@ -72,18 +60,18 @@ class CheckpointLock:
         try:
             fd = os.open(self.lock_path, os.O_RDWR | os.O_CREAT | os.O_CLOEXEC, 0o666)
         except OSError as exc:
-            raise CheckpointError(f"{path}: cannot create its lock file {self.lock_path}: {exc}") from exc
+            raise CheckpointError(f"{path}: cannot create its lock file {self.lock_path}: {exc}", source=path) from exc
         try:
             fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except OSError as exc:
             holder = _lock_holder(fd)
             os.close(fd)
             if isinstance(exc, BlockingIOError):
-                raise CheckpointLockedError(
+                raise CheckpointError(
                     f"checkpoint {path} is in use by process {holder} (lock {self.lock_path}): two learners on one "
                     "checkpoint overwrite each other's learning; stop the other one or give this one another "
-                    "path") from None
-            raise CheckpointError(f"{path}: cannot lock {self.lock_path}: {exc}") from exc
+                    "path", source=path, locked=True) from None
+            raise CheckpointError(f"{path}: cannot lock {self.lock_path}: {exc}", source=path) from exc
         self._fd = fd
         with contextlib.suppress(OSError):  # the pid only makes the refusal's message clearer (disk full: none)
             os.ftruncate(fd, 0)
@@ -116,11 +104,11 @@ def write_checkpoint(path: str | os.PathLike[str], kind: str, header: Mapping[st
     path = Path(path)
     meta = {"magic": MAGIC, "kind": kind, "format_version": FORMAT_VERSION, **header}
     if HEADER_KEY in arrays:
-        raise CheckpointError(f"{path}: array name {HEADER_KEY!r} is reserved")
+        raise CheckpointError(f"{path}: array name {HEADER_KEY!r} is reserved", source=path)
     try:
         blob = json.dumps(meta, allow_nan=True).encode()
     except (TypeError, ValueError) as exc:
-        raise CheckpointError(f"{path}: header is not JSON-serialisable: {exc}") from exc
+        raise CheckpointError(f"{path}: header is not JSON-serialisable: {exc}", source=path) from exc
     members: dict[str, Any] = {HEADER_KEY: np.frombuffer(blob, dtype=np.uint8), **arrays}
     dest = destination(path)
     folder = dest.parent
@@ -128,7 +116,7 @@ def write_checkpoint(path: str | os.PathLike[str], kind: str, header: Mapping[st
         mode = _mode_for(dest)
         fd, tmp = tempfile.mkstemp(prefix=f".{dest.name}.", suffix=".tmp", dir=folder)
     except OSError as exc:
-        raise CheckpointError(f"{path}: cannot create a temporary file in {folder}: {exc}") from exc
+        raise CheckpointError(f"{path}: cannot create a temporary file in {folder}: {exc}", source=path) from exc
     try:
         with os.fdopen(fd, "wb") as f:
             np.savez(f, **members)
@@ -140,7 +128,7 @@ def write_checkpoint(path: str | os.PathLike[str], kind: str, header: Mapping[st
         with contextlib.suppress(OSError):
             os.unlink(tmp)
         if isinstance(exc, OSError):
-            raise CheckpointError(f"{path}: writing failed: {exc}") from exc
+            raise CheckpointError(f"{path}: writing failed: {exc}", source=path) from exc
         raise
     _fsync_dir(folder)
 
@@ -225,9 +213,10 @@ def check_checkpoint_place(path: str | os.PathLike[str]) -> None:
     path = Path(path)
     if path.is_dir():
         raise CheckpointError(f"{path} is an existing folder, not a checkpoint file: give a file path "
-                              "such as <folder>/model.npz")
+                              "such as <folder>/model.npz", source=path)
     if path.exists() and not looks_like_checkpoint(path):
-        raise CheckpointError(f"{path} exists and is not a gwr_predictor checkpoint: refusing to move or overwrite it")
+        raise CheckpointError(f"{path} exists and is not a gwr_predictor checkpoint: refusing to move or overwrite it",
+                              source=path)
     dest = destination(path)
     folder = dest.parent if str(dest.parent) else Path(".")
     try:
@@ -236,7 +225,7 @@ def check_checkpoint_place(path: str | os.PathLike[str]) -> None:
         os.close(fd)
         os.unlink(probe)
     except OSError as exc:
-        raise CheckpointError(f"{path}: the checkpoint cannot be written in {folder}: {exc}") from exc
+        raise CheckpointError(f"{path}: the checkpoint cannot be written in {folder}: {exc}", source=path) from exc
 
 
 def remove_stale_temp_files(path: str | os.PathLike[str]) -> list[Path]:
@@ -255,22 +244,27 @@ def read_checkpoint(path: str | os.PathLike[str], kind: str,
     """(header, arrays) of a checkpoint of `kind`; every name in `required` must be present."""
     path = Path(path)
     if not path.is_file():
-        raise CheckpointError(f"{path}: no such checkpoint file")
-    check_zip_directory(path, MAX_CHECKPOINT_BYTES, "checkpoint", CheckpointError)
+        raise CheckpointError(f"{path}: no such checkpoint file", source=path)
+    try:
+        check_zip_directory(path, MAX_CHECKPOINT_BYTES, "checkpoint", CheckpointError)
+    except CheckpointError as exc:
+        exc.source = path
+        raise
     arrays = _read_arrays(path)
     header = _parse_header(arrays.pop(HEADER_KEY, None), path)
     if not isinstance(header, dict) or header.get("magic") != MAGIC:
         raise CheckpointError(f"{path}: wrong magic {header.get('magic') if isinstance(header, dict) else None!r}, "
-                              f"expected {MAGIC!r}: not a gwr_predictor checkpoint")
+                              f"expected {MAGIC!r}: not a gwr_predictor checkpoint", source=path)
     version = header.get("format_version")
     if version != FORMAT_VERSION:
         hint = (" (written by an older build: retrain, or re-run `gwr-predictor pretrain`; CHANGELOG.md says "
                 "what changed)") if isinstance(version, int) and version < FORMAT_VERSION else ""
         raise CheckpointError(f"{path}: format_version {version!r} is not supported (this build reads "
-                              f"{FORMAT_VERSION}){hint}")
+                              f"{FORMAT_VERSION}){hint}", source=path)
     if header.get("kind") != kind:
         found = header.get("kind")
-        raise KindMismatchError(f"{path}: holds a {found!r}, expected a {kind!r}", found, kind)
+        raise CheckpointError(f"{path}: holds a {found!r}, expected a {kind!r}", source=path, found=found,
+                              expected=kind)
     require_arrays(required, arrays, path)
     return header, arrays
 
@@ -289,21 +283,22 @@ def _read_arrays(path: Path) -> dict[str, np.ndarray]:
         raise
     except Exception as exc:
         raise CheckpointError(f"{path}: not a readable checkpoint (truncated or corrupt?): "
-                              f"{type(exc).__name__}: {exc}") from exc
+                              f"{type(exc).__name__}: {exc}", source=path) from exc
 
 
 def _check_member(zf: zipfile.ZipFile, info: zipfile.ZipInfo, path: Path) -> None:
     """A member must be an npy array whose declared shape x item size is exactly the data it holds
     (so numpy never allocates more than the member's size, which `check_zip_directory` bounded)."""
     if not info.filename.endswith(".npy"):
-        raise CheckpointError(f"{path}: member {info.filename!r} is not an array: not a gwr_predictor checkpoint")
+        raise CheckpointError(f"{path}: member {info.filename!r} is not an array: not a gwr_predictor checkpoint",
+                              source=path)
     with zf.open(info) as f:
         shape, dtype, header_len = npy_header(f)
     declared = int(np.prod(shape, dtype=object)) * dtype.itemsize
     stored = info.file_size - header_len
     if dtype.hasobject or declared != stored:
         raise CheckpointError(f"{path}: member {info.filename!r} declares shape {shape} of {dtype} "
-                              f"({declared:,} bytes) but holds {stored:,} bytes: corrupt or forged")
+                              f"({declared:,} bytes) but holds {stored:,} bytes: corrupt or forged", source=path)
 
 
 _JSON_STRING = re.compile(r'"(?:[^"\\]|\\.)*+"')
@@ -319,24 +314,38 @@ def json_depth(text: str) -> int:
 def _parse_header(blob: np.ndarray | None, path: Path) -> Any:
     """The JSON header, its size and nesting bounded before parsing."""
     if blob is None or blob.dtype != np.uint8 or blob.ndim != 1:
-        raise CheckpointError(f"{path}: no {HEADER_KEY!r} member: not a gwr_predictor checkpoint")
+        raise CheckpointError(f"{path}: no {HEADER_KEY!r} member: not a gwr_predictor checkpoint", source=path)
     if blob.size > MAX_HEADER_BYTES:
-        raise CheckpointError(f"{path}: header of {blob.size:,} bytes, over the limit of {MAX_HEADER_BYTES:,}")
+        raise CheckpointError(f"{path}: header of {blob.size:,} bytes, over the limit of {MAX_HEADER_BYTES:,}",
+                              source=path)
     try:
         text = blob.tobytes().decode()
-        depth = json_depth(text)
-        if depth > MAX_HEADER_DEPTH:
-            raise CheckpointError(f"{path}: header nested {depth} deep (limit {MAX_HEADER_DEPTH}): corrupt or forged")
+    except UnicodeDecodeError as exc:
+        raise CheckpointError(f"{path}: header is not valid JSON: {type(exc).__name__}: {exc}", source=path) from exc
+    depth = json_depth(text)
+    if depth > MAX_HEADER_DEPTH:
+        raise CheckpointError(f"{path}: header nested {depth} deep (limit {MAX_HEADER_DEPTH}): corrupt or forged",
+                              source=path)
+    try:
         return json.loads(text)
-    except (UnicodeDecodeError, ValueError, RecursionError) as exc:
-        raise CheckpointError(f"{path}: header is not valid JSON: {type(exc).__name__}: {exc}") from exc
+    except (ValueError, RecursionError) as exc:
+        raise CheckpointError(f"{path}: header is not valid JSON: {type(exc).__name__}: {exc}", source=path) from exc
+
+
+def raise_state_error(exc: Exception, source: str | os.PathLike[str], what: str) -> NoReturn:
+    """Raise for `exc`, met while a model was rebuilt from the state at `source`: `exc` itself if it
+    already names a checkpoint (a nested model's, a missing array), else a CheckpointError naming
+    `source` and `what` did not fit."""
+    if isinstance(exc, LearningError) and exc.source is not None:
+        raise exc
+    raise CheckpointError(f"{source}: {what}: {type(exc).__name__}: {exc}", source=source) from exc
 
 
 def require_arrays(required: Iterable[str], arrays: Mapping[str, Any], source: str | os.PathLike[str]) -> None:
     """CheckpointError naming `source` and what is missing unless every `required` array is there."""
     missing = sorted(set(required) - arrays.keys())
     if missing:
-        raise CheckpointError(f"{source}: missing arrays {missing}")
+        raise CheckpointError(f"{source}: missing arrays {missing}", source=source)
 
 
 def set_aside(path: str | Path, when: str | None = None) -> Path:

@@ -38,7 +38,7 @@ from typing import Any, NamedTuple, TypeVar
 
 import numpy as np
 
-from gwr_predictor.errors import GwrPredictorError
+from gwr_predictor.learning.errors import LearningError
 from gwr_predictor.learning.params import MAX_EDGE_AGE_LIMIT, GWRParams
 from gwr_predictor.learning.persistence import Persistent
 
@@ -48,9 +48,10 @@ _NO_EDGE = -1
 _MIN_CAPACITY = 64
 
 
-class InputError(GwrPredictorError, ValueError):
-    """What the learning code cannot take: an input vector of the wrong shape or with non-finite values,
-    a size or a set of arrays (neurons, edges, counters, layers) that does not fit; the message says which."""
+#: LearningError, for what a network cannot take: an input vector of the wrong shape or with non-finite
+#: values, a size or a set of arrays (neurons, edges, counters, layers) that does not fit; the message says
+#: which. Its `source` is None: rebuilding from a checkpoint rewraps it to name the file.
+InputError = LearningError
 
 
 def counter_decay(rho: float, kappa: float) -> tuple[float, float]:

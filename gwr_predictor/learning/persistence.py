@@ -23,12 +23,13 @@ import os
 from collections import deque
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
-from typing import Any, ClassVar, TypeVar
+from typing import Any, ClassVar, NoReturn, TypeVar
 
 import numpy as np
 
 from gwr_predictor.errors import GwrPredictorError
 from gwr_predictor.learning.checkpoint import CheckpointError, read_checkpoint, require_arrays, write_checkpoint
+from gwr_predictor.learning.errors import LearningError
 
 Header = dict[str, Any]
 Arrays = dict[str, np.ndarray]
@@ -160,16 +161,23 @@ class Checkpointed(Persistent):
             model = cls._fresh(header)
             expected = model._capture()[1]  # the arrays a fresh model of these parameters holds
         except (KeyError, ValueError, TypeError, IndexError, GwrPredictorError) as exc:
-            raise cls._inconsistent(source, exc) from exc
+            cls._inconsistent(source, exc)
         require_arrays(expected, arrays, source)
         try:
             return model._restored(header, arrays)
         except (KeyError, ValueError, TypeError, IndexError, GwrPredictorError) as exc:
-            raise cls._inconsistent(source, exc) from exc
+            cls._inconsistent(source, exc)
 
     @classmethod
-    def _inconsistent(cls, source: str | os.PathLike[str], exc: Exception) -> GwrPredictorError:
-        return cls.STATE_ERROR(f"{source}: inconsistent checkpoint content: {type(exc).__name__}: {exc}")
+    def _inconsistent(cls, source: str | os.PathLike[str], exc: Exception) -> NoReturn:
+        """Raise for `exc`, met while rebuilding the state at `source`: `exc` itself if it already
+        names a checkpoint, else STATE_ERROR naming `source` (and carrying it, for a LearningError)."""
+        if isinstance(exc, LearningError) and exc.source is not None:
+            raise exc
+        message = f"{source}: inconsistent checkpoint content: {type(exc).__name__}: {exc}"
+        if issubclass(cls.STATE_ERROR, LearningError):
+            raise cls.STATE_ERROR(message, source=source) from exc
+        raise cls.STATE_ERROR(message) from exc
 
     def save(self, path: str | os.PathLike[str]) -> None:
         """Write the whole state atomically (CheckpointError on failure)."""

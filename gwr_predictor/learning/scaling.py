@@ -19,7 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from gwr_predictor.robot.nao import ARM_JOINTS, limits_array
+from gwr_predictor.arm_joints import ARM_JOINT_LIMITS, ARM_JOINTS
 
 
 @dataclass(frozen=True)
@@ -38,7 +38,7 @@ class InputScaling:
         """Lower and upper bounds of one frame in model units: the Nao joint limits for the
         8 arm joints, [-pi, pi] otherwise. Random initial neurons are drawn inside them."""
         if self.n_joints == len(ARM_JOINTS):
-            lo, hi = limits_array(ARM_JOINTS)
+            lo, hi = np.array([ARM_JOINT_LIMITS[n] for n in ARM_JOINTS]).T
         else:
             lo, hi = np.full(self.n_joints, -math.pi), np.full(self.n_joints, math.pi)
         return lo * self.input_scale, hi * self.input_scale

@@ -1,10 +1,11 @@
 """What the ROS pipeline shares without ROS: message conventions, input gates, bags, run reports, latency, plots,
-videos.
+videos. Its one error class is `PipelineError` (`errors.py`; `reason` tells a too-large message apart).
 """
 
 from gwr_predictor._exports import lazy_exports
 
 _EXPORTS = {
+    "PipelineError": "errors",
     "pack_skeleton": "conventions",
     "unpack_skeleton": "conventions",
     "pack_predictions": "conventions",

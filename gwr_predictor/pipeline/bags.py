@@ -36,10 +36,10 @@ from rosbags.rosbag2.metadata import parse_qos
 from rosbags.rosbag2.storage_mcap import McapWriter
 from rosbags.typesys import Stores, get_typestore
 
-from gwr_predictor.errors import GwrPredictorError
 from gwr_predictor.parameter_spec import ParameterError
 from gwr_predictor.pipeline import conventions
 from gwr_predictor.pipeline.conventions import ArrayDim, PackedArray
+from gwr_predictor.pipeline.errors import PipelineError
 
 JOINT_STATE = "sensor_msgs/msg/JointState"
 FLOAT64_MULTIARRAY = "std_msgs/msg/Float64MultiArray"
@@ -53,8 +53,8 @@ _ROSBAGS_DISTRO = "ros_distro: rosbags"
 TYPESTORE = get_typestore(Stores.ROS2_JAZZY)
 
 
-class BagError(GwrPredictorError, RuntimeError):
-    """A bag that cannot be written or read; the message names the bag path and the cause."""
+#: PipelineError, for a bag that cannot be written or read; the message names the bag path and the cause.
+BagError = PipelineError
 
 
 class BagMessage(NamedTuple):

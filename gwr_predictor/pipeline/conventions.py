@@ -20,9 +20,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from gwr_predictor.errors import GwrPredictorError
 from gwr_predictor.learning.params import DEFAULT_HORIZON as DEFAULT_HORIZON
 from gwr_predictor.learning.params import MAX_HORIZON
+from gwr_predictor.pipeline.errors import PipelineError
 from gwr_predictor.robot.nao import ARM_JOINTS
 
 # --- topics (relative names, so a namespace or remapping moves the whole pipeline) -------------
@@ -101,24 +101,20 @@ XYZ_LABEL = "xyz"
 HORIZON_LABEL = "horizon"
 
 
-class LayoutError(GwrPredictorError, ValueError):
-    """A MultiArray whose layout does not match the convention; the message says what differs."""
-
-
-class TooLargeError(LayoutError):
-    """A message larger than a declared bound (MAX_JOINTS, MAX_NAME_CHARS, MAX_MARKERS, MAX_HORIZON):
-    refused before anything is sized by it, and counted as `too_large` rather than `layout`."""
+#: PipelineError, for a MultiArray whose layout does not match the convention; the message says what differs.
+LayoutError = PipelineError
 
 
 def check_size(what: str, n: int, limit: int) -> None:
-    """Raise TooLargeError when a message declares more than `limit` of `what`."""
+    """LayoutError with reason `too_large` when a message declares more than `limit` of `what`: refused
+    before anything is sized by it, and counted apart from other layout errors."""
     if n > limit:
-        raise TooLargeError(f"{n} {what} exceeds the limit of {limit}")
+        raise LayoutError(f"{n} {what} exceeds the limit of {limit}", reason="too_large")
 
 
 def check_joint_names(names: Sequence[str]) -> None:
     """Joint names as a message gives them: at most MAX_JOINTS, none longer than MAX_NAME_CHARS, none
-    empty or twice (a joint named twice has no one position). Raises TooLargeError or LayoutError."""
+    empty or twice (a joint named twice has no one position). Raises LayoutError (reason `too_large` for the bounds)."""
     check_size("joint names", len(names), MAX_JOINTS)
     longest = max(map(len, names), default=0)
     check_size("characters in a joint name", longest, MAX_NAME_CHARS)

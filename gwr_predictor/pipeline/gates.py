@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 
 from gwr_predictor.pipeline import stamps
-from gwr_predictor.pipeline.conventions import SKELETON_JOINTS, LayoutError, TooLargeError, select_joints
+from gwr_predictor.pipeline.conventions import SKELETON_JOINTS, LayoutError, select_joints
 from gwr_predictor.robot.nao import ARM_JOINTS, limits_array
 
 # --- counters and throttled warnings ---------------------------------------------------------------
@@ -137,11 +137,11 @@ class ArmAnglesGate:
             if positions.size != len(names):
                 raise LayoutError(f"{len(names)} joint names but {positions.size} positions")
             angles = select_joints(names, positions, self._names)
-        except TooLargeError as exc:
-            self._reject("too_large", str(exc))
-            return None
         except LayoutError as exc:
-            self._reject("missing_joints" if "missing joints" in str(exc) else "layout", str(exc))
+            if exc.reason == "too_large":
+                self._reject("too_large", str(exc))
+            else:
+                self._reject("missing_joints" if "missing joints" in str(exc) else "layout", str(exc))
             return None
         if not np.all(np.isfinite(angles)):
             self._reject("non_finite", f"non-finite angles {np.array2string(angles, precision=3, separator=', ')}")

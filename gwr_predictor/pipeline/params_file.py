@@ -16,15 +16,15 @@ from typing import Any
 
 import yaml
 
-from gwr_predictor.errors import GwrPredictorError
 from gwr_predictor.file_limits import check_file_size
+from gwr_predictor.pipeline.errors import PipelineError
 
 #: A params file is settings, never data: larger than this is not one.
 MAX_PARAMS_FILE_BYTES = 1 << 20
 
 
-class ParamsFileError(GwrPredictorError, ValueError):
-    """A params file that cannot be used; the message names the file and what is wrong."""
+#: PipelineError, for a params file that cannot be used; the message names the file and what is wrong.
+ParamsFileError = PipelineError
 
 
 def params_files(argv: Sequence[str]) -> list[Path]:

@@ -12,12 +12,11 @@ from pathlib import Path
 
 import numpy as np
 
-from gwr_predictor.errors import GwrPredictorError
+from gwr_predictor.pipeline.errors import PipelineError
 from gwr_predictor.robot.nao import ARM_JOINTS, JOINT_LIMITS
 
-
-class PlotError(GwrPredictorError, ValueError):
-    """A series whose shape does not fit the joint names; the message names the series."""
+#: PipelineError, for a series whose shape does not fit the joint names; the message names the series.
+PlotError = PipelineError
 
 
 def _checked(series: Mapping[str, tuple[np.ndarray, np.ndarray]], n: int) -> dict[str, tuple[np.ndarray, np.ndarray]]:

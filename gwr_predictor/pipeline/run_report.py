@@ -25,16 +25,15 @@ from typing import Any
 
 import numpy as np
 
-from gwr_predictor.errors import GwrPredictorError
 from gwr_predictor.json_safe import to_jsonable
 from gwr_predictor.pipeline import bags, conventions
 from gwr_predictor.pipeline.conventions import LayoutError
+from gwr_predictor.pipeline.errors import PipelineError
 from gwr_predictor.robot.nao import ARM_JOINTS
 from gwr_predictor.robot.tracking import LagError, estimate_lag, tracking_error
 
-
-class BagSummaryError(GwrPredictorError, ValueError):
-    """A bag that cannot be summarised (missing topics, too little data); the message names it."""
+#: PipelineError, for a bag that cannot be summarised (missing topics, too little data); the message names it.
+BagSummaryError = PipelineError
 
 
 @dataclass

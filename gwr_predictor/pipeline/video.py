@@ -28,9 +28,9 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from gwr_predictor.errors import GwrPredictorError
 from gwr_predictor.pipeline import bags, conventions
 from gwr_predictor.pipeline.conventions import LayoutError
+from gwr_predictor.pipeline.errors import PipelineError
 from gwr_predictor.pipeline.run_report import RunData, Series, read_run, resample, wrong_type_text
 from gwr_predictor.robot.nao import SIDES, UPPER_ARM_LENGTH, forward_kinematics
 from gwr_predictor.robot.pybullet_nao import Camera, NaoSimulator
@@ -57,8 +57,9 @@ _ARM_BONES = (("left_shoulder", "left_elbow"), ("left_elbow", "left_hand"), ("ri
               ("right_elbow", "right_hand"))
 
 
-class VideoError(GwrPredictorError, RuntimeError):
-    """A run that cannot be rendered (missing topics, bad time span or size); the message names the cause."""
+#: PipelineError, for a run that cannot be rendered (missing topics, bad time span or size); the message names the
+#: cause.
+VideoError = PipelineError
 
 
 @dataclass

@@ -29,7 +29,7 @@ from gwr_predictor.protocol import Predictor
 #: predictor's own parameters (`Entry.settings()`, plus `horizon` and `n_joints`) or, for the
 #: experiments, a `HierarchyParams` (from which a predictor takes what it uses).
 Factory = Callable[[Any, int], Predictor]
-#: checkpoint path -> the saved predictor (checkpoint.KindMismatchError if the file holds another).
+#: checkpoint path -> the saved predictor (a CheckpointError with `kind_mismatch` if the file holds another).
 Loader = Callable[[str | os.PathLike[str]], Predictor]
 
 
@@ -133,7 +133,8 @@ def hierarchy_params(params: Any) -> Any:
 
 
 def load_predictor(name: str, path: str | os.PathLike[str]) -> Predictor:
-    """The predictor `name` saved at `path`; KindMismatchError if the file holds another kind or blend."""
+    """The predictor `name` saved at `path`; a CheckpointError with `kind_mismatch` if the file holds another
+    kind or blend."""
     e = entry(name)
     if e.loader is None:
         raise PredictorError(f"predictor {name!r} cannot be loaded from a checkpoint; "
@@ -194,11 +195,11 @@ def _made_by(maker: str) -> Factory:
 
         build = getattr(default, maker)
         if params is None:
-            return build(seed=seed)  # type: ignore[no-any-return]
+            return build(seed=seed)
         if isinstance(params, Mapping):
             own = {k: v for k, v in params.items() if k not in DATA_PARAMETERS}
-            return build(params.get("horizon", 6), params.get("n_joints", 8), seed, own)  # type: ignore[no-any-return]
-        return build(params.horizon, params.n_joints, seed)  # type: ignore[no-any-return]  # HierarchyParams
+            return build(params.get("horizon", 6), params.get("n_joints", 8), seed, own)
+        return build(params.horizon, params.n_joints, seed)  # HierarchyParams
 
     return make
 
@@ -207,7 +208,7 @@ def _settings_of(specs: str) -> Settings:
     def settings() -> tuple[ParamSpec, ...]:
         from gwr_predictor.default_predictor import settings as module
 
-        return getattr(module, specs)()  # type: ignore[no-any-return]
+        return getattr(module, specs)()
 
     return settings
 
@@ -216,12 +217,12 @@ def gate_loader(wraps: str) -> Loader:
     """A loader of gated checkpoints that refuses a gate around another kind of model."""
     def load(path: str | os.PathLike[str]) -> Predictor:
         from gwr_predictor.default_predictor.gate import GatedPredictor
-        from gwr_predictor.learning.checkpoint import KindMismatchError
+        from gwr_predictor.learning.checkpoint import CheckpointError
 
         gate = GatedPredictor.load(path)
         if gate.model.kind != wraps:
-            raise KindMismatchError(f"{path}: holds a gate around a {gate.model.kind!r}, expected a {wraps!r}",
-                                    gate.model.kind, wraps)
+            raise CheckpointError(f"{path}: holds a gate around a {gate.model.kind!r}, expected a {wraps!r}",
+                                  source=path, found=gate.model.kind, expected=wraps)
         return gate
 
     return load

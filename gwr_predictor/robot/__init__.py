@@ -1,6 +1,7 @@
 """The robot side: Nao kinematics and URDF, the PyBullet simulator, the delayed arm, compensation.
 
-Also the offline closed loop and the lag/tracking measures that score it.
+Also the offline closed loop and the lag/tracking measures that score it. Its one error class is
+`RobotError` (`errors.py`).
 """
 
 from gwr_predictor._exports import lazy_exports
@@ -18,7 +19,7 @@ _EXPORTS = {
     "RobotParams": "delayed_arm",
     "MotorParams": "delayed_arm",
     "DelayLine": "delayed_arm",
-    "RobotError": "delayed_arm",
+    "RobotError": "errors",
     "DelayCompensator": "compensator",
     "CompensatorParams": "compensator",
     "CompensatorOutput": "compensator",

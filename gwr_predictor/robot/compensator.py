@@ -47,8 +47,8 @@ from typing import Literal, NamedTuple
 
 import numpy as np
 
-from gwr_predictor.errors import GwrPredictorError
 from gwr_predictor.parameter_spec import ParamSpec, check_fields
+from gwr_predictor.robot.errors import RobotError
 from gwr_predictor.robot.nao import ARM_JOINTS
 
 MODES = ("none", "guarded", "fixed", "variable")
@@ -60,8 +60,8 @@ STALE_PREDICTIONS = "stale_predictions"
 NO_ROBOT_STATE = "no_robot_state"
 
 
-class CompensatorError(GwrPredictorError, ValueError):
-    """Invalid compensator parameters or input shapes; the message names the field and range."""
+#: RobotError, for invalid compensator parameters or input shapes; the message names the field and range.
+CompensatorError = RobotError
 
 
 #: The compensator's parameters, declared once: `CompensatorParams` validates with them and the

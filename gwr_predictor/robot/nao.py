@@ -1,7 +1,8 @@
 """Nao arm facts (published V4/V5 figures) and forward kinematics, shared by data, simulator, URDF.
 
 Frames: torso origin, x forward, y left, z up. Angles in radians. The 8 joints the learner sees
-are `ARM_JOINTS` (no wrist: skeleton trackers do not measure it); the robot also has `WristYaw`.
+are `ARM_JOINTS` (no wrist: skeleton trackers do not measure it; their names and limits are
+`gwr_predictor.arm_joints`, re-exported here); the robot also has `WristYaw`.
 """
 
 from __future__ import annotations
@@ -10,34 +11,18 @@ from typing import NamedTuple
 
 import numpy as np
 
-from gwr_predictor.errors import GwrPredictorError
+from gwr_predictor.arm_joints import ARM_JOINT_LIMITS, ARM_JOINT_SUFFIXES, ARM_JOINTS, SIDES
+from gwr_predictor.robot.errors import RobotError
 
-
-class RobotError(GwrPredictorError, ValueError):
-    """Invalid robot / delay parameters or inputs; the message names the field and its range."""
-
-
-SIDES = ("L", "R")
-ARM_JOINT_SUFFIXES = ("ShoulderPitch", "ShoulderRoll", "ElbowYaw", "ElbowRoll")
-#: The 8 angles of the paper, in the order used everywhere (learner vectors, JointState names).
-ARM_JOINTS: tuple[str, ...] = tuple(s + j for s in SIDES for j in ARM_JOINT_SUFFIXES)
 #: All 10 actuated arm joints of the robot model.
 ROBOT_ARM_JOINTS: tuple[str, ...] = tuple(
     s + j for s in SIDES for j in (*ARM_JOINT_SUFFIXES, "WristYaw")
 )
+_WRIST_YAW_LIMITS = (-1.82387, 1.82387)
 
-#: Joint limits (lower, upper) in radians.
+#: Joint limits (lower, upper) in radians, of the 8 arm joints and the wrists.
 JOINT_LIMITS: dict[str, tuple[float, float]] = {
-    "LShoulderPitch": (-2.08567, 2.08567),
-    "LShoulderRoll": (-0.314159, 1.32645),
-    "LElbowYaw": (-2.08567, 2.08567),
-    "LElbowRoll": (-1.54462, -0.0349066),
-    "LWristYaw": (-1.82387, 1.82387),
-    "RShoulderPitch": (-2.08567, 2.08567),
-    "RShoulderRoll": (-1.32645, 0.314159),
-    "RElbowYaw": (-2.08567, 2.08567),
-    "RElbowRoll": (0.0349066, 1.54462),
-    "RWristYaw": (-1.82387, 1.82387),
+    name: ARM_JOINT_LIMITS.get(name, _WRIST_YAW_LIMITS) for name in ROBOT_ARM_JOINTS
 }
 
 #: Velocity limits in rad/s (wrist figure as for the elbow yaw).

@@ -23,8 +23,8 @@ from typing import Any
 
 import numpy as np
 
-from gwr_predictor.errors import GwrPredictorError
 from gwr_predictor.parameter_spec import ParamSpec
+from gwr_predictor.robot.errors import RobotError
 from gwr_predictor.robot.nao import ARM_JOINTS, VELOCITY_LIMITS, clip_to_limits
 
 #: Relative, so that a namespaced pipeline drives the naoqi_driver2 of its own namespace.
@@ -42,8 +42,8 @@ PARAM_SPECS = {
 }
 
 
-class NaoqiOutputError(GwrPredictorError, ValueError):
-    """A naoqi command that cannot be made (missing message package, bad angles); the message says which."""
+#: RobotError, for a naoqi command that cannot be made (missing message package, bad angles); the message says which.
+NaoqiOutputError = RobotError
 
 
 def message_type() -> type:

@@ -11,11 +11,10 @@ import math
 
 import numpy as np
 
-from gwr_predictor.errors import GwrPredictorError
+from gwr_predictor.robot.errors import RobotError
 
-
-class LagError(GwrPredictorError, ValueError):
-    """Inputs that cannot be compared (shapes, lengths, parameters); the message says which."""
+#: RobotError, for inputs that cannot be compared (shapes, lengths, parameters); the message says which.
+LagError = RobotError
 
 
 def _pair(reference: np.ndarray, follower: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
