@@ -12,12 +12,13 @@ the sequence. The model is loaded from `checkpoint` at start and saved there ato
 The node locks its checkpoint (`.<name>.lock` beside it) while it runs: a second learner on the same
 file refuses to start instead of overwriting the first one's learning.
 
-`predictor` picks the model: `gated_llm_gwr` (the default: a P-GWR with local linear models and a
-global linear read-out, mixed per horizon step, behind a confidence gate that falls back to holding
-the pose, see gwr_predictor/default_predictor/; its status carries the read-outs'
-mixing weights at the last step, `mix_weight_local_h6` / `mix_weight_global_h6`) or `hierarchy` (the
+`predictor` picks the model: `gwr_experts` (the default: the local-linear P-GWR, a snippet memory and
+two linear models, each behind a confidence gate, weighted per horizon step by their recent errors,
+see gwr_predictor/default_predictor/; its status carries each expert's weight at the last step,
+`expert_weight_<expert>_h6`, and the network's read-out mix, `mix_weight_local_h6` /
+`mix_weight_global_h6`), `gated_llm_gwr` (that network alone behind one gate) or `hierarchy` (the
 paper). The node declares the chosen predictor's own settings and no other's, named
-`<predictor>.<setting>` (`gated_llm_gwr.order`, `hierarchy.gwr1.eps_b`): one params file can hold a
+`<predictor>.<setting>` (`gwr_experts.memory.k`, `hierarchy.gwr1.eps_b`): one params file can hold a
 section for each (config/gwr_hierarchy.yaml does), the others' are ignored without a warning.
 A checkpoint of another kind than `predictor` stops the node (it is neither used nor moved aside).
 """
@@ -62,9 +63,10 @@ from .node_base import (
 )
 
 PARAMS = (
-    ParamSpec("predictor", DEFAULT_PREDICTOR, "model: 'gated_llm_gwr' (local-linear P-GWR with a global linear "
-              "read-out behind a confidence gate, never worse than holding the pose; default) or 'hierarchy' (GWR1 "
-              "-> GWR2 -> P-GWR, the paper); the node declares the chosen one's settings as '<predictor>.<name>'",
+    ParamSpec("predictor", DEFAULT_PREDICTOR, "model: 'gwr_experts' (default: the local-linear P-GWR, a snippet "
+              "memory and two linear models, each gated, weighted by recent error), 'gated_llm_gwr' (the network "
+              "alone, gated) or 'hierarchy' (GWR1 -> GWR2 -> P-GWR, the paper); the node declares the chosen one's "
+              "settings as '<predictor>.<name>'",
               choices=learner_names()),
     dataclasses.replace(HIERARCHY_SPECS["horizon"], description="frames predicted ahead (6 at 10 fps = 600 ms)"),
     ParamSpec("seed", 0, "seed of the networks' initial random neurons", 0, 2**31 - 1),

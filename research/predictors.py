@@ -95,7 +95,7 @@ def _experts_ungated(params: Any, seed: int) -> Predictor:
     from gwr_predictor.default_predictor import make_default
 
     hp = hierarchy_params(params)
-    experts = make_default(hp.horizon, hp.n_joints, seed)
+    experts = make_default(hp.horizon, hp.n_joints, seed).model
     return type(experts)({name: member.model for name, member in experts.members.items()}, experts.params)
 
 

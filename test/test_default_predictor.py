@@ -55,9 +55,11 @@ def _periodic(n: int = 600) -> np.ndarray:
 def test_the_default_is_registered_everywhere():
     assert DEFAULT_PREDICTOR == common.DEFAULT == "gwr_experts"
     model = make_predictor(DEFAULT_PREDICTOR)
-    assert isinstance(model, Experts) and set(model.members) == {"network", "linear", "rls_ar", "memory"}
-    assert all(isinstance(m, GatedPredictor) for m in model.members.values())
-    assert isinstance(model.learner, LocalLinearPredictor)
+    assert isinstance(model, GatedPredictor) and isinstance(model.model, Experts)
+    experts = model.model
+    assert set(experts.members) == {"network", "linear", "rls_ar", "memory"}
+    assert all(isinstance(m, GatedPredictor) for m in experts.members.values())
+    assert isinstance(experts.learner, LocalLinearPredictor)
     network = make_predictor("gated_llm_gwr")
     assert isinstance(network, GatedPredictor) and isinstance(network.model, LocalLinearPredictor)
 

@@ -294,7 +294,7 @@ def test_make_predictor_names_the_hierarchy_and_both_blends():
     assert isinstance(gwr_member(make_predictor("blend_flat_rls")), FlatPredictor)
     # research names are registered (research/ is imported here) but the node and pretrain offer the product's
     assert {"blend_flat_rls", "llm_gwr", "gated_hierarchy"} <= set(names())
-    assert set(learner_names()) == {"hierarchy", "gated_llm_gwr"}
+    assert set(learner_names()) == {"hierarchy", "gated_llm_gwr", "gwr_experts"}
     with pytest.raises(UnknownPredictorError, match="unknown predictor 'nope'"):
         make_predictor("nope")
 

@@ -185,7 +185,7 @@ def test_experiment_delay(tmp_path, monkeypatch):
     for x in r["oracle"]:  # a perfect predictor leaves only the motors' lag: far below uncompensated
         assert x["mae"] < 0.5 * none[x["delay_s"]] and x["lag_s"] < 0.1
     real = r["real"]
-    assert real["clips"] == list(cfg["real_clips"]) and real["predictor"] == "gated_llm_gwr"
+    assert real["clips"] == list(cfg["real_clips"]) and real["predictor"] == "gwr_experts"
     assert len(real["runs"]) == len(real["clips"]) * len(cfg["delays"]) * len(cfg["real_rules"])
     for clip in real["clips"]:
         for delay in cfg["delays"]:
@@ -304,8 +304,8 @@ def test_evaluate_prints_a_json_last_line(tmp_path, capsys):
     last = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
     assert {"horizon", "mae_rad", "frames", "neurons"} <= set(last)
     assert last["horizon"] == 4
-    assert set(last["mae_rad"]) == {"hold", "const_velocity", "rls_ar", "hierarchy", "gated_llm_gwr"}
-    assert last["default_method"] == "gated_llm_gwr"
+    assert set(last["mae_rad"]) == {"hold", "const_velocity", "rls_ar", "hierarchy", "gwr_experts"}
+    assert last["default_method"] == "gwr_experts"
     assert all(len(v) == 4 for v in last["mae_rad"].values())
     assert last["frames"] == 2 * sum(len(s) for s in demo_angle_sequences(["wave_one"], 1, 2))
     assert len(last["neurons"]["hierarchy"]) == 3

@@ -13,6 +13,7 @@ from gwr_predictor.default_predictor import (
     TrajectoryMemory,
     make_default,
 )
+from gwr_predictor.default_predictor.gate import GatedPredictor
 from gwr_predictor.default_predictor.settings import experts_parameter_specs
 from gwr_predictor.errors import GwrPredictorError
 from gwr_predictor.evaluation.online import compare_online
@@ -145,11 +146,11 @@ def test_the_experts_checkpoint_continues_bit_for_bit(tmp_path):
     for f in x[:150]:
         model.step(f)
     model.save(tmp_path / "m.npz")
-    again = Experts.load(tmp_path / "m.npz")
-    assert again.members["memory"].model.size == model.members["memory"].model.size > 0
+    again = GatedPredictor.load(tmp_path / "m.npz")
+    assert again.model.members["memory"].model.size == model.model.members["memory"].model.size > 0
     for f in x[150:]:
         np.testing.assert_array_equal(model.step(f), again.step(f))
-    assert again.neuron_counts == model.neuron_counts and again.frames_seen == model.frames_seen
+    assert again.neuron_counts == model.neuron_counts and again.model.frames_seen == model.model.frames_seen
 
 
 def test_the_default_wins_on_a_repeated_movement_varied_in_speed():
@@ -160,10 +161,13 @@ def test_the_default_wins_on_a_repeated_movement_varied_in_speed():
 
 def test_the_default_takes_its_settings_by_flat_name():
     specs = {s.name for s in experts_parameter_specs()}
-    assert {"network.order", "network.gwr.eps_b", "memory.k", "experts.power", "expert_gate.decay"} <= specs
-    experts = make_default(settings={"memory.k": 5, "experts.power": 4.0, "network.order": 3,
-                                     "network.gwr.eps_b": 0.2, "expert_gate.decay": 0.9})
-    assert experts.members["memory"].model.params.k == 5 and experts.params.power == 4.0
+    assert {"network.order", "network.gwr.eps_b", "memory.k", "experts.power", "expert_gate.decay",
+            "gate.confidence"} <= specs
+    model = make_default(settings={"memory.k": 5, "experts.power": 2.0, "network.order": 3,
+                                   "network.gwr.eps_b": 0.2, "expert_gate.decay": 0.9, "gate.confidence": 1.5})
+    experts = model.model
+    assert model.params.confidence == 1.5
+    assert experts.members["memory"].model.params.k == 5 and experts.params.power == 2.0
     network = experts.members["network"].model.params
     assert network.order == 3 and network.gwr.eps_b == 0.2
     assert all(m.params.decay == 0.9 for m in experts.members.values())

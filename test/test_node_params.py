@@ -68,7 +68,10 @@ BAD_VALUES = [
      "'mode' = 'sideways' is not allowed: must be one of 'none', 'guarded', 'fixed'"),
     ("gwr_hierarchy", {"predictor": "hierarchy", "hierarchy.gwr1.activation_threshold": 1.5},
      "'hierarchy.gwr1.activation_threshold' = 1.5 is outside"),
-    ("gwr_hierarchy", {"gated_llm_gwr.order": 0}, "'gated_llm_gwr.order' = 0 is outside the allowed range [1, 32]"),
+    ("gwr_hierarchy", {"gwr_experts.network.order": 0},
+     "'gwr_experts.network.order' = 0 is outside the allowed range [1, 32]"),
+    ("gwr_hierarchy", {"predictor": "gated_llm_gwr", "gated_llm_gwr.order": 0},
+     "'gated_llm_gwr.order' = 0 is outside the allowed range [1, 32]"),
     ("skeleton_source", {"rate_hz": 0.0}, "'rate_hz' = 0.0 is outside the allowed range [1.0, 1000.0]"),
     ("angle_extractor", {"max_gap_s": "soon"}, "'max_gap_s' must be a number"),
     ("bag_player", {"bag": ""}, "'bag' is empty"),
@@ -97,8 +100,9 @@ def test_pretrain_uses_the_nodes_yaml_and_writes_a_checkpoint_the_node_can_load(
     flat = node_parameters(yaml_path)
     # the YAML's sections are every product predictor's defaults
     assert HierarchyParams.from_flat(settings_from_parameters("hierarchy", flat)) == HierarchyParams()
-    default = {s.name: s.default for s in predictor_specs("gated_llm_gwr")}
-    assert {k: v for k, v in flat.items() if k.startswith("gated_llm_gwr.")} == default
+    for name in ("gated_llm_gwr", "gwr_experts"):
+        default = {s.name: s.default for s in predictor_specs(name)}
+        assert {k: v for k, v in flat.items() if k.startswith(f"{name}.")} == default
     custom = tmp_path / "custom.yaml"
     custom.write_text("/**/gwr_hierarchy:\n  ros__parameters:\n    predictor: hierarchy\n    horizon: 4\n"
                       "    hierarchy:\n      pgwr:\n        max_edge_age: 50\n")
@@ -112,9 +116,11 @@ def test_pretrain_uses_the_nodes_yaml_and_writes_a_checkpoint_the_node_can_load(
     from gwr_predictor.default_predictor.gate import GatedPredictor
 
     custom.write_text("/**/gwr_hierarchy:\n  ros__parameters:\n    horizon: 4\n"
-                      "    gated_llm_gwr:\n      order: 5\n      gate:\n        decay: 0.98\n")
+                      "    gwr_experts:\n      network:\n        order: 5\n      expert_gate:\n        decay: 0.98\n")
     assert main(["pretrain", "-o", str(out), "--params-file", str(custom), "--patterns", "wave_one",
                  "--subjects", "1", "--repetitions", "1", "--epochs", "1", "--quiet"]) == 0
     gated = GatedPredictor.load(out)
-    assert gated.params.horizon == 4 and gated.model.frames_seen > 30
-    assert gated.model.params.order == 5 and gated.params.decay == 0.98
+    experts = gated.model
+    assert gated.params.horizon == 4 and experts.frames_seen > 30
+    assert experts.members["network"].model.params.order == 5
+    assert all(m.params.decay == 0.98 for m in experts.members.values())

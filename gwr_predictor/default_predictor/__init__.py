@@ -1,5 +1,6 @@
 """The default predictor: growing networks that remember movements and linear models that
-extrapolate them, each behind a confidence gate, heard per horizon step by how well it did lately.
+extrapolate them, each behind a confidence gate, heard per horizon step by how well it did lately,
+behind a last gate.
 
 What a robot runs unless told otherwise (`make_default`; registry name `gwr_experts`). Its experts:
 
@@ -13,7 +14,7 @@ What a robot runs unless told otherwise (`make_default`; registry name `gwr_expe
 
 Each expert sits behind its own confidence gate (`gate.py`: it falls back to holding the pose where
 the expert has not recently beaten holding it); `experts.py` weights them per horizon step by their
-recent errors. `params.py` and `settings.py` declare every setting
+recent errors; a last gate guards the weighted prediction. `params.py` and `settings.py` declare every setting
 once. The network behind one gate alone is `make_gated_network` (registry name `gated_llm_gwr`).
 
 The paper's own method (GWR1 -> GWR2 -> P-GWR) is `gwr_predictor.learning.hierarchy`.
@@ -27,7 +28,6 @@ from typing import TYPE_CHECKING, Any
 from gwr_predictor._exports import lazy_exports
 
 if TYPE_CHECKING:
-    from gwr_predictor.default_predictor.experts import Experts
     from gwr_predictor.default_predictor.gate import GatedPredictor
 
 _EXPORTS = {
@@ -52,11 +52,12 @@ __all__ = ["make_default", "make_gated_network", *sorted(_EXPORTS)]
 
 
 def make_default(horizon: int = 6, joints: int = 8, seed: int = 0,
-                 settings: Mapping[str, Any] | None = None) -> Experts:
-    """The default predictor, fresh: the four experts, each behind its gate, weighted per step.
+                 settings: Mapping[str, Any] | None = None) -> GatedPredictor:
+    """The default predictor, fresh: the four experts, each behind its gate, weighted per step, behind a
+    last gate.
 
     `settings`: flat parameters (`experts_parameter_specs()`: e.g. `network.order`, `memory.k`,
-    `experts.power`, `expert_gate.decay`); the others keep their defaults."""
+    `experts.power`, `expert_gate.decay`, `gate.confidence`); the others keep their defaults."""
     from gwr_predictor.default_predictor.experts import Experts
     from gwr_predictor.default_predictor.gate import GatedPredictor
     from gwr_predictor.default_predictor.memory import TrajectoryMemory
@@ -65,13 +66,13 @@ def make_default(horizon: int = 6, joints: int = 8, seed: int = 0,
     from gwr_predictor.predictors.baselines import TUNED_RLS, RLSAutoregressive
     from gwr_predictor.predictors.direct_linear import TUNED_LINEAR, DirectLinear
 
-    network, memory, weighting, gate = from_experts_settings(settings or {}, horizon, joints)
+    network, memory, weighting, expert_gate, gate = from_experts_settings(settings or {}, horizon, joints)
     experts = {"network": LocalLinearPredictor(network, seed=seed),
                "linear": DirectLinear(TUNED_LINEAR.replace(horizon=horizon, joints=joints)),
                "rls_ar": RLSAutoregressive(TUNED_RLS, horizon, joints),
                "memory": TrajectoryMemory(memory)}
-    return Experts({name: GatedPredictor(model, gate, hold_when_silent=False) for name, model in experts.items()},
-                   weighting)
+    gated = {name: GatedPredictor(model, expert_gate, hold_when_silent=False) for name, model in experts.items()}
+    return GatedPredictor(Experts(gated, weighting), gate)
 
 
 def make_gated_network(horizon: int = 6, joints: int = 8, seed: int = 0,

@@ -32,9 +32,9 @@ from gwr_predictor.parameter_spec import ParamSpec, check_fields
 from gwr_predictor.pending import PendingPredictions
 
 EXPERTS_SPECS = {spec.name: spec for spec in (
-    ParamSpec("decay", 0.99, "forgetting of each member's running squared error per scored frame", 0.0, 1.0,
+    ParamSpec("decay", 0.995, "forgetting of each member's running squared error per scored frame", 0.0, 1.0,
               lo_open=True, hi_open=True),
-    ParamSpec("power", 16.0, "weights go as 1 / MSE^power (1: inverse MSE; large: nearly the best member)",
+    ParamSpec("power", 4.0, "weights go as 1 / MSE^power (1: inverse MSE; large: nearly the best member)",
               0.0, 64.0, lo_open=True),
     ParamSpec("floor", 1e-6, "lower bound of the running MSE (rad^2) before it is inverted", 0.0, 1.0, lo_open=True),
     ParamSpec("horizon", DEFAULT_HORIZON, "steps predicted", 1, MAX_HORIZON),

@@ -284,7 +284,8 @@ def inner_model(model: Any) -> Any:
 
 
 def _model_classes() -> dict[str, type[Checkpointed]]:
-    """The kinds of model a gate's checkpoint can hold: the learners and the default's experts."""
+    """The kinds of model a gate's checkpoint can hold: the learners, the default's experts and their weighting."""
+    from gwr_predictor.default_predictor.experts import Experts
     from gwr_predictor.default_predictor.memory import TrajectoryMemory
     from gwr_predictor.default_predictor.predictor import LocalLinearPredictor
     from gwr_predictor.learning.hierarchy import FlatPredictor, Hierarchy
@@ -292,4 +293,4 @@ def _model_classes() -> dict[str, type[Checkpointed]]:
     from gwr_predictor.predictors.direct_linear import DirectLinear
 
     return {c.kind: c for c in (LocalLinearPredictor, Hierarchy, FlatPredictor, TrajectoryMemory, RLSAutoregressive,
-                                DirectLinear)}
+                                DirectLinear, Experts)}

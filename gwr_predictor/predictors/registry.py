@@ -9,7 +9,7 @@ a checkpoint loader; those are the `learner_names()` the node and `pretrain` acc
 Built in: the baselines `hold`, `const_velocity`, `rls_ar`, `linear` (direct multi-step linear
 model), the paper's `hierarchy` (GWR1 -> GWR2 -> P-GWR), `gated_llm_gwr` (the local-linear P-GWR
 behind a confidence gate) and the default `gwr_experts` (that network, a snippet memory and the two
-linear models, each behind a gate, weighted per step by their recent errors).
+linear models, each behind a gate, weighted per step by their recent errors, behind a last gate).
 `register` adds one: the research part of the repository (research/, not installed) registers its
 ablations and blends this way.
 """
@@ -230,13 +230,7 @@ def gate_loader(wraps: str) -> Loader:
 
 register("gated_llm_gwr", _made_by("make_gated_network"), "gated local-linear P-GWR",
          gate_loader("LocalLinearPredictor"), _settings_of("parameter_specs"))
-def _load_experts(path: str | os.PathLike[str]) -> Predictor:
-    from gwr_predictor.default_predictor.experts import Experts
-
-    return Experts.load(path)
-
-
-register(DEFAULT_PREDICTOR, _made_by("make_default"), "GWR experts (default)", _load_experts,
+register(DEFAULT_PREDICTOR, _made_by("make_default"), "GWR experts (default)", gate_loader("Experts"),
          _settings_of("experts_parameter_specs"))
 
 #: The product's predictors: the ones registered above, whatever registers itself later (research/).

@@ -148,7 +148,7 @@ def run(config: Config, out: Path, seed: int = 0, progress: bool = True) -> Expe
     ratios: dict[str, dict[str, dict[str, Any]]] = {v: {} for v in config.variants}
     with tqdm(total=len(conds) * (1 + len(config.variants)), desc=NAME, disable=not progress, leave=False) as bar:
         for name, (learned, scored) in conds.items():
-            recorder = _Recorder(make_predictor(common.DEFAULT, params, seed).model)
+            recorder = _Recorder(make_predictor(common.GATED, params, seed).model)
             _score(recorder, learned, scored, params.horizon)
             bar.update()
             for v in config.variants:

@@ -69,9 +69,9 @@ FULL = Config()
 
 
 def _gated(horizon: int, **settings: Any) -> Any:
-    from gwr_predictor.default_predictor import make_default
+    from gwr_predictor.default_predictor import make_gated_network
 
-    return make_default(horizon, settings=settings)
+    return make_gated_network(horizon, settings=settings)
 
 
 def _candidates(config: Config, horizon: int) -> dict[str, list[tuple[dict[str, Any], Any]]]:
