@@ -12,7 +12,7 @@
 #
 # usage: scripts/demo.sh [--seconds N] [--out DIR] [--epochs N] [--scenario YAML] [--predictor NAME] [--render]
 #                        [--no-video]
-#   --predictor NAME   gated_llm_gwr (default) or hierarchy (the paper)
+#   --predictor NAME   gwr_experts (default), gated_llm_gwr or hierarchy (the paper)
 #   --no-video         skip step 4
 set -euo pipefail
 HERE="$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)"
@@ -48,7 +48,7 @@ pretrain_args=(--params-file "$GWR_ROOT/config/gwr_hierarchy.yaml")
 # the node and the pretraining build the same kind of model
 [ -z "$predictor" ] || { pretrain_args+=(--predictor "$predictor"); extra+=(--predictor "$predictor"); }
 
-gwr_log "step 1/4: pretraining offline (${predictor:-gated_llm_gwr, the default})"
+gwr_log "step 1/4: pretraining offline (${predictor:-gwr_experts, the default})"
 gwr-predictor pretrain --out "$out/pretrained.npz" "${pretrain_args[@]}" \
     --epochs "$epochs" --repetitions 8 | tee "$out/pretrain.log"
 

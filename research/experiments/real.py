@@ -35,8 +35,9 @@ KNN_LABEL = "k-NN on windows (offline, other takes)"
 class Config:
     clips: tuple[str, ...] | None = None  # catalogue names (None = all)
     methods: tuple[str, ...] = ("hold", "const_velocity", "rls_ar", common.LINEAR, common.FLAT, common.HIERARCHY,
-                                common.BLEND, common.BLEND_FLAT, common.GATED_LINEAR, common.GATED_LOCAL, common.LLM)
-    # + the node's default (gated_llm_gwr)
+                                common.BLEND, common.BLEND_FLAT, common.GATED_LINEAR, common.GATED_LOCAL, common.LLM,
+                                common.GATED)
+    # + the node's default (gwr_experts)
     train_passes: int = 1  # leave-one-take-out: passes over the other takes before the held-out one
     knn_k: int = 5
     max_seconds: float = 0.0  # > 0: only the first seconds of each clip
