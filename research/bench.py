@@ -10,8 +10,9 @@ Prints readable lines, then one JSON object as the last line:
   search_us_<mode>  of one frame's time (1e6 / frames_per_s_<mode>), the part spent in its BMU
                     products (timed alone on the same networks; 6 per layer in recursive mode, see
                     `products_per_frame`); the rest is numpy call overhead, learning updates, copies
-  frames_per_s_default  the same for the node's default predictor (gated local-linear P-GWR, grown
-                    on the stream to the size the data asks for, `neurons_default`)
+  frames_per_s_default  the same for the node's default predictor (the gated experts: the network
+                    grown on the stream to the size the data asks for, `neurons_default`, and the
+                    snippet memory filled on it)
   default_vs_recursive  the default's speed over the recursive hierarchy's: median over chunks of
                     the ratio, each chunk timed on both back to back (in alternating order), so
                     that a load coming and going hits both alike (their separate runs do not)
@@ -242,7 +243,7 @@ def run(args: argparse.Namespace) -> int:
             fps, best, ratio, neurons = measure_default(h, stream, frames, chunk)
             result.update(frames_per_s_default=round(fps, 1), neurons_default=neurons,
                           default_vs_recursive=round(ratio, 3))
-            _log(args.quiet, f"default  : {fps:9.0f} frames/s learn+predict, gated_llm_gwr (the node's default), "
+            _log(args.quiet, f"default  : {fps:9.0f} frames/s learn+predict, gwr_experts (the node's default), "
                              f"{neurons} P-GWR neurons after the warm-up (best {best:.0f}); "
                              f"{ratio:.3f}x the recursive hierarchy's speed (median of paired chunks)")
         del h
