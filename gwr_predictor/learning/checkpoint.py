@@ -29,6 +29,7 @@ from typing import Any, NoReturn
 
 import numpy as np
 
+from gwr_predictor.errors import GwrPredictorError
 from gwr_predictor.file_limits import MAX_CHECKPOINT_BYTES, check_zip_directory, npy_header
 from gwr_predictor.learning.errors import LearningError
 
@@ -332,13 +333,17 @@ def _parse_header(blob: np.ndarray | None, path: Path) -> Any:
         raise CheckpointError(f"{path}: header is not valid JSON: {type(exc).__name__}: {exc}", source=path) from exc
 
 
-def raise_state_error(exc: Exception, source: str | os.PathLike[str], what: str) -> NoReturn:
+def raise_state_error(exc: Exception, source: str | os.PathLike[str], what: str,
+                      error: type[GwrPredictorError] = CheckpointError) -> NoReturn:
     """Raise for `exc`, met while a model was rebuilt from the state at `source`: `exc` itself if it
-    already names a checkpoint (a nested model's, a missing array), else a CheckpointError naming
-    `source` and `what` did not fit."""
+    already names a checkpoint (a nested model's, a missing array), else `error` naming `source` and
+    `what` did not fit (and carrying `source`, if it is a LearningError)."""
     if isinstance(exc, LearningError) and exc.source is not None:
         raise exc
-    raise CheckpointError(f"{source}: {what}: {type(exc).__name__}: {exc}", source=source) from exc
+    message = f"{source}: {what}: {type(exc).__name__}: {exc}"
+    if issubclass(error, LearningError):
+        raise error(message, source=source) from exc
+    raise error(message) from exc
 
 
 def require_arrays(required: Iterable[str], arrays: Mapping[str, Any], source: str | os.PathLike[str]) -> None:

@@ -28,8 +28,13 @@ from typing import Any, ClassVar, NoReturn, TypeVar
 import numpy as np
 
 from gwr_predictor.errors import GwrPredictorError
-from gwr_predictor.learning.checkpoint import CheckpointError, read_checkpoint, require_arrays, write_checkpoint
-from gwr_predictor.learning.errors import LearningError
+from gwr_predictor.learning.checkpoint import (
+    CheckpointError,
+    raise_state_error,
+    read_checkpoint,
+    require_arrays,
+    write_checkpoint,
+)
 
 Header = dict[str, Any]
 Arrays = dict[str, np.ndarray]
@@ -170,14 +175,7 @@ class Checkpointed(Persistent):
 
     @classmethod
     def _inconsistent(cls, source: str | os.PathLike[str], exc: Exception) -> NoReturn:
-        """Raise for `exc`, met while rebuilding the state at `source`: `exc` itself if it already
-        names a checkpoint, else STATE_ERROR naming `source` (and carrying it, for a LearningError)."""
-        if isinstance(exc, LearningError) and exc.source is not None:
-            raise exc
-        message = f"{source}: inconsistent checkpoint content: {type(exc).__name__}: {exc}"
-        if issubclass(cls.STATE_ERROR, LearningError):
-            raise cls.STATE_ERROR(message, source=source) from exc
-        raise cls.STATE_ERROR(message) from exc
+        raise_state_error(exc, source, "inconsistent checkpoint content", cls.STATE_ERROR)
 
     def save(self, path: str | os.PathLike[str]) -> None:
         """Write the whole state atomically (CheckpointError on failure)."""
