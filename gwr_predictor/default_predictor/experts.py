@@ -189,28 +189,22 @@ class Experts(Checkpointed):
     # --- persistence: the members by name and kind (the weighting's own state is declared above) -----
     @classmethod
     def _fresh(cls, header: Mapping[str, Any]) -> Experts:
+        from gwr_predictor.default_predictor.kinds import fresh_of_kind
+
         kinds = header["member_kinds"]
         if not isinstance(kinds, dict) or not kinds:
             raise CheckpointError("member_kinds must name every member's kind")
-        classes = _member_classes()
-        unknown = sorted(set(kinds.values()) - set(classes))
-        if unknown:
-            raise CheckpointError(f"members of kinds {unknown}; this build restores {', '.join(classes)}")
-        members = {name: classes[kind]._fresh(header["members"][name]) for name, kind in kinds.items()}
+        members = {name: fresh_of_kind(kind, header["members"][name]) for name, kind in kinds.items()}
         return cls(members, params_from_json(ExpertsParams, header["params"]))
 
     def _save_extra(self) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
-        classes = _member_classes()
+        from gwr_predictor.default_predictor.kinds import kind_to_save
+
         header: dict[str, Any] = {"member_kinds": {}, "members": {}}
         arrays: dict[str, np.ndarray] = {}
         for name, member in self.members.items():
-            kind = getattr(member, "kind", None)
-            if kind not in classes or not isinstance(member, Checkpointed):
-                raise CheckpointError(f"member {name!r} ({type(member).__name__}) cannot be saved; supported: "
-                                      f"{', '.join(classes)}")
-            m_header, m_arrays = member._capture()
-            header["member_kinds"][name] = kind
-            header["members"][name] = m_header
+            header["member_kinds"][name] = kind_to_save(member, f"member {name!r}")
+            header["members"][name], m_arrays = member._capture()
             arrays.update({f"member.{name}.{k}": v for k, v in m_arrays.items()})
         return header, arrays
 
@@ -219,14 +213,3 @@ class Experts(Checkpointed):
             saved = header["members"][name]
             self.members[name] = member._restored(saved, sub(arrays, f"member.{name}"), f"members.{name}.")
 
-
-def _member_classes() -> dict[str, Any]:
-    """The kinds of member an `Experts` checkpoint can hold."""
-    from gwr_predictor.default_predictor.gate import GatedPredictor
-    from gwr_predictor.default_predictor.memory import TrajectoryMemory
-    from gwr_predictor.default_predictor.predictor import LocalLinearPredictor
-    from gwr_predictor.predictors.baselines import RLSAutoregressive
-    from gwr_predictor.predictors.direct_linear import DirectLinear
-
-    return {c.kind: c for c in (GatedPredictor, LocalLinearPredictor, TrajectoryMemory, RLSAutoregressive,
-                                DirectLinear)}

@@ -36,21 +36,16 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any, ClassVar
+from typing import Any, ClassVar
 
 import numpy as np
 
 from gwr_predictor.default_predictor.params import DefaultPredictorError
-from gwr_predictor.learning.checkpoint import CheckpointError
 from gwr_predictor.learning.persistence import Checkpointed, Persist, params_from_json
 from gwr_predictor.parameter_spec import ParamSpec, check_fields
 from gwr_predictor.pending import PendingPredictions
 from gwr_predictor.pipeline.conventions import DEFAULT_HORIZON
 from gwr_predictor.predictors.baselines import N_JOINTS, observation
-
-if TYPE_CHECKING:
-    pass
-
 
 #: The same class under the gate's name.
 GateError = DefaultPredictorError
@@ -263,34 +258,17 @@ class GatedPredictor(Checkpointed):
 
     @classmethod
     def _fresh(cls, header: Mapping[str, Any]) -> GatedPredictor:
-        model_cls = _model_classes().get(header["model_kind"])
-        if model_cls is None:
-            raise GateError(f"the gate wraps a {header['model_kind']!r}; this build restores "
-                                  f"{', '.join(_model_classes())}")
-        return cls(model_cls._fresh(header["model"]), params_from_json(GateParams, header["params"]))
+        from gwr_predictor.default_predictor.kinds import fresh_of_kind
+
+        return cls(fresh_of_kind(header["model_kind"], header["model"]), params_from_json(GateParams, header["params"]))
 
     def _save_extra(self) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
         """The model's kind (which class to rebuild); only models that can be restored are saved."""
-        kind = getattr(self.model, "kind", "")
-        if kind not in _model_classes() or not isinstance(self.model, Checkpointed):
-            raise CheckpointError(f"a gate around {type(self.model).__name__} cannot be saved; supported "
-                                  f"models: {', '.join(_model_classes())}")
-        return {"model_kind": kind}, {}
+        from gwr_predictor.default_predictor.kinds import kind_to_save
+
+        return {"model_kind": kind_to_save(self.model, "the gated model")}, {}
 
 
 def inner_model(model: Any) -> Any:
     """The learner behind a gate, or the model itself: what has neurons, errors and `frames_seen`."""
     return model.model if isinstance(model, GatedPredictor) else model
-
-
-def _model_classes() -> dict[str, type[Checkpointed]]:
-    """The kinds of model a gate's checkpoint can hold: the learners, the default's experts and their weighting."""
-    from gwr_predictor.default_predictor.experts import Experts
-    from gwr_predictor.default_predictor.memory import TrajectoryMemory
-    from gwr_predictor.default_predictor.predictor import LocalLinearPredictor
-    from gwr_predictor.learning.hierarchy import FlatPredictor, Hierarchy
-    from gwr_predictor.predictors.baselines import RLSAutoregressive
-    from gwr_predictor.predictors.direct_linear import DirectLinear
-
-    return {c.kind: c for c in (LocalLinearPredictor, Hierarchy, FlatPredictor, TrajectoryMemory, RLSAutoregressive,
-                                DirectLinear, Experts)}
