@@ -30,6 +30,7 @@ from gwr_predictor.learning.params import DEFAULT_HORIZON, MAX_HORIZON
 from gwr_predictor.learning.persistence import Checkpointed, Persist, params_from_json, sub
 from gwr_predictor.parameter_spec import ParamSpec, check_fields
 from gwr_predictor.pending import PendingPredictions
+from gwr_predictor.predictors.baselines import observation
 
 EXPERTS_SPECS = {spec.name: spec for spec in (
     ParamSpec("decay", 0.995, "forgetting of each member's running squared error per scored frame", 0.0, 1.0,
@@ -94,8 +95,6 @@ class Experts(Checkpointed):
         self._outputs.fill(np.nan)
 
     def step(self, x: np.ndarray | None, learn: bool = True) -> np.ndarray | None:
-        from gwr_predictor.predictors.baselines import observation
-
         obs = observation(x, self.params.n_joints)
         due, valid = self._pending.take(self._t)
         if obs is not None:

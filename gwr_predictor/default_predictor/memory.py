@@ -27,6 +27,7 @@ from gwr_predictor.learning.checkpoint import CheckpointError
 from gwr_predictor.learning.params import DEFAULT_HORIZON, MAX_HORIZON
 from gwr_predictor.learning.persistence import Checkpointed, Persist
 from gwr_predictor.parameter_spec import ParamSpec, check_fields
+from gwr_predictor.predictors.baselines import observation
 
 #: Frames back whose changes the key holds: the newest pose minus the pose 1, 2 and 4 frames before.
 LAGS = (1, 2, 4)
@@ -109,8 +110,6 @@ class TrajectoryMemory(Checkpointed):
         return math.sqrt(self._motion_ms)
 
     def step(self, x: np.ndarray | None, learn: bool = True) -> np.ndarray | None:
-        from gwr_predictor.predictors.baselines import observation
-
         p = self.params
         obs = observation(x, p.n_joints)
         recent = self._recent
@@ -121,12 +120,14 @@ class TrajectoryMemory(Checkpointed):
             d = obs - recent[-1]
             self._motion_ms += (1.0 - p.motion_decay) * (float(d @ d) - self._motion_ms)
         recent.append(obs)
-        if learn and len(recent) == recent.maxlen:
-            frames = np.asarray(recent)
-            self._store(self._key(frames[:self._span]), frames[self._span - 1:] - frames[self._span - 1])
-        if len(recent) < self._span or self.size < p.k:
+        if len(recent) < self._span:
             return None
-        return obs + self._read(self._key(np.asarray(list(recent)[-self._span:])))
+        frames = np.asarray(recent)  # oldest first: the snippet to store starts it, the present window ends it
+        if learn and len(recent) == recent.maxlen:
+            self._store(self._key(frames[:self._span]), frames[self._span - 1:] - frames[self._span - 1])
+        if self.size < p.k:
+            return None
+        return obs + self._read(self._key(frames[-self._span:]))
 
     def _key(self, window: np.ndarray) -> np.ndarray:
         """The key of a (span, J) window, oldest first: its newest pose, then that pose minus each lagged one."""
