@@ -60,9 +60,8 @@ def parameter_specs() -> tuple[ParamSpec, ...]:
 
 def experts_parameter_specs() -> tuple[ParamSpec, ...]:
     """Every setting of the default, flat (see the module docstring)."""
-    network = [dataclasses.replace(s, name=f"network.{s.name}", description=f"network: {s.description}")
-               for s in network_specs()]
-    return (*network, *_prefixed("memory", MEMORY_SPECS, "snippet memory"),
+    network = {s.name: s for s in network_specs()}
+    return (*_prefixed("network", network, "network"), *_prefixed("memory", MEMORY_SPECS, "snippet memory"),
             *_prefixed("experts", EXPERTS_SPECS, "weighting"),
             *_prefixed("expert_gate", GATE_SPECS, "each expert's gate", EXPERT_GATE),
             *_prefixed("gate", GATE_SPECS, "the last gate", OUTER_GATE))
