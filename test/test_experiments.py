@@ -218,7 +218,7 @@ def test_experiment_tune(tmp_path):
         res = r["methods"][method]
         assert len(res["grid"]) == n
         best = min(g["heldout_repetitions"]["mae"] for g in res["grid"])
-        tie = cfg["tie"] if method == "gated_llm_gwr" else 0.0  # chosen on held-out repetitions only
+        tie = {"gated_llm_gwr": cfg["tie"], "linear": cfg["linear_tie"]}.get(method, 0.0)  # held-out repetitions only
         assert best <= res["chosen_scores"]["heldout_repetitions"]["mae"] <= best * (1 + tie)
     stage = r["methods"]["gated_llm_gwr:recruitment"]  # at the chosen point, each recruit_surprise
     assert stage["at"] == r["methods"]["gated_llm_gwr"]["chosen"]
@@ -232,6 +232,24 @@ def test_experiment_tune(tmp_path):
     assert stage["chosen"]["recruit_surprise"] == (min(eager) if eager else 0.0)
 
 
+def test_tune_reads_only_the_demonstrators_tuning_recordings(monkeypatch):
+    """Settings are chosen on demonstrator recordings no reported figure uses, whatever `--seed` is."""
+    from research.experiments import common, tune
+
+    seeds = []
+
+    def demo_data(patterns, subjects, repetitions, seed):
+        seeds.append(seed)
+        raise RuntimeError("stop here")
+
+    monkeypatch.setattr(common, "demo_data", demo_data)
+    for seed in (0, 1, 2):
+        with pytest.raises(RuntimeError, match="stop here"):
+            tune.measure(tune.QUICK, seed, progress=False)
+    assert seeds == [tune.TUNING_DATA_SEED] * 3
+    assert tune.TUNING_DATA_SEED not in (0, 1, 2)  # the seeds of the reported demonstrator results
+
+
 def test_tune_choice_breaks_near_ties_towards_the_finer_insertion_threshold():
     from research.experiments.tune import choose
 
@@ -240,6 +258,16 @@ def test_tune_choice_breaks_near_ties_towards_the_finer_insertion_threshold():
     assert choose(rows, 0.0)["settings"] == {"insertion_scale": 1.5, "rate": 0.1}  # plain lowest MAE
     assert choose(rows, 0.005)["settings"] == {"insertion_scale": 1.0, "rate": 0.1}  # 0.5 is 1.7 % off: out
     assert choose(rows, 0.02)["settings"] == {"insertion_scale": 0.5, "rate": 0.1}
+
+
+def test_tune_breaks_the_linear_models_near_ties_towards_a_prior_variance_of_one():
+    from research.experiments.tune import _prior_near_one, choose
+
+    rows = [{"settings": {"order": 12, "delta": d}, "heldout_repetitions": {"mae": m}}
+            for d, m in ((0.1, 0.171285), (1.0, 0.171308), (10.0, 0.171321), (0.01, 0.1712))]
+    assert choose(rows, 0.0)["settings"]["delta"] == 0.01
+    assert choose(rows, 0.0001, _prior_near_one)["settings"]["delta"] == 0.01  # 0.01 % of 0.1712: only itself
+    assert choose(rows, 0.001, _prior_near_one)["settings"]["delta"] == 1.0
 
 
 def test_tune_recruitment_stage_takes_the_most_eager_recruitment_within_the_tie():

@@ -34,7 +34,7 @@ LOCAL_LINEAR_SPECS = {spec.name: spec for spec in (
     ParamSpec("noise_floor", 0.01, "lower bound of the motion scale (rad)", 0.0, 10.0, lo_open=True, hi_open=True),
     ParamSpec("motion_decay", 0.999, "forgetting of the motion estimate per frame", 0.0, 1.0,
               lo_open=True, hi_open=True),
-    ParamSpec("rate", 0.1, "NLMS rate of the local models", 0.0, 1.5),
+    ParamSpec("rate", 0.2, "NLMS rate of the local models", 0.0, 1.5),
     ParamSpec("readout_k", 3, "neurons blended in the read-out", 1, 64),
     ParamSpec("neighbour_rate", 0.05, "NLMS rate of the BMU's neighbours", 0.0, 1.5),
     ParamSpec("global_order", 2, "frames the global linear read-out's features span (0: local read-outs only)", 0, 32),
@@ -46,7 +46,7 @@ LOCAL_LINEAR_SPECS = {spec.name: spec for spec in (
               lo_open=True),
     ParamSpec("consolidate_after", 200, "visits after which a neuron's rates fall as 1/visits (0 = never)",
               0, 10**9),
-    ParamSpec("recruit_surprise", 9.0, "squared read-out error, in units of a consolidated BMU's running mean, "
+    ParamSpec("recruit_surprise", 6.0, "squared read-out error, in units of a consolidated BMU's running mean, "
               "beyond which a pair surprises it (0 = never recruit)", 0.0, 1e6),
     ParamSpec("recruit_after", 2, "surprising pairs in a row after which a consolidated BMU recruits a neuron",
               1, 1000),
