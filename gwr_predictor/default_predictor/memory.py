@@ -8,7 +8,9 @@ required, like the GWR; nothing is forgotten; at `capacity` it stops growing). T
 nearest keys are read out at the present speed: a movement made r times as fast as a stored one
 reaches the stored step k r at our step k, with r the least-squares ratio of the present changes to
 the stored ones (clipped to [`min_ratio`, `max_ratio`]), read by linear interpolation between stored
-frames. The neighbours are weighted by inverse squared distance.
+frames. The neighbours are weighted by inverse squared distance. A stored key identical to the present
+one is skipped: a person never repeats a pose to the bit, so it is the same recording replayed (a
+training epoch), and recalling it would score the memory as perfect on data it has only copied.
 """
 
 from __future__ import annotations
@@ -31,6 +33,8 @@ from gwr_predictor.predictors.baselines import observation
 
 #: Frames back whose changes the key holds: the newest pose minus the pose 1, 2 and 4 frames before.
 LAGS = (1, 2, 4)
+#: A key this close (squared, rad^2) to the present one is a copy of it: the same recording replayed.
+EXACT = 1e-12
 
 MEMORY_SPECS = {spec.name: spec for spec in (
     ParamSpec("horizon", DEFAULT_HORIZON, "frames predicted", 1, MAX_HORIZON),
@@ -159,6 +163,9 @@ class TrajectoryMemory(Checkpointed):
         """(horizon, J) displacements: the k nearest snippets' futures at the present speed, weighted."""
         p = self.params
         d2 = self._distances(key)
+        copies = d2 <= EXACT
+        if copies.any() and self.size - np.count_nonzero(copies) >= p.k:
+            d2[copies] = np.inf  # a replayed recording is not recalled from its own copy
         nearest = np.argpartition(d2, p.k - 1)[:p.k] if self.size > p.k else np.arange(self.size)
         w = 1.0 / (d2[nearest] + 1e-6)
         w /= w.sum()
