@@ -23,6 +23,10 @@ anything and 1 where it is reliably right. Two rules make it safe on motion that
   follows the motion now, while a k-step error arrives k frames late, after the motion that caused
   it may be over (a memory of those shrinks the good predictions of the next movement).
 
+A model that is new changes fast, and its record from a few seconds ago says little about it now:
+with `warmup`, the long memory starts short (`warmup_decay`) and lengthens to `decay` over the first
+`warmup` scored frames.
+
 Measured (`gwr-predictor experiment real`, `experiment gate`): without these two rules the default
 is up to 1.10x hold-last on a clip of real motion learned from scratch and 1.23x on a climbing take
 learned after the others; with them at most 1.02x on every clip, at a small cost where the model
@@ -52,6 +56,10 @@ GateError = DefaultPredictorError
 
 GATE_SPECS = {spec.name: spec for spec in (
     ParamSpec("decay", 0.99, "forgetting per scored frame of the long memory", 0.0, 1.0, lo_open=True),
+    ParamSpec("warmup", 0, "scored frames over which the long memory's forgetting goes from warmup_decay to decay "
+              "(0: decay from the start)", 0, 10**9),
+    ParamSpec("warmup_decay", 0.95, "forgetting of the long memory at its first scored frame (with warmup)", 0.0, 1.0,
+              lo_open=True),
     ParamSpec("prior", 0.01, "rad^2 per joint added to S_xx", 0.0, lo_open=True),
     ParamSpec("confidence", 2.0, "z of the lower confidence bound on alpha (0: the estimate itself)", 0.0, 10.0),
     ParamSpec("fast_decay", 0.9, "forgetting of the short memory (0: no short memory)", 0.0, 1.0, hi_open=True),
@@ -66,7 +74,9 @@ _XY, _XX, _YY, _N = range(4)  # the running sums, per memory
 
 @dataclass(frozen=True)
 class GateParams:
-    """`decay`: forgetting per scored frame (0.99 ~ the last 100 frames). `prior` (rad^2 per joint):
+    """`decay`: forgetting per scored frame (0.99 ~ the last 100 frames). `warmup`: over its first
+    `warmup` scored frames the long memory's forgetting goes linearly from `warmup_decay` to `decay`, so
+    it is short while the model is new and changing fast and long once both are settled. `prior` (rad^2 per joint):
     added to S_xx, so alpha stays near 0 until the model's steps have some weight of evidence.
     `confidence`: how many standard errors alpha is lowered by. `fast_decay`/`fast_confidence`: the
     short memory whose bound also caps alpha (0.9 ~ the last 10 frames). `fast_step`: the horizon step
@@ -75,6 +85,8 @@ class GateParams:
     (step, joint) instead of per step (more to estimate: less safe on short clips)."""
 
     decay: float = GATE_SPECS["decay"].default
+    warmup: int = GATE_SPECS["warmup"].default
+    warmup_decay: float = GATE_SPECS["warmup_decay"].default
     prior: float = GATE_SPECS["prior"].default
     confidence: float = GATE_SPECS["confidence"].default
     fast_decay: float = GATE_SPECS["fast_decay"].default
@@ -183,10 +195,13 @@ class GatedPredictor(Checkpointed):
         ok = valid[0]
         if not ok.any():
             return
+        p = self.params
+        if p.warmup:
+            self._decays[0] = p.warmup_decay + (p.decay - p.warmup_decay) * min(1.0, self._scored[0] / p.warmup)
         diff = due[1]  # (h, J)
         resid = obs - due[0]  # y - newest pose at prediction time
         new = self._new  # (4, h, J): the products, pooled over joints unless per_joint
-        if self.params.per_joint:
+        if p.per_joint:
             np.multiply(resid, diff, out=new[_XY])
             np.multiply(diff, diff, out=new[_XX])
             np.multiply(resid, resid, out=new[_YY])

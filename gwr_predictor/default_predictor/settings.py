@@ -34,9 +34,11 @@ from gwr_predictor.parameter_spec import ParamSpec
 
 #: Set by the node (or `make_default`'s arguments), not by the predictor's settings.
 FROM_THE_DATA = ("horizon", "n_joints", "joints")
-#: The gate in front of each expert: a ~20-frame memory that opens on little evidence, so an expert
-#: that has just become good is heard within a performance (chosen on the tuning set, docs/experiments.md).
-EXPERT_GATE = {"decay": 0.95, "prior": 0.001, "confidence": 1.0}
+#: The gate in front of each expert: it opens on little evidence, with a memory of ~20 scored frames at
+#: first, so an expert that has just become good is heard within a performance, lengthening to ~200 over
+#: the first 400, so a settled expert is not shrunk by chance runs of error (chosen on the tuning set,
+#: docs/experiments.md).
+EXPERT_GATE = {"decay": 0.995, "warmup": 400, "warmup_decay": 0.95, "prior": 0.001, "confidence": 1.0}
 #: The gate on the weighted prediction: the gated network's, opening on less evidence. It keeps the
 #: default within 2 % of holding the pose on real clips where the experts alone were up to 4 % above.
 OUTER_GATE = {"prior": 0.001, "confidence": 1.0}
