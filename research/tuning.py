@@ -91,9 +91,11 @@ import research  # noqa: F401  (registers the research predictors)
 from gwr_predictor.evaluation.metrics import HorizonStats, future_windows, horizon_stats
 from gwr_predictor.evaluation.online import compare_online
 from research import candidates as cand
+from research import safety
 from research.experiments import common
 from research.recording import Recorded
 from research.repetitions import RepetitionStream, Segment, StreamSettings, load_segments, make_streams
+from research.safety import R3
 
 SEGMENTS: tuple[Segment, ...] = (
     Segment("climb_1", 12.9, 15.9, "climbing move, take 1"),
@@ -183,6 +185,30 @@ VARIANTS: dict[str, Factory] = {
     "r3_no_last_gate": lambda p, s: _experts(p, s).model,
     "r3_power16": lambda p, s: _experts(p, s, {"experts.power": 16.0, "experts.decay": 0.99}),
     "r3_last_gate_z0": lambda p, s: _experts(p, s, {"gate.confidence": 0.0}),
+    # round 4 (`research.safety`; on round 3's member gates, `R3`, unless named `r4_warm*`)
+    "r4_r3": lambda p, s: safety.default(p, s, R3),
+    "r4_no_last_gate": lambda p, s: safety.rebuilt(p, s, R3, last_gate=False),
+    "r4_ug_hold_last": lambda p, s: safety.rebuilt(p, s, R3, member_gates=False, hold=True),
+    "r4_ug_hold": lambda p, s: safety.rebuilt(p, s, R3, member_gates=False, hold=True, last_gate=False),
+    "r4_g_hold_last": lambda p, s: safety.rebuilt(p, s, R3, hold=True),
+    "r4_gate_lin": lambda p, s: safety.rebuilt(p, s, R3, member_gates=("linear", "rls_ar")),
+    "r4_gate_lin_nolast": lambda p, s: safety.rebuilt(p, s, R3, member_gates=("linear", "rls_ar"), last_gate=False),
+    "r4_mem_ungated": lambda p, s: safety.rebuilt(p, s, R3, member_gates=("linear", "rls_ar", "network")),
+    "r4_last_d95_z0": lambda p, s: safety.default(p, s, {**R3, "gate.decay": 0.95, "gate.confidence": 0.0}),
+    "r4_mg_d90": lambda p, s: safety.default(p, s, {**R3, "expert_gate.decay": 0.9}),
+    "r4_mg_d98": lambda p, s: safety.default(p, s, {**R3, "expert_gate.decay": 0.98}),
+    "r4_mg_d99": lambda p, s: safety.default(p, s, {**R3, "expert_gate.decay": 0.99}),
+    "r4_allgate": lambda p, s: safety.rebuilt(p, s, R3, own_gate=("network", "memory", "linear", "rls_ar")),
+    "r4_two_gates": lambda p, s: safety.two_gates(p, s, {"decay": 0.99, "prior": 0.001, "confidence": 1.0}, R3),
+    "r4_agree": lambda p, s: safety.agreeing(p, s, 1.0, R3, weighted=False),
+    "r4_agree_last": lambda p, s: safety.agreeing(p, s, 1.0, R3, weighted=False, last_gate=True),
+    "r4_agree_mg": lambda p, s: safety.agreeing(p, s, 1.0, R3, member_gates=True),
+    "r4_pw8": lambda p, s: safety.default(p, s, {**R3, "experts.power": 8.0}),
+    "r4_d999": lambda p, s: safety.default(p, s, {**R3, "experts.decay": 0.999}),
+    "r4_warm200_99": lambda p, s: safety.default(p, s, {"expert_gate.decay": 0.99, "expert_gate.warmup": 200}),
+    "r4_warm400_99": lambda p, s: safety.default(p, s, {"expert_gate.decay": 0.99}),
+    "r4_warm800_99": lambda p, s: safety.default(p, s, {"expert_gate.decay": 0.99, "expert_gate.warmup": 800}),
+    "r4_warm400_93": lambda p, s: safety.default(p, s, {"expert_gate.warmup_decay": 0.93}),
 }
 
 
@@ -331,3 +357,4 @@ def main(argv: list[str] | None = None) -> int:
 
 if __name__ == "__main__":
     sys.exit(main())
+
