@@ -420,7 +420,8 @@ def test_data_loss_does_not_hurt_what_is_learned(name):
 
 @each_default
 def test_a_few_repetitions_learned_halve_the_error_of_holding_on_new_ones(name):
-    """gwr_experts measured 0.49 x (0.55 x while the memory recalled replayed recordings from their copies)."""
+    """Measured: gwr_experts 0.44 x, gated_llm_gwr 0.40 x (gwr_experts was 0.55 x while the memory recalled
+    replayed recordings from their copies)."""
     clean, _ = _data_loss(name)
     assert clean[name]["mse"][-1] <= 0.5 * clean["hold"]["mse"][-1]
 
