@@ -92,11 +92,9 @@ def _gated_hierarchy(params: Any, seed: int) -> Predictor:
 
 def _experts_ungated(params: Any, seed: int) -> Predictor:
     """The default's experts and weighting without any gate: what the gates add is the difference."""
-    from gwr_predictor.default_predictor import make_default
+    from research.safety import rebuilt
 
-    hp = hierarchy_params(params)
-    experts = make_default(hp.horizon, hp.n_joints, seed).model
-    return type(experts)({name: member.model for name, member in experts.members.items()}, experts.params)
+    return rebuilt(hierarchy_params(params), seed, member_gates=False, last_gate=False)
 
 
 def register_all() -> None:

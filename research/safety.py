@@ -35,6 +35,13 @@ def rebuilt(params: Any, seed: int, settings: Mapping[str, Any] | None = None,
     """The default (with `settings`) with its member gates (all, none or those named), a hold-last member
     and its last gate each optional; the members in `own_gate` behind the library's `GateParams()`."""
     made = default(params, seed, settings)
+    experts = Experts(_members(made, params, member_gates, hold, own_gate), made.model.params)
+    return GatedPredictor(experts, made.params) if last_gate else experts
+
+
+def _members(made: GatedPredictor, params: Any, member_gates: bool | tuple[str, ...] = True, hold: bool = False,
+             own_gate: tuple[str, ...] = ()) -> dict[str, Any]:
+    """`made`'s experts, each behind its gate or not, with a hold-last member and other gates (see `rebuilt`)."""
     gated = made.model.names if member_gates is True else member_gates or ()
     members = {n: m if n in gated else m.model for n, m in made.model.members.items()}
     for n in own_gate:
@@ -42,8 +49,7 @@ def rebuilt(params: Any, seed: int, settings: Mapping[str, Any] | None = None,
                                     hold_when_silent=False)
     if hold:
         members["hold"] = HoldLast(params.horizon, params.n_joints)
-    experts = Experts(members, made.model.params)
-    return GatedPredictor(experts, made.params) if last_gate else experts
+    return members
 
 
 class AgreeingExperts(Experts):
@@ -75,12 +81,11 @@ class AgreeingExperts(Experts):
 
 def agreeing(params: Any, seed: int, c: float, settings: Mapping[str, Any] | None = None,
              member_gates: bool = False, last_gate: bool | dict[str, Any] = False, weighted: bool = True) -> Any:
-    base = rebuilt(params, seed, settings, member_gates=member_gates, last_gate=False)
-    model = AgreeingExperts(base.members, base.params, c, weighted)
+    made = default(params, seed, settings)
+    model = AgreeingExperts(_members(made, params, member_gates), made.model.params, c, weighted)
     if not last_gate:
         return model
-    gate = default(params, seed, settings).params
-    return GatedPredictor(model, gate if last_gate is True else dataclasses.replace(gate, **last_gate))
+    return GatedPredictor(model, made.params if last_gate is True else dataclasses.replace(made.params, **last_gate))
 
 
 class Echo:

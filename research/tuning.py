@@ -232,12 +232,12 @@ VARIANTS: dict[str, Factory] = {
                                              **cand.FAST_GATE),
     # round 3: the default's experts (`gwr_experts` itself is a registry name)
     "r3_memory_alone": lambda p, s: _memory(p, velocity_weight=1.0),
-    "r3_memory_v1": lambda p, s: _experts(p, s, {**ROUND3, "memory.velocity_weight": 1.0}),
-    "r3_loose_members": lambda p, s: _experts(p, s, {**ROUND3, "expert_gate.confidence": 0.5}),
-    "r3_no_last_gate": lambda p, s: _experts(p, s, ROUND3).model,
-    "r3_power16": lambda p, s: _experts(p, s, {**ROUND3, "experts.power": 16.0, "experts.decay": 0.99}),
-    "r3_last_gate_z0": lambda p, s: _experts(p, s, {**ROUND3, "gate.confidence": 0.0}),
-    "r3_default": lambda p, s: _experts(p, s, ROUND3),
+    "r3_memory_v1": lambda p, s: safety.default(p, s, {**ROUND3, "memory.velocity_weight": 1.0}),
+    "r3_loose_members": lambda p, s: safety.default(p, s, {**ROUND3, "expert_gate.confidence": 0.5}),
+    "r3_no_last_gate": lambda p, s: safety.default(p, s, ROUND3).model,
+    "r3_power16": lambda p, s: safety.default(p, s, {**ROUND3, "experts.power": 16.0, "experts.decay": 0.99}),
+    "r3_last_gate_z0": lambda p, s: safety.default(p, s, {**ROUND3, "gate.confidence": 0.0}),
+    "r3_default": lambda p, s: safety.default(p, s, ROUND3),
     # round 4 (`research.safety`; on round 3's member gates, `R3`, unless named `r4_warm*`)
     "r4_r3": lambda p, s: safety.default(p, s, R3),
     "r4_no_last_gate": lambda p, s: safety.rebuilt(p, s, R3, last_gate=False),
@@ -270,12 +270,6 @@ def _memory(params: Any, **changes: Any) -> Any:
     from gwr_predictor.default_predictor import MemoryParams, TrajectoryMemory
 
     return TrajectoryMemory(MemoryParams(horizon=params.horizon, n_joints=params.n_joints, **changes))
-
-
-def _experts(params: Any, seed: int, settings: dict[str, Any] | None = None) -> Any:
-    from gwr_predictor.default_predictor import make_default
-
-    return make_default(params.horizon, params.n_joints, seed, settings)
 
 
 def factory(name: str) -> Factory:

@@ -120,7 +120,7 @@ def from_experts_settings(settings: Mapping[str, Any], horizon: int, joints: int
     """The default's parts' parameters for flat `settings` (any subset of `experts_parameter_specs()`):
     network, memory, weighting, each expert's gate, the last gate."""
     groups = _grouped(settings, experts_parameter_specs(), "the default predictor")
-    network = {**EXPERT_NETWORK, **{k.partition(".")[2]: v for k, v in settings.items() if k.startswith("network.")}}
+    network = {**EXPERT_NETWORK, **groups.get("network", {})}
     return (_network(_grouped(network, network_specs(), "the network"), horizon, joints),
             MemoryParams(horizon=horizon, n_joints=joints, **groups.get("memory", {})),
             ExpertsParams(horizon=horizon, n_joints=joints, **groups.get("experts", {})),
