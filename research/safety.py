@@ -15,12 +15,15 @@ from typing import Any
 
 import numpy as np
 
-from gwr_predictor.default_predictor import Experts, GatedPredictor, GateParams, make_default
+from gwr_predictor.default_predictor import Experts, GatedPredictor, GateParams, RecognitionSwitch, make_default
+from gwr_predictor.pending import PendingPredictions
 from gwr_predictor.predictors.baselines import HoldLast, observation
 
+#: Rounds 3 and 4 came before the memory's recognition lifted the gates (round 5).
+NO_RECOGNITION = {"recognition.radius": 0.0}
 #: The network's settings `experiment tune` chose for the gated network, which every round-4 variant
 #: used (the default's own network keeps rate 0.1 and recruit_surprise 9: `settings.EXPERT_NETWORK`).
-TUNED_NETWORK = {"network.rate": 0.2, "network.recruit_surprise": 6.0}
+TUNED_NETWORK = {"network.rate": 0.2, "network.recruit_surprise": 6.0, **NO_RECOGNITION}
 #: Round 3's member gates (the default before round 4): a fixed ~20-frame memory.
 R3 = {"expert_gate.decay": 0.95, "expert_gate.warmup": 0, **TUNED_NETWORK}
 
@@ -29,21 +32,27 @@ def default(params: Any, seed: int, settings: Mapping[str, Any] | None = None) -
     return make_default(params.horizon, params.n_joints, seed, dict(settings or {}))
 
 
+def experts_of(made: GatedPredictor) -> Experts:
+    """The default's weighting of its gated members (behind its recognition switch)."""
+    return made.model.experts
+
+
 def rebuilt(params: Any, seed: int, settings: Mapping[str, Any] | None = None,
             member_gates: bool | tuple[str, ...] = True, hold: bool = False, last_gate: bool = True,
             own_gate: tuple[str, ...] = ()) -> Any:
-    """The default (with `settings`) with its member gates (all, none or those named), a hold-last member
-    and its last gate each optional; the members in `own_gate` behind the library's `GateParams()`."""
+    """The default's gated experts (with `settings`, without the recognition switch) with their member gates
+    (all, none or those named), a hold-last member and its last gate each optional; the members in
+    `own_gate` behind the library's `GateParams()`."""
     made = default(params, seed, settings)
-    experts = Experts(_members(made, params, member_gates, hold, own_gate), made.model.params)
+    experts = Experts(_members(made, params, member_gates, hold, own_gate), experts_of(made).params)
     return GatedPredictor(experts, made.params) if last_gate else experts
 
 
 def _members(made: GatedPredictor, params: Any, member_gates: bool | tuple[str, ...] = True, hold: bool = False,
              own_gate: tuple[str, ...] = ()) -> dict[str, Any]:
     """`made`'s experts, each behind its gate or not, with a hold-last member and other gates (see `rebuilt`)."""
-    gated = made.model.names if member_gates is True else member_gates or ()
-    members = {n: m if n in gated else m.model for n, m in made.model.members.items()}
+    gated = experts_of(made).names if member_gates is True else member_gates or ()
+    members = {n: m if n in gated else m.model for n, m in experts_of(made).members.items()}
     for n in own_gate:
         members[n] = GatedPredictor(members[n].model, GateParams(horizon=params.horizon, joints=params.n_joints),
                                     hold_when_silent=False)
@@ -82,7 +91,7 @@ class AgreeingExperts(Experts):
 def agreeing(params: Any, seed: int, c: float, settings: Mapping[str, Any] | None = None,
              member_gates: bool = False, last_gate: bool | dict[str, Any] = False, weighted: bool = True) -> Any:
     made = default(params, seed, settings)
-    model = AgreeingExperts(_members(made, params, member_gates), made.model.params, c, weighted)
+    model = AgreeingExperts(_members(made, params, member_gates), experts_of(made).params, c, weighted)
     if not last_gate:
         return model
     return GatedPredictor(model, made.params if last_gate is True else dataclasses.replace(made.params, **last_gate))
@@ -95,8 +104,7 @@ class Echo:
         self.gate = gate
 
     def step(self, x: np.ndarray | None, learn: bool = True) -> np.ndarray | None:
-        diff = self.gate._out_diff
-        return None if diff is None or self.gate._last is None else self.gate._last + diff
+        return self.gate.ungated()
 
     def reset_sequence(self) -> None:
         """The gate it echoes resets the model."""
@@ -105,8 +113,59 @@ class Echo:
 def two_gates(params: Any, seed: int, slow: Mapping[str, Any], settings: Mapping[str, Any] | None = None) -> Any:
     """Every member behind its gate and, as a second member, behind a `slow` one; the experts weight all."""
     made = default(params, seed, settings)
-    members = dict(made.model.members)
+    members = dict(experts_of(made).members)
     gate = GateParams(horizon=params.horizon, joints=params.n_joints, **slow)
     for n in list(members):
         members[f"{n}_slow"] = GatedPredictor(Echo(members[n]), gate, hold_when_silent=False)
-    return GatedPredictor(Experts(members, made.model.params), made.params)
+    return GatedPredictor(Experts(members, experts_of(made).params), made.params)
+
+
+
+class BlendedSwitch(RecognitionSwitch):
+    """Where the memory recognises the motion, the gated and the ungated weighted predictions weighted per
+    step by 1 / MSE^power over the recognised frames only (decay per scored frame); elsewhere the gated."""
+
+    def __init__(self, experts: Experts, params: Any, decay: float, power: float) -> None:
+        super().__init__(experts, params)
+        h, j = experts.params.horizon, experts.params.n_joints
+        self.decay, self.power = decay, power
+        self.sse = np.zeros((2, h))
+        self.weight = np.zeros((2, h))
+        self._pending = PendingPredictions(h, j, (2,))
+        self._t = 0
+
+    def step(self, x: np.ndarray | None, learn: bool = True) -> np.ndarray | None:
+        obs = observation(x, self.experts.params.n_joints)
+        due, valid = self._pending.take(self._t)
+        if obs is not None and valid.any():
+            err = np.mean((due - obs) ** 2, axis=2)
+            ok = valid & np.isfinite(err)
+            d = np.where(ok, self.decay, 1.0)
+            self.sse = self.sse * d + np.where(ok, err, 0.0)
+            self.weight = self.weight * d + ok
+        gated = self.experts.step(x, learn)
+        ungated = self.ungated.step(x, learn)
+        t = self._t
+        self._t += 1
+        if gated is None or ungated is None or not self.recognises():
+            return gated
+        both = np.stack([gated, ungated])
+        self._pending.file(t, both)
+        self.recognised += 1
+        known = (self.weight > 0).all(axis=0)  # per step: both scored (else equal weights)
+        mse = np.maximum(np.where(known, self.sse / np.where(known, self.weight, 1.0), 1.0), 1e-6)
+        w = (mse.min(axis=0, keepdims=True) / mse) ** self.power
+        w /= w.sum(axis=0, keepdims=True)
+        return np.einsum("mh,mhj->hj", w, both)
+
+    def reset_sequence(self) -> None:
+        super().reset_sequence()
+        self._pending.drop()
+
+
+def blended(params: Any, seed: int, decay: float, power: float = 4.0,
+            settings: Mapping[str, Any] | None = None) -> GatedPredictor:
+    made = default(params, seed, settings)
+    switch = made.model
+    return GatedPredictor(BlendedSwitch(switch.experts, switch.params, decay, power), made.params)
+

@@ -126,6 +126,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import re
 import sys
 from collections.abc import Callable
 from concurrent.futures import ProcessPoolExecutor
@@ -134,6 +135,7 @@ from typing import Any
 import numpy as np
 
 import research  # noqa: F401  (registers the research predictors)
+from gwr_predictor.default_predictor import make_gated_network
 from gwr_predictor.evaluation.metrics import HorizonStats, future_windows, horizon_stats
 from gwr_predictor.evaluation.online import compare_online
 from research import candidates as cand
@@ -234,7 +236,7 @@ VARIANTS: dict[str, Factory] = {
     "r3_memory_alone": lambda p, s: _memory(p, velocity_weight=1.0),
     "r3_memory_v1": lambda p, s: safety.default(p, s, {**ROUND3, "memory.velocity_weight": 1.0}),
     "r3_loose_members": lambda p, s: safety.default(p, s, {**ROUND3, "expert_gate.confidence": 0.5}),
-    "r3_no_last_gate": lambda p, s: safety.default(p, s, ROUND3).model,
+    "r3_no_last_gate": lambda p, s: safety.experts_of(safety.default(p, s, ROUND3)),
     "r3_power16": lambda p, s: safety.default(p, s, {**ROUND3, "experts.power": 16.0, "experts.decay": 0.99}),
     "r3_last_gate_z0": lambda p, s: safety.default(p, s, {**ROUND3, "gate.confidence": 0.0}),
     "r3_default": lambda p, s: safety.default(p, s, ROUND3),
@@ -263,6 +265,18 @@ VARIANTS: dict[str, Factory] = {
     "r4_warm800_99": lambda p, s: safety.default(p, s, {**TUNED, "expert_gate.decay": 0.99, "expert_gate.warmup": 800}),
     "r4_warm400_93": lambda p, s: safety.default(p, s, {**TUNED, "expert_gate.warmup_decay": 0.93}),
     "r4_warm400_995": lambda p, s: safety.default(p, s, TUNED),
+    # round 5: the memory's recognition lifts the member gates (`recognition.py`), radius 1.5-6
+    "r5_radius15": lambda p, s: safety.default(p, s, {"recognition.radius": 1.5, "recognition.decay": 0.995}),
+    "r5_radius2": lambda p, s: safety.default(p, s, {"recognition.radius": 2.0, "recognition.decay": 0.995}),
+    "r5_radius3": lambda p, s: safety.default(p, s, {"recognition.radius": 3.0, "recognition.decay": 0.995}),
+    "r5_radius4": lambda p, s: safety.default(p, s, {"recognition.radius": 4.0, "recognition.decay": 0.995}),
+    "r5_radius6": lambda p, s: safety.default(p, s, {"recognition.radius": 6.0, "recognition.decay": 0.995}),
+    "r5_round4": lambda p, s: safety.default(p, s, safety.NO_RECOGNITION),
+    "r5_blend95": lambda p, s: safety.blended(p, s, 0.95, settings={"recognition.decay": 0.995}),
+    "r5_blend99": lambda p, s: safety.blended(p, s, 0.99, settings={"recognition.decay": 0.995}),
+    "r5_ungated_d95": lambda p, s: safety.default(p, s, {"recognition.decay": 0.95}),
+    "r5_ungated_d98": lambda p, s: safety.default(p, s, {"recognition.decay": 0.98}),
+    "r5_ungated_d995": lambda p, s: safety.default(p, s, {"recognition.decay": 0.995}),
 }
 
 
@@ -273,11 +287,17 @@ def _memory(params: Any, **changes: Any) -> Any:
 
 
 def factory(name: str) -> Factory:
-    """A registry name, a `VARIANTS` key, or `X<blend decay>[^<power>]_<gate key=value,...>`: the
+    """A registry name, a `VARIANTS` key, `D:<setting>=<value>,...` (the default with those flat
+    settings, e.g. `D:expert_gate.fast_decay=0.8`), `G:<setting>=<value>,...` (the gated network with
+    those), or `X<blend decay>[^<power>]_<gate key=value,...>`: the
     experts with that blend decay (and weight power) behind a gate with those settings
     (e.g. `X0.99_decay=0.95,prior=0.001,confidence=1`, the chosen `cand_experts`)."""
     if name in VARIANTS:
         return VARIANTS[name]
+    if name.startswith("D:"):
+        return lambda p, s: safety.default(p, s, _settings(name[2:]))
+    if name.startswith("G:"):
+        return lambda p, s: make_gated_network(p.horizon, p.n_joints, s, _settings(name[2:]))
     if name.startswith("X") and "_" in name:
         blend, _, spec = name[1:].partition("_")
         decay, _, power = blend.partition("^")
@@ -285,6 +305,18 @@ def factory(name: str) -> Factory:
         return lambda p, s: cand.gate(cand.experts(p, s, decay=float(decay), power=float(power or 1.0)), p,
                                       **changes)
     return lambda p, s, n=name: common.make_model(n, p, s)
+
+
+def _settings(spec: str) -> dict[str, Any]:
+    """`key=value,...` as flat settings (true/false as bools, `warmup`/`fast_step`/`k`/`future` as ints, other
+    numbers as floats)."""
+    out: dict[str, Any] = {}
+    for key, _, value in (kv.partition("=") for kv in spec.split(",") if kv):
+        if value in ("true", "false"):
+            out[key] = value == "true"
+        else:
+            out[key] = int(value) if key.rsplit(".", 1)[-1] in ("warmup", "fast_step", "k", "future") else float(value)
+    return out
 
 
 def tuning_streams() -> list[RepetitionStream]:
@@ -325,14 +357,15 @@ def _demo_heldout(methods: tuple[str, ...]) -> dict[str, float]:
     from gwr_predictor.predictors import registry
     from research.experiments import dataloss
 
-    for m in methods:
-        if m not in registry.names():
-            registry.register(m, lambda p, s, m=m: factory(m)(p, s), m)
+    names = {m: re.sub(r"\W", "_", m) for m in methods}  # registry names are identifiers
+    for m, n in names.items():
+        if n not in registry.names():
+            registry.register(n, lambda p, s, m=m: factory(m)(p, s), m)
     cfg = dataloss.Config(losses=(0.0,), patterns=DEMO_PATTERNS, subjects=2, train_repetitions=3, epochs=5,
-                          methods=methods)
+                          methods=tuple(names.values()))
     data = common.demo_data(cfg.patterns, cfg.subjects, cfg.train_repetitions + cfg.test_repetitions, DEMO_SEED)
     held = dataloss.one_level(cfg, 0.0, data, 0, False)["heldout"]
-    return {m: held[m]["mse"][-1] / held["hold"]["mse"][-1] for m in methods}
+    return {m: held[n]["mse"][-1] / held["hold"]["mse"][-1] for m, n in names.items()}
 
 
 def _task(job: tuple[str, Any, tuple[str, ...]]) -> tuple[str, Any]:

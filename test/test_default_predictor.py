@@ -12,6 +12,7 @@ from gwr_predictor.default_predictor import (
     LocalLinearError,
     LocalLinearParams,
     LocalLinearPredictor,
+    RecognitionSwitch,
     make_default,
     make_gated_network,
 )
@@ -55,8 +56,9 @@ def _periodic(n: int = 600) -> np.ndarray:
 def test_the_default_is_registered_everywhere():
     assert DEFAULT_PREDICTOR == common.DEFAULT == "gwr_experts"
     model = make_predictor(DEFAULT_PREDICTOR)
-    assert isinstance(model, GatedPredictor) and isinstance(model.model, Experts)
-    experts = model.model
+    assert isinstance(model, GatedPredictor) and isinstance(model.model, RecognitionSwitch)
+    experts = model.model.experts
+    assert isinstance(experts, Experts)
     assert set(experts.members) == {"network", "linear", "rls_ar", "memory"}
     assert all(isinstance(m, GatedPredictor) for m in experts.members.values())
     assert isinstance(experts.learner, LocalLinearPredictor)

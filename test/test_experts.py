@@ -164,9 +164,12 @@ def test_the_experts_checkpoint_continues_bit_for_bit(tmp_path):
         model.step(f)
     model.save(tmp_path / "m.npz")
     again = GatedPredictor.load(tmp_path / "m.npz")
-    assert again.model.members["memory"].model.size == model.model.members["memory"].model.size > 0
+    memory = again.model.experts.members["memory"].model
+    assert memory.size == model.model.experts.members["memory"].model.size > 0
+    recognised = model.model.recognised
     for f in x[150:]:
         np.testing.assert_array_equal(model.step(f), again.step(f))
+    assert again.model.recognised == model.model.recognised > recognised  # the restored switch chose ungated
     assert again.neuron_counts == model.neuron_counts and again.model.frames_seen == model.model.frames_seen
 
 
@@ -179,11 +182,12 @@ def test_the_default_wins_on_a_repeated_movement_varied_in_speed():
 def test_the_default_takes_its_settings_by_flat_name():
     specs = {s.name for s in experts_parameter_specs()}
     assert {"network.order", "network.gwr.eps_b", "memory.k", "experts.power", "expert_gate.decay",
-            "gate.confidence"} <= specs
+            "gate.confidence", "recognition.radius"} <= specs
     model = make_default(settings={"memory.k": 5, "experts.power": 2.0, "network.order": 3,
-                                   "network.gwr.eps_b": 0.2, "expert_gate.decay": 0.9, "gate.confidence": 1.5})
-    experts = model.model
-    assert model.params.confidence == 1.5
+                                   "network.gwr.eps_b": 0.2, "expert_gate.decay": 0.9, "gate.confidence": 1.5,
+                                   "recognition.radius": 2.0})
+    experts = model.model.experts
+    assert model.params.confidence == 1.5 and model.model.params.radius == 2.0
     assert experts.members["memory"].model.params.k == 5 and experts.params.power == 2.0
     network = experts.members["network"].model.params
     assert network.order == 3 and network.gwr.eps_b == 0.2

@@ -65,8 +65,11 @@ def test_each_node_killed_and_restarted_the_pipeline_recovers_and_keeps_what_it_
         everyone.append(procs[name])
         ros.wait_for_log(procs[name], "]: ready")
         for topic in downstream:
+            # on a timeout, the restarted node's latest counters say which of its inputs stopped
             probe.spin_until(lambda topic=topic: len(got[topic]) >= before[topic] + FLOW, 30,
-                             f"/{topic} to flow again after {name} restarted", everyone)
+                             lambda topic=topic: f"/{topic} to flow again after {name} restarted (received "
+                             f"{len(got[topic]) - before[topic]}); its latest diagnostics: "
+                             f"{diagnostics.get('/' + name)}", everyone)
 
     restart("skeleton_source", ("skeleton", "arm_angles", "predictions"))
     restart("angle_extractor", ("arm_angles", "predictions"))

@@ -120,7 +120,7 @@ def test_pretrain_uses_the_nodes_yaml_and_writes_a_checkpoint_the_node_can_load(
     assert main(["pretrain", "-o", str(out), "--params-file", str(custom), "--patterns", "wave_one",
                  "--subjects", "1", "--repetitions", "1", "--epochs", "1", "--quiet"]) == 0
     gated = GatedPredictor.load(out)
-    experts = gated.model
+    experts = gated.model.experts
     assert gated.params.horizon == 4 and experts.frames_seen > 30
     assert experts.members["network"].model.params.order == 5
     assert all(m.params.decay == 0.98 for m in experts.members.values())

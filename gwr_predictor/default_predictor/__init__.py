@@ -46,6 +46,9 @@ _EXPORTS = {
     "ExpertsParams": "experts",
     "TrajectoryMemory": "memory",
     "MemoryParams": "memory",
+    "RecognitionSwitch": "recognition",
+    "RecognitionParams": "recognition",
+    "Ungated": "recognition",
 }
 __getattr__, __dir__ = lazy_exports(__name__, _EXPORTS)
 __all__ = ["make_default", "make_gated_network", *sorted(_EXPORTS)]
@@ -62,17 +65,18 @@ def make_default(horizon: int = 6, joints: int = 8, seed: int = 0,
     from gwr_predictor.default_predictor.gate import GatedPredictor
     from gwr_predictor.default_predictor.memory import TrajectoryMemory
     from gwr_predictor.default_predictor.predictor import LocalLinearPredictor
+    from gwr_predictor.default_predictor.recognition import RecognitionSwitch
     from gwr_predictor.default_predictor.settings import from_experts_settings
     from gwr_predictor.predictors.baselines import TUNED_RLS, RLSAutoregressive
     from gwr_predictor.predictors.direct_linear import TUNED_LINEAR, DirectLinear
 
-    network, memory, weighting, expert_gate, gate = from_experts_settings(settings or {}, horizon, joints)
+    network, memory, weighting, recognition, expert_gate, gate = from_experts_settings(settings or {}, horizon, joints)
     experts = {"network": LocalLinearPredictor(network, seed=seed),
                "linear": DirectLinear(TUNED_LINEAR.replace(horizon=horizon, joints=joints)),
                "rls_ar": RLSAutoregressive(TUNED_RLS, horizon, joints),
                "memory": TrajectoryMemory(memory)}
     gated = {name: GatedPredictor(model, expert_gate, hold_when_silent=False) for name, model in experts.items()}
-    return GatedPredictor(Experts(gated, weighting), gate)
+    return GatedPredictor(RecognitionSwitch(Experts(gated, weighting), recognition), gate)
 
 
 def make_gated_network(horizon: int = 6, joints: int = 8, seed: int = 0,

@@ -180,6 +180,10 @@ class GatedPredictor(Checkpointed):
         """The last `step`'s gated prediction, with the current alphas; no state change."""
         return self._gated(self._out_diff)
 
+    def ungated(self) -> np.ndarray | None:
+        """The model's own prediction at the last `step`, before the gate shrinks it (None if it made none)."""
+        return None if self._out_diff is None or self._last is None else self._last + self._out_diff
+
     def _gated(self, diff: np.ndarray | None) -> np.ndarray | None:
         if self._last is None:
             return None

@@ -11,6 +11,9 @@ the stored ones (clipped to [`min_ratio`, `max_ratio`]), read by linear interpol
 frames. The neighbours are weighted by inverse squared distance. A stored key identical to the present
 one is skipped: a person never repeats a pose to the bit, so it is the same recording replayed (a
 training epoch), and recalling it would score the memory as perfect on data it has only copied.
+
+`familiarity` says how well the memory knows the present motion: the distance to the nearest stored
+key (copies aside), per coordinate, in units of the motion scale (None where it did not read out).
 """
 
 from __future__ import annotations
@@ -105,9 +108,11 @@ class TrajectoryMemory(Checkpointed):
         self.size = 0
         self._motion_ms = p.noise_floor ** 2  # running mean of ||x(t) - x(t-1)||^2
         self._recent: deque[np.ndarray] = deque(maxlen=self._span + p.future)
+        self.familiarity: float | None = None
 
     def reset_sequence(self) -> None:
         self._recent.clear()
+        self.familiarity = None
 
     @property
     def motion_rms(self) -> float:
@@ -117,6 +122,7 @@ class TrajectoryMemory(Checkpointed):
         p = self.params
         obs = observation(x, p.n_joints)
         recent = self._recent
+        self.familiarity = None
         if obs is None:
             recent.clear()
             return None
@@ -164,6 +170,9 @@ class TrajectoryMemory(Checkpointed):
         p = self.params
         d2 = self._distances(key)
         copies = d2 <= EXACT
+        others = d2[~copies]
+        scale = max(self.motion_rms, p.noise_floor)
+        self.familiarity = math.sqrt(float(others.min()) * p.n_joints / len(key)) / scale if others.size else math.inf
         if copies.any() and self.size - np.count_nonzero(copies) >= p.k:
             d2[copies] = np.inf  # a replayed recording is not recalled from its own copy
         nearest = np.argpartition(d2, p.k - 1)[:p.k] if self.size > p.k else np.arange(self.size)

@@ -5,7 +5,8 @@ dataclass validates with.
   gate's (`gate.*`);
 - the default (`gwr_experts`): the network's settings under `network.` (`EXPERT_NETWORK` where its
   defaults differ from the gated network's), the snippet memory's under
-  `memory.`, the weighting's under `experts.`, the gate in front of each expert under
+  `memory.`, the weighting's under `experts.`, where the memory's recognition lifts the gates under
+  `recognition.`, the gate in front of each expert under
   `expert_gate.` and the last gate, on the weighted prediction, under `gate.`. The two linear experts
   run with the tuned settings of the `rls_ar` and `linear` baselines.
 
@@ -30,6 +31,7 @@ from gwr_predictor.default_predictor.params import (
     LocalLinearParams,
     default_gwr,
 )
+from gwr_predictor.default_predictor.recognition import RECOGNITION_SPECS, RecognitionParams
 from gwr_predictor.learning.params import GWR_SPECS
 from gwr_predictor.parameter_spec import ParamSpec
 
@@ -71,6 +73,7 @@ def experts_parameter_specs() -> tuple[ParamSpec, ...]:
     return (*_prefixed("network", network, "network", EXPERT_NETWORK),
             *_prefixed("memory", MEMORY_SPECS, "snippet memory"),
             *_prefixed("experts", EXPERTS_SPECS, "weighting"),
+            *_prefixed("recognition", RECOGNITION_SPECS, "recognition"),
             *_prefixed("expert_gate", GATE_SPECS, "each expert's gate", EXPERT_GATE),
             *_prefixed("gate", GATE_SPECS, "the last gate", OUTER_GATE))
 
@@ -116,14 +119,16 @@ def from_settings(settings: Mapping[str, Any], horizon: int, joints: int) -> tup
 
 
 def from_experts_settings(settings: Mapping[str, Any], horizon: int, joints: int
-                          ) -> tuple[LocalLinearParams, MemoryParams, ExpertsParams, GateParams, GateParams]:
+                          ) -> tuple[LocalLinearParams, MemoryParams, ExpertsParams, RecognitionParams, GateParams,
+                                     GateParams]:
     """The default's parts' parameters for flat `settings` (any subset of `experts_parameter_specs()`):
-    network, memory, weighting, each expert's gate, the last gate."""
+    network, memory, weighting, recognition, each expert's gate, the last gate."""
     groups = _grouped(settings, experts_parameter_specs(), "the default predictor")
     network = {**EXPERT_NETWORK, **groups.get("network", {})}
     return (_network(_grouped(network, network_specs(), "the network"), horizon, joints),
             MemoryParams(horizon=horizon, n_joints=joints, **groups.get("memory", {})),
             ExpertsParams(horizon=horizon, n_joints=joints, **groups.get("experts", {})),
+            RecognitionParams(**groups.get("recognition", {})),
             GateParams(horizon=horizon, joints=joints, **{**EXPERT_GATE, **groups.get("expert_gate", {})}),
             GateParams(horizon=horizon, joints=joints, **{**OUTER_GATE, **groups.get("gate", {})}))
 

@@ -213,13 +213,16 @@ def _settings_of(specs: str) -> Settings:
     return settings
 
 
-def gate_loader(wraps: str) -> Loader:
-    """A loader of gated checkpoints that refuses a gate around another kind of model."""
+def gate_loader(wraps: str, upgrades: Mapping[str, Callable[[Any], Any]] | None = None) -> Loader:
+    """A loader of gated checkpoints that refuses a gate around another kind of model; `upgrades`: kind ->
+    what turns a model of that former kind into a `wraps` (a checkpoint written before the change)."""
     def load(path: str | os.PathLike[str]) -> Predictor:
         from gwr_predictor.default_predictor.gate import GatedPredictor
         from gwr_predictor.learning.checkpoint import CheckpointError
 
         gate = GatedPredictor.load(path)
+        if gate.model.kind in (upgrades or {}):
+            gate.model = (upgrades or {})[gate.model.kind](gate.model)
         if gate.model.kind != wraps:
             raise CheckpointError(f"{path}: holds a gate around a {gate.model.kind!r}, expected a {wraps!r}",
                                   source=path, found=gate.model.kind, expected=wraps)
@@ -228,10 +231,18 @@ def gate_loader(wraps: str) -> Loader:
     return load
 
 
+def _recognising(experts: Any) -> Any:
+    """A default saved before the recognition switch: everything it learned kept, the switch's ungated
+    weighting fresh."""
+    from gwr_predictor.default_predictor.recognition import RecognitionSwitch
+
+    return RecognitionSwitch(experts)
+
+
 register("gated_llm_gwr", _made_by("make_gated_network"), "gated local-linear P-GWR",
          gate_loader("LocalLinearPredictor"), _settings_of("parameter_specs"))
-register(DEFAULT_PREDICTOR, _made_by("make_default"), "GWR experts (default)", gate_loader("Experts"),
-         _settings_of("experts_parameter_specs"))
+register(DEFAULT_PREDICTOR, _made_by("make_default"), "GWR experts (default)",
+         gate_loader("RecognitionSwitch", {"Experts": _recognising}), _settings_of("experts_parameter_specs"))
 
 #: The product's predictors: the ones registered above, whatever registers itself later (research/).
 PRODUCT: tuple[str, ...] = tuple(_REGISTRY)

@@ -1,0 +1,114 @@
+"""The recognition switch: the default trusts its experts ungated where the snippet memory knows the motion."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from gwr_predictor.default_predictor import (
+    DefaultPredictorError,
+    Experts,
+    GatedPredictor,
+    MemoryParams,
+    RecognitionSwitch,
+    TrajectoryMemory,
+    make_default,
+)
+from gwr_predictor.predictors.registry import DEFAULT_PREDICTOR, load_predictor
+
+NOISE = 0.002  # rad: a person never repeats a pose to the bit
+
+
+def _performance(speed: float, n: int = 45) -> np.ndarray:
+    """One out-and-back reach of every joint, `speed` times as fast as at 1.0, then still."""
+    t = np.arange(n) * 0.1 * speed
+    phase = np.clip(t / 3.0, 0.0, 1.0)
+    return 0.2 + 0.6 * np.sin(np.pi * phase)[:, None] * np.linspace(0.5, 1.0, 8)[None, :]
+
+
+def _repeated(speeds: tuple[float, ...] = (1.0, 0.9, 1.1, 1.0), seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
+    """The reach performed at each speed, with tracker noise; and each frame's performance index."""
+    parts = [_performance(s) for s in speeds]
+    index = np.concatenate([np.full(len(p), i) for i, p in enumerate(parts)])
+    x = np.concatenate(parts)
+    return x + np.random.default_rng(seed).normal(scale=NOISE, size=x.shape), index
+
+
+def _abs_errors_600(model, x: np.ndarray) -> np.ndarray:
+    """|error| at the last step, mean over joints, per frame (NaN where nothing is scored)."""
+    out = np.full(len(x), np.nan)
+    for t, f in enumerate(x):
+        pred = model.step(f)
+        if pred is not None and t + 6 < len(x):
+            out[t] = np.abs(pred[-1] - x[t + 6]).mean()
+    return out
+
+
+def test_the_memory_knows_motion_it_has_seen_and_not_a_pose_it_has_not():
+    memory = TrajectoryMemory(MemoryParams())
+    x, _ = _repeated()
+    assert memory.familiarity is None  # nothing read yet
+    seen = []
+    for f in x:
+        memory.step(f)
+        seen.append(memory.familiarity)
+    second = [f for f, i in zip(seen, _repeated()[1], strict=True) if i == 1 and f is not None]
+    assert np.median(second) < 1.0  # within one motion scale of a stored key
+    memory.step(x[-1] + 1.0)  # a jump to a pose it has never seen
+    assert memory.familiarity > 10.0
+    memory.step(None)
+    assert memory.familiarity is None
+
+
+def test_a_movement_seen_once_is_trusted_on_its_second_performance():
+    """The gates remember that every expert was wrong on the first performance; the switch trusts them
+    where the memory recognises the motion, so the second performance is anticipated."""
+    x, index = _repeated()
+    switched = make_default()
+    errors = _abs_errors_600(switched, x)
+    gated = _abs_errors_600(make_default(settings={"recognition.radius": 0.0}), x)
+    hold = np.array([np.abs(x[t] - x[t + 6]).mean() if t + 6 < len(x) else np.nan for t in range(len(x))])
+    second = index == 1  # measured: 0.071 rad, the gated experts 0.092, holding the pose 0.122
+    assert np.nanmean(errors[second]) < 0.85 * np.nanmean(gated[second])
+    assert np.nanmean(errors[second]) < 0.65 * np.nanmean(hold[second])
+    first = index == 0  # nothing to recognise yet: the gated experts, which hold the pose
+    np.testing.assert_array_equal(errors[first], gated[first])
+    assert switched.model.recognised > 0
+
+
+def test_without_recognition_the_switch_is_the_gated_experts():
+    x, _ = _repeated()
+    off = make_default(settings={"recognition.radius": 0.0})
+    experts = GatedPredictor(make_default().model.experts, off.params)
+    for f in x:
+        np.testing.assert_array_equal(off.step(f), experts.step(f))
+    assert off.model.recognised == 0
+
+
+def test_the_switch_needs_gated_members_and_a_memory():
+    made = make_default()
+    members = dict(made.model.experts.members)
+    with pytest.raises(DefaultPredictorError, match="memory"):
+        RecognitionSwitch(Experts({n: m for n, m in members.items() if n != "memory"}))
+    members["memory"] = members["memory"].model
+    with pytest.raises(DefaultPredictorError, match="not gated"):
+        RecognitionSwitch(Experts(members))
+
+
+def test_a_default_saved_before_the_switch_loads_with_what_it_learned(tmp_path):
+    """A checkpoint of the former default (the gated experts behind the last gate) loads as the default:
+    every member's state kept, the switch added."""
+    x, _ = _repeated()
+    made = make_default()
+    former = GatedPredictor(made.model.experts, made.params)
+    for f in x[:120]:
+        former.step(f)
+    former.save(tmp_path / "former.npz")
+    loaded = load_predictor(DEFAULT_PREDICTOR, tmp_path / "former.npz")
+    assert isinstance(loaded.model, RecognitionSwitch)
+    memory = loaded.model.experts.members["memory"].model
+    assert memory.size == former.model.members["memory"].model.size > 0
+    assert loaded.model.frames_seen == former.model.frames_seen == 120
+    for f in x[120:]:
+        assert loaded.step(f) is not None
+    assert loaded.model.recognised > 0
