@@ -64,9 +64,9 @@ from .node_base import (
 
 PARAMS = (
     ParamSpec("predictor", DEFAULT_PREDICTOR, "model: 'gwr_experts' (default: the local-linear P-GWR, a snippet "
-              "memory and two linear models, each gated, weighted by recent error), 'gated_llm_gwr' (the network "
-              "alone, gated) or 'hierarchy' (GWR1 -> GWR2 -> P-GWR, the paper); the node declares the chosen one's "
-              "settings as '<predictor>.<name>'",
+              "memory and two linear models, each gated unless the memory recognises the motion, weighted by "
+              "recent error), 'gated_llm_gwr' (the network alone, gated) or 'hierarchy' (GWR1 -> GWR2 -> P-GWR, "
+              "the paper); the node declares the chosen one's settings as '<predictor>.<name>'",
               choices=learner_names()),
     dataclasses.replace(HIERARCHY_SPECS["horizon"], description="frames predicted ahead (6 at 10 fps = 600 ms)"),
     ParamSpec("seed", 0, "seed of the networks' initial random neurons", 0, 2**31 - 1),
@@ -252,6 +252,8 @@ class GwrHierarchyNode(PipelineNode):
             values[key] = errors[key]
         if "recruited" in errors:  # the default's neurons recruited for surprising pairs
             values["neurons_recruited"] = errors["recruited"]
+        if "recognised_frames" in errors:  # the default's frames predicted by its experts ungated
+            values["frames_recognised"] = errors["recognised_frames"]
         values["pe_mean_mse"] = float(errors["pe_mean"])
         values["cpe_mean_mse"] = float(errors["cpe_mean"])
         values[f"cpe_h{self.horizon}_mse"] = float(errors["cpe"][-1])

@@ -97,6 +97,7 @@ def test_pipeline_flows_learns_moves_the_robot_and_records(ros, tmp_path):
     assert {"mix_weight_local_h6", "mix_weight_global_h6"} <= set(last)  # the default's two read-outs
     assert all(np.isfinite(float(last[k])) for k in ("mix_weight_local_h6", "mix_weight_global_h6"))
     assert 0 <= int(last["neurons_recruited"]) <= counts[-1]["pgwr"]  # the default's recruited neurons
+    assert 0 <= int(last["frames_recognised"]) <= int(last["frames"])  # the default's recognition switch
 
     # SIGTERM: clean exit, checkpoint written and loadable, with every learned frame
     learner = procs[3]

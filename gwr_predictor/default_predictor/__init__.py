@@ -14,7 +14,8 @@ What a robot runs unless told otherwise (`make_default`; registry name `gwr_expe
 
 Each expert sits behind its own confidence gate (`gate.py`: it falls back to holding the pose where
 the expert has not recently beaten holding it); `experts.py` weights them per horizon step by their
-recent errors; a last gate guards the weighted prediction. `params.py` and `settings.py` declare every setting
+recent errors; where the memory recognises the motion, `recognition.py` returns the experts' weighting
+without their gates; a last gate guards the weighted prediction. `params.py` and `settings.py` declare every setting
 once. The network behind one gate alone is `make_gated_network` (registry name `gated_llm_gwr`).
 
 The paper's own method (GWR1 -> GWR2 -> P-GWR) is `gwr_predictor.learning.hierarchy`.
@@ -48,7 +49,7 @@ _EXPORTS = {
     "MemoryParams": "memory",
     "RecognitionSwitch": "recognition",
     "RecognitionParams": "recognition",
-    "Ungated": "recognition",
+    "View": "recognition",
 }
 __getattr__, __dir__ = lazy_exports(__name__, _EXPORTS)
 __all__ = ["make_default", "make_gated_network", *sorted(_EXPORTS)]

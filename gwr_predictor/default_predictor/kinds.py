@@ -16,13 +16,13 @@ def restorable() -> dict[str, type[Checkpointed]]:
     from gwr_predictor.default_predictor.gate import GatedPredictor
     from gwr_predictor.default_predictor.memory import TrajectoryMemory
     from gwr_predictor.default_predictor.predictor import LocalLinearPredictor
-    from gwr_predictor.default_predictor.recognition import RecognitionSwitch, Ungated
+    from gwr_predictor.default_predictor.recognition import RecognitionSwitch, View
     from gwr_predictor.learning.hierarchy import FlatPredictor, Hierarchy
     from gwr_predictor.predictors.baselines import RLSAutoregressive
     from gwr_predictor.predictors.direct_linear import DirectLinear
 
     return {c.kind: c for c in (LocalLinearPredictor, Hierarchy, FlatPredictor, TrajectoryMemory, RLSAutoregressive,
-                                DirectLinear, GatedPredictor, Experts, RecognitionSwitch, Ungated)}
+                                DirectLinear, GatedPredictor, Experts, RecognitionSwitch, View)}
 
 
 def kind_to_save(model: Any, what: str) -> str:

@@ -10,7 +10,7 @@ the experts' weighted prediction without their gates where the memory's nearest 
 repeat. The default's last gate still guards whichever is chosen.
 
 Both weightings run on every frame, each scoring its own predictions (no peeking), so each has a
-record when it is chosen: `ungated` weighs the members' own predictions (`Ungated`), `experts` the
+record when it is chosen: `ungated` weighs the members' own predictions (`View`s of them), `experts` the
 gated ones. The ungated weighting forgets faster (`decay`): its record starts with the members' errors
 on movements that were new to them, which say little about them once the movement has been seen.
 """
@@ -18,7 +18,7 @@ on movements that were new to them, which say little about them once the movemen
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import Any, ClassVar
 
@@ -58,32 +58,32 @@ class RecognitionParams:
 
 @dataclass(frozen=True)
 class NoParams:
-    """`Ungated` has no settings."""
+    """`View` has no settings."""
 
     def to_dict(self) -> dict[str, Any]:
         return {}
 
 
-class Ungated(Checkpointed):
-    """A gated member's own prediction, before its gate shrinks it: a view with no state of its own (the
-    gate steps and resets the model)."""
+class View(Checkpointed):
+    """A prediction computed elsewhere this step (a gated member's own, before its gate): a model with no
+    state of its own, stepped and reset by its owner."""
 
-    kind: ClassVar[str] = "Ungated"
+    kind: ClassVar[str] = "View"
     PARAMS = NoParams
     PERSIST = Persist()
 
-    def __init__(self, gate: GatedPredictor | None, params: NoParams | None = None) -> None:
-        self.gate = gate
+    def __init__(self, source: Callable[[], np.ndarray | None] | None, params: NoParams | None = None) -> None:
+        self.source = source
         self.params = params or NoParams()
 
     def step(self, x: np.ndarray | None, learn: bool = True) -> np.ndarray | None:
-        return None if self.gate is None else self.gate.ungated()
+        return None if self.source is None else self.source()
 
     def reset_sequence(self) -> None:
-        """Nothing: the gate it views resets the model."""
+        """Nothing: its owner resets what it views."""
 
     @classmethod
-    def _fresh(cls, header: Mapping[str, Any]) -> Ungated:
+    def _fresh(cls, header: Mapping[str, Any]) -> View:
         return cls(None)  # a `RecognitionSwitch` builds its views linked; this one is restored into them
 
 
@@ -98,11 +98,11 @@ class RecognitionSwitch(Checkpointed):
         for name, member in experts.members.items():
             if not isinstance(member, GatedPredictor):
                 raise DefaultPredictorError(f"member {name!r} of the experts is not gated")
-        if MEMORY not in experts.members:
+        if not hasattr(getattr(experts.members.get(MEMORY), "model", None), "familiarity"):
             raise DefaultPredictorError(f"the experts have no {MEMORY!r} member to recognise motion by")
         self.experts = experts
         self.params = params or RecognitionParams()
-        self.ungated = Experts({n: Ungated(m) for n, m in experts.members.items()},
+        self.ungated = Experts({n: View(m.ungated) for n, m in experts.members.items()},
                                dataclasses.replace(experts.params, decay=self.params.decay))
         self.recognised = 0  # frames on which the ungated prediction was returned
 
