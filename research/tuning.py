@@ -13,8 +13,9 @@ Disjoint from every reported column:
   demonstrator seed 0, one online pass over each pattern's 30 recordings from scratch); the reported
   cold start is `raise_front_both`.
 - constraints only (never optimised): MAE <= 1.02 x hold-last at every step on the sudden-jump stream
-  of `test/test_default_predictor.py` with seeds 100-102, and on the real clips, one pass each (the
-  reported `experiment real` clips: used as a pass/fail bound, as the issue allows).
+  of `test/test_default_predictor.py` with seeds 100-102, and on the real clips, one pass each and,
+  from round 5 on, each climbing take learned after the other four (the reported `experiment real`
+  conditions: used as a pass/fail bound, as the issue allows).
 
 `python -m research.tuning [--real] NAME...` scores registry names and the variants in `VARIANTS`.
 The baselines every candidate must beat per stream (`BASELINES`) include the default's own ungated
@@ -155,10 +156,23 @@ it every member gate is shut for its first 15-50 frames, by the first performanc
   record (radius 3) forgetting at 0.95 / 0.97 / 0.98 / 0.99 / 0.995 per scored frame: 0.6053 / 0.6053 /
   0.6060 / 0.6077 / 0.6105 pooled, cold start 0.1534 / 0.2167, 0.1515 / 0.2128, 0.1503 / 0.2104,
   0.1488 / 0.2084, 0.1476 / 0.2079, check 0.400-0.414. Rule: the lowest pooled ratio, and among the
-  values within 0.001 of it the best cold start. Chosen (the default, `recognition.radius` 3,
-  `recognition.decay` 0.98): 0.606 pooled, curve 1.002 / 0.752 / 0.554 / 0.512 / 0.526 / 0.490 / 0.509
-  / 0.507, cold start 0.1503 / 0.2104 (RLS-AR 0.1623 / 0.2295), worst step 1.006 x hold (real clips and
-  jump streams), demonstrator check 0.402 (round 4's 0.417, the ungated experts 0.415).
+  values within 0.001 of it the best cold start: 0.98 (0.606 pooled, curve 1.002 / 0.752 / 0.554 /
+  0.512, cold start 0.1503 / 0.2104, worst step 1.006 x hold, check 0.402).
+- **A take learned after the others** (the bound's new condition, `--real`): there the memory
+  recognises the climbing motion on every frame, and the experts ungated are worse than holding at the
+  longer steps (1.046 x at 600 ms on climb_3; round 4's default 1.005): the last gate's ~100-frame
+  record from the other takes keeps it open. Guards measured (all with radius 3, decay 0.98): choosing
+  between the weightings by their records on recognised frames (`r5_blend*_98`, decay 0.95 / 0.99,
+  power 16) 0.612-0.613 pooled, 1.024-1.028 x; the ungated weighting behind a gate with the member
+  gates' settings that scores only recognised frames (a prototype not kept) 0.616, 1.037 x, and 0.875 on
+  the demonstrator check; the last gate's short memory on every step's own record (`gate.fast_step` 0)
+  0.608, 1.048 x. The last gate's long memory: decay 0.95 / 0.97 / 0.98 / 0.99 give 0.611 / 0.608 /
+  0.607 / 0.606 pooled and 1.013 / 1.017 / 1.026 / 1.046 x hold at worst (with `fast_step` 0: 0.612 /
+  0.610 / 0.609 and 1.011 / 1.007 / 1.023). Rule: the lowest pooled ratio within the bound. Chosen (the
+  default: `recognition.radius` 3, `recognition.decay` 0.98, `gate.decay` 0.97): 0.608 pooled, curve
+  1.001 / 0.752 / 0.555 / 0.513, cold start 0.1539 / 0.2114 (RLS-AR 0.1623 / 0.2295), worst step 1.017
+  x hold (the left-out climb_3), below every baseline (its ungated experts among them) on most streams
+  (the final run with `--demo`: docs/experiments.md).
 """
 
 from __future__ import annotations
@@ -203,6 +217,10 @@ Factory = Callable[[Any, int], Any]
 #: to the tuning recordings (the memory's copy rule came later: its figures on the jump streams differ).
 ROUND3 = {**R3, "network.rate": 0.1, "network.recruit_surprise": 9.0}
 LIN3 = ("llm", "linear", "rls")
+#: Round 5's steps before the last gate's memory was shortened (0.99): the radius sweep with the ungated
+#: weighting's record at the weighting's decay (`R5A`), then the decay sweep at radius 3 (`R5B`).
+R5A = {"gate.decay": 0.99, "recognition.decay": 0.995}
+R5B = {"gate.decay": 0.99}
 
 #: grid points measured beside the registered candidates: name -> factory(params, seed)
 VARIANTS: dict[str, Factory] = {
@@ -305,20 +323,20 @@ VARIANTS: dict[str, Factory] = {
     "r4_warm400_93": lambda p, s: safety.default(p, s, {**TUNED, "expert_gate.warmup_decay": 0.93}),
     "r4_warm400_995": lambda p, s: safety.default(p, s, TUNED),
     # round 5: the memory's recognition lifts the member gates (`recognition.py`), radius 1.5-6
-    "r5_radius15": lambda p, s: safety.default(p, s, {"recognition.radius": 1.5, "recognition.decay": 0.995}),
-    "r5_radius2": lambda p, s: safety.default(p, s, {"recognition.radius": 2.0, "recognition.decay": 0.995}),
-    "r5_radius3": lambda p, s: safety.default(p, s, {"recognition.radius": 3.0, "recognition.decay": 0.995}),
-    "r5_radius4": lambda p, s: safety.default(p, s, {"recognition.radius": 4.0, "recognition.decay": 0.995}),
-    "r5_radius6": lambda p, s: safety.default(p, s, {"recognition.radius": 6.0, "recognition.decay": 0.995}),
-    "r5_round4": lambda p, s: safety.default(p, s, safety.NO_RECOGNITION),
-    "r5_blend95": lambda p, s: safety.blended(p, s, 0.95, settings={"recognition.decay": 0.995}),
-    "r5_blend99": lambda p, s: safety.blended(p, s, 0.99, settings={"recognition.decay": 0.995}),
-    "r5_blend95_98": lambda p, s: safety.blended(p, s, 0.95),
-    "r5_blend99_98": lambda p, s: safety.blended(p, s, 0.99),
-    "r5_blend95_98_pw16": lambda p, s: safety.blended(p, s, 0.95, power=16.0),
-    "r5_ungated_d95": lambda p, s: safety.default(p, s, {"recognition.decay": 0.95}),
-    "r5_ungated_d98": lambda p, s: safety.default(p, s, {"recognition.decay": 0.98}),
-    "r5_ungated_d995": lambda p, s: safety.default(p, s, {"recognition.decay": 0.995}),
+    "r5_radius15": lambda p, s: safety.default(p, s, {**R5A, "recognition.radius": 1.5}),
+    "r5_radius2": lambda p, s: safety.default(p, s, {**R5A, "recognition.radius": 2.0}),
+    "r5_radius3": lambda p, s: safety.default(p, s, {**R5A, "recognition.radius": 3.0}),
+    "r5_radius4": lambda p, s: safety.default(p, s, {**R5A, "recognition.radius": 4.0}),
+    "r5_radius6": lambda p, s: safety.default(p, s, {**R5A, "recognition.radius": 6.0}),
+    "r5_round4": lambda p, s: safety.default(p, s, safety.BEFORE_ROUND5),
+    "r5_blend95": lambda p, s: safety.blended(p, s, 0.95, settings=R5A),
+    "r5_blend99": lambda p, s: safety.blended(p, s, 0.99, settings=R5A),
+    "r5_blend95_98": lambda p, s: safety.blended(p, s, 0.95, settings=R5B),
+    "r5_blend99_98": lambda p, s: safety.blended(p, s, 0.99, settings=R5B),
+    "r5_blend95_98_pw16": lambda p, s: safety.blended(p, s, 0.95, power=16.0, settings=R5B),
+    "r5_ungated_d95": lambda p, s: safety.default(p, s, {**R5B, "recognition.decay": 0.95}),
+    "r5_ungated_d98": lambda p, s: safety.default(p, s, {**R5B, "recognition.decay": 0.98}),
+    "r5_ungated_d995": lambda p, s: safety.default(p, s, {**R5B, "recognition.decay": 0.995}),
 }
 
 
