@@ -168,11 +168,14 @@ it every member gate is shut for its first 15-50 frames, by the first performanc
   the demonstrator check; the last gate's short memory on every step's own record (`gate.fast_step` 0)
   0.608, 1.048 x. The last gate's long memory: decay 0.95 / 0.97 / 0.98 / 0.99 give 0.611 / 0.608 /
   0.607 / 0.606 pooled and 1.013 / 1.017 / 1.026 / 1.046 x hold at worst (with `fast_step` 0: 0.612 /
-  0.610 / 0.609 and 1.011 / 1.007 / 1.023). Rule: the lowest pooled ratio within the bound. Chosen (the
-  default: `recognition.radius` 3, `recognition.decay` 0.98, `gate.decay` 0.97): 0.608 pooled, curve
-  1.001 / 0.752 / 0.555 / 0.513, cold start 0.1539 / 0.2114 (RLS-AR 0.1623 / 0.2295), worst step 1.017
-  x hold (the left-out climb_3), below every baseline (its ungated experts among them) on most streams
-  (the final run with `--demo`: docs/experiments.md).
+  0.610 / 0.609 and 1.011 / 1.007 / 1.023). Rule: the lowest pooled ratio within the bound. That was
+  decay 0.97 (0.608, 1.017 x), but `experiment real` measured the same take at 1.0204 x (it scores
+  the frames every one of its methods predicts, a different set): the bound needs a margin of the
+  harness's. Among the points at most 1.01 x here, the lowest pooled: decay 0.97 with `fast_step` 0.
+  Chosen (the default: `recognition.radius` 3, `recognition.decay` 0.98, `gate.decay` 0.97,
+  `gate.fast_step` 0): 0.610 pooled, curve 1.001 / 0.752 / 0.555 / 0.513, cold start 0.1539 / 0.2115
+  (RLS-AR 0.1623 / 0.2295), worst step 1.007 x hold (the left-out climb_3); the final run with
+  `--demo` in docs/experiments.md.
 """
 
 from __future__ import annotations
