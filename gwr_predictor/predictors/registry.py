@@ -221,8 +221,9 @@ def gate_loader(wraps: str, upgrades: Mapping[str, Callable[[Any], Any]] | None 
         from gwr_predictor.learning.checkpoint import CheckpointError
 
         gate = GatedPredictor.load(path)
-        if gate.model.kind in (upgrades or {}):
-            gate.model = (upgrades or {})[gate.model.kind](gate.model)
+        upgrade = (upgrades or {}).get(gate.model.kind)
+        if upgrade is not None:
+            gate.model = upgrade(gate.model)
         if gate.model.kind != wraps:
             raise CheckpointError(f"{path}: holds a gate around a {gate.model.kind!r}, expected a {wraps!r}",
                                   source=path, found=gate.model.kind, expected=wraps)
