@@ -15,7 +15,7 @@ from typing import Any
 
 import numpy as np
 
-from gwr_predictor.default_predictor import Experts, GatedPredictor, GateParams, RecognitionSwitch, make_default
+from gwr_predictor.default_predictor import Experts, GatedPredictor, GateParams, RecognitionSwitch, View, make_default
 from gwr_predictor.pending import PendingPredictions
 from gwr_predictor.predictors.baselines import HoldLast, observation
 
@@ -98,28 +98,14 @@ def agreeing(params: Any, seed: int, c: float, settings: Mapping[str, Any] | Non
     return GatedPredictor(model, made.params if last_gate is True else dataclasses.replace(made.params, **last_gate))
 
 
-class Echo:
-    """A gated member's last raw prediction again, so a second gate can judge the same model."""
-
-    def __init__(self, gate: GatedPredictor) -> None:
-        self.gate = gate
-
-    def step(self, x: np.ndarray | None, learn: bool = True) -> np.ndarray | None:
-        return self.gate.ungated()
-
-    def reset_sequence(self) -> None:
-        """The gate it echoes resets the model."""
-
-
 def two_gates(params: Any, seed: int, slow: Mapping[str, Any], settings: Mapping[str, Any] | None = None) -> Any:
     """Every member behind its gate and, as a second member, behind a `slow` one; the experts weight all."""
     made = default(params, seed, settings)
     members = dict(experts_of(made).members)
     gate = GateParams(horizon=params.horizon, joints=params.n_joints, **slow)
     for n in list(members):
-        members[f"{n}_slow"] = GatedPredictor(Echo(members[n]), gate, hold_when_silent=False)
+        members[f"{n}_slow"] = GatedPredictor(View(members[n].ungated), gate, hold_when_silent=False)
     return GatedPredictor(Experts(members, experts_of(made).params), made.params)
-
 
 
 class BlendedSwitch(RecognitionSwitch):
@@ -169,4 +155,3 @@ def blended(params: Any, seed: int, decay: float, power: float = 4.0,
     made = default(params, seed, settings)
     switch = made.model
     return GatedPredictor(BlendedSwitch(switch.experts, switch.params, decay, power), made.params)
-
