@@ -34,6 +34,7 @@ from typing import Any
 import numpy as np
 
 from gwr_predictor.default_predictor.gate import GatedPredictor, inner_model
+from gwr_predictor.default_predictor.recognition import RecognitionSwitch
 from gwr_predictor.learning.checkpoint import (
     CheckpointError,
     CheckpointLock,
@@ -104,7 +105,7 @@ class GwrHierarchyNode(PipelineNode):
             self.release_checkpoint()
             raise
         self.gwr = inner_model(self.model)  # the GWR learner (behind the gate, if any)
-        self.horizon = self.model.params.horizon
+        self.horizon = int(getattr(self.model, "horizon", None) or self.model.params.horizon)
         self.gate = self.arm_gate("arm_angles")
         self.step_times: list[float] = []
         self.step_max = 0.0
@@ -162,13 +163,13 @@ class GwrHierarchyNode(PipelineNode):
         if name == "checkpoint_interval_s":
             self.schedule_checkpoints(float(value))
 
-    def create(self, settings: dict[str, Any]) -> Hierarchy | GatedPredictor:
+    def create(self, settings: dict[str, Any]) -> Hierarchy | GatedPredictor | RecognitionSwitch:
         try:
             return make_predictor(self.params["predictor"], settings, seed=self.params["seed"])
         except ValueError as exc:  # a setting this predictor cannot take (ParameterError and the like)
             raise ParameterError(f"predictor {self.params['predictor']!r}: {exc}") from None
 
-    def load_or_create(self, settings: dict[str, Any]) -> Hierarchy | GatedPredictor:
+    def load_or_create(self, settings: dict[str, Any]) -> Hierarchy | GatedPredictor | RecognitionSwitch:
         """The checkpoint's model if there is a readable one, else a fresh one with `settings`."""
         path = self.checkpoint
         if path is None or not path.exists():

@@ -20,8 +20,8 @@ from gwr_predictor.pending import PendingPredictions
 from gwr_predictor.predictors.baselines import HoldLast, observation
 
 #: Rounds 3 and 4 came before round 5: no recognition switch, the last gate's ~100-frame memory capped
-#: by its 1-step record.
-BEFORE_ROUND5 = {"recognition.radius": 0.0, "gate.decay": 0.99, "gate.fast_step": 1}
+#: by its 1-step record, its bound one standard error.
+BEFORE_ROUND5 = {"recognition.radius": 0.0, "gate.decay": 0.99, "gate.fast_step": 1, "gate.confidence": 1.0}
 #: The network's settings `experiment tune` chose for the gated network, which every round-4 variant
 #: used (the default's own network keeps rate 0.1 and recruit_surprise 9: `settings.EXPERT_NETWORK`).
 TUNED_NETWORK = {"network.rate": 0.2, "network.recruit_surprise": 6.0, **BEFORE_ROUND5}
@@ -29,13 +29,13 @@ TUNED_NETWORK = {"network.rate": 0.2, "network.recruit_surprise": 6.0, **BEFORE_
 R3 = {"expert_gate.decay": 0.95, "expert_gate.warmup": 0, **TUNED_NETWORK}
 
 
-def default(params: Any, seed: int, settings: Mapping[str, Any] | None = None) -> GatedPredictor:
+def default(params: Any, seed: int, settings: Mapping[str, Any] | None = None) -> RecognitionSwitch:
     return make_default(params.horizon, params.n_joints, seed, dict(settings or {}))
 
 
-def experts_of(made: GatedPredictor) -> Experts:
+def experts_of(made: RecognitionSwitch) -> Experts:
     """The default's weighting of its gated members (behind its recognition switch)."""
-    return made.model.experts
+    return made.experts
 
 
 def rebuilt(params: Any, seed: int, settings: Mapping[str, Any] | None = None,
@@ -46,10 +46,10 @@ def rebuilt(params: Any, seed: int, settings: Mapping[str, Any] | None = None,
     `own_gate` behind the library's `GateParams()`."""
     made = default(params, seed, settings)
     experts = Experts(_members(made, params, member_gates, hold, own_gate), experts_of(made).params)
-    return GatedPredictor(experts, made.params) if last_gate else experts
+    return GatedPredictor(experts, made.gate.params) if last_gate else experts
 
 
-def _members(made: GatedPredictor, params: Any, member_gates: bool | tuple[str, ...] = True, hold: bool = False,
+def _members(made: RecognitionSwitch, params: Any, member_gates: bool | tuple[str, ...] = True, hold: bool = False,
              own_gate: tuple[str, ...] = ()) -> dict[str, Any]:
     """`made`'s experts, each behind its gate or not, with a hold-last member and other gates (see `rebuilt`)."""
     gated = experts_of(made).names if member_gates is True else member_gates or ()
@@ -95,7 +95,8 @@ def agreeing(params: Any, seed: int, c: float, settings: Mapping[str, Any] | Non
     model = AgreeingExperts(_members(made, params, member_gates), experts_of(made).params, c, weighted)
     if not last_gate:
         return model
-    return GatedPredictor(model, made.params if last_gate is True else dataclasses.replace(made.params, **last_gate))
+    gate = made.gate.params
+    return GatedPredictor(model, gate if last_gate is True else dataclasses.replace(gate, **last_gate))
 
 
 def two_gates(params: Any, seed: int, slow: Mapping[str, Any], settings: Mapping[str, Any] | None = None) -> Any:
@@ -105,7 +106,7 @@ def two_gates(params: Any, seed: int, slow: Mapping[str, Any], settings: Mapping
     gate = GateParams(horizon=params.horizon, joints=params.n_joints, **slow)
     for n in list(members):
         members[f"{n}_slow"] = GatedPredictor(View(members[n].ungated), gate, hold_when_silent=False)
-    return GatedPredictor(Experts(members, experts_of(made).params), made.params)
+    return GatedPredictor(Experts(members, experts_of(made).params), made.gate.params)
 
 
 class BlendedSwitch(RecognitionSwitch):
@@ -153,5 +154,5 @@ class BlendedSwitch(RecognitionSwitch):
 def blended(params: Any, seed: int, decay: float, power: float = 4.0,
             settings: Mapping[str, Any] | None = None) -> GatedPredictor:
     made = default(params, seed, settings)
-    switch = made.model
-    return GatedPredictor(BlendedSwitch(switch.experts, switch.params, decay, power), made.params)
+    return GatedPredictor(BlendedSwitch(made.experts, made.params, decay, power), made.gate.params)
+

@@ -13,7 +13,7 @@ from gwr_predictor.default_predictor import (
     TrajectoryMemory,
     make_default,
 )
-from gwr_predictor.default_predictor.gate import GatedPredictor
+from gwr_predictor.default_predictor.recognition import RecognitionSwitch
 from gwr_predictor.default_predictor.settings import experts_parameter_specs
 from gwr_predictor.errors import GwrPredictorError
 from gwr_predictor.evaluation.online import compare_online
@@ -163,14 +163,15 @@ def test_the_experts_checkpoint_continues_bit_for_bit(tmp_path):
     for f in x[:150]:
         model.step(f)
     model.save(tmp_path / "m.npz")
-    again = GatedPredictor.load(tmp_path / "m.npz")
-    memory = again.model.experts.members["memory"].model
-    assert memory.size == model.model.experts.members["memory"].model.size > 0
-    recognised = model.model.recognised
+    again = RecognitionSwitch.load(tmp_path / "m.npz")
+    memory = again.experts.members["memory"].model
+    assert memory.size == model.experts.members["memory"].model.size > 0
+    recognised = model.recognised
     for f in x[150:]:
         np.testing.assert_array_equal(model.step(f), again.step(f))
-    assert again.model.recognised == model.model.recognised > recognised  # the restored switch chose ungated
-    assert again.neuron_counts == model.neuron_counts and again.model.frames_seen == model.model.frames_seen
+    assert again.recognised == model.recognised > recognised  # the restored switch chose ungated
+    assert again.neuron_counts == model.neuron_counts and again.frames_seen == model.frames_seen
+    assert again.ungated_gate._scored.any()  # the ungated weighting's last gate came back with its record
 
 
 def test_the_default_wins_on_a_repeated_movement_varied_in_speed():
@@ -186,8 +187,8 @@ def test_the_default_takes_its_settings_by_flat_name():
     model = make_default(settings={"memory.k": 5, "experts.power": 2.0, "network.order": 3,
                                    "network.gwr.eps_b": 0.2, "expert_gate.decay": 0.9, "gate.confidence": 1.5,
                                    "recognition.radius": 2.0})
-    experts = model.model.experts
-    assert model.params.confidence == 1.5 and model.model.params.radius == 2.0
+    experts = model.experts
+    assert [g.params.confidence for g in model.gates] == [1.5, 1.5] and model.params.radius == 2.0
     assert experts.members["memory"].model.params.k == 5 and experts.params.power == 2.0
     network = experts.members["network"].model.params
     assert network.order == 3 and network.gwr.eps_b == 0.2

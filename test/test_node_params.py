@@ -113,14 +113,14 @@ def test_pretrain_uses_the_nodes_yaml_and_writes_a_checkpoint_the_node_can_load(
     assert model.params.horizon == 4 and model.params.pgwr.max_edge_age == 50
     assert model.frames_seen > 30
     # without 'predictor' the node's default is trained; it takes the horizon from the YAML
-    from gwr_predictor.default_predictor.gate import GatedPredictor
+    from gwr_predictor.default_predictor.recognition import RecognitionSwitch
 
     custom.write_text("/**/gwr_hierarchy:\n  ros__parameters:\n    horizon: 4\n"
                       "    gwr_experts:\n      network:\n        order: 5\n      expert_gate:\n        decay: 0.98\n")
     assert main(["pretrain", "-o", str(out), "--params-file", str(custom), "--patterns", "wave_one",
                  "--subjects", "1", "--repetitions", "1", "--epochs", "1", "--quiet"]) == 0
-    gated = GatedPredictor.load(out)
-    experts = gated.model.experts
-    assert gated.params.horizon == 4 and experts.frames_seen > 30
+    default = RecognitionSwitch.load(out)
+    experts = default.experts
+    assert default.gate.params.horizon == 4 and experts.frames_seen > 30
     assert experts.members["network"].model.params.order == 5
     assert all(m.params.decay == 0.98 for m in experts.members.values())

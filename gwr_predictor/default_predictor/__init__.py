@@ -15,8 +15,8 @@ What a robot runs unless told otherwise (`make_default`; registry name `gwr_expe
 Each expert sits behind its own confidence gate (`gate.py`: it falls back to holding the pose where
 the expert has not recently beaten holding it); `experts.py` weights them per horizon step by their
 recent errors; where the memory recognises the motion, `recognition.py` returns the experts' weighting
-without their gates; a last gate guards the weighted prediction. `params.py` and `settings.py` declare every setting
-once. The network behind one gate alone is `make_gated_network` (registry name `gated_llm_gwr`).
+without their gates; a last gate guards each weighting. `params.py` and `settings.py` declare every
+setting once. The network behind one gate alone is `make_gated_network` (registry name `gated_llm_gwr`).
 
 The paper's own method (GWR1 -> GWR2 -> P-GWR) is `gwr_predictor.learning.hierarchy`.
 """
@@ -30,6 +30,7 @@ from gwr_predictor._exports import lazy_exports
 
 if TYPE_CHECKING:
     from gwr_predictor.default_predictor.gate import GatedPredictor
+    from gwr_predictor.default_predictor.recognition import RecognitionSwitch
 
 _EXPORTS = {
     "LocalLinearParams": "params",
@@ -56,9 +57,9 @@ __all__ = ["make_default", "make_gated_network", *sorted(_EXPORTS)]
 
 
 def make_default(horizon: int = 6, joints: int = 8, seed: int = 0,
-                 settings: Mapping[str, Any] | None = None) -> GatedPredictor:
-    """The default predictor, fresh: the four experts, each behind its gate, weighted per step, behind a
-    last gate.
+                 settings: Mapping[str, Any] | None = None) -> RecognitionSwitch:
+    """The default predictor, fresh: the four experts, each behind its gate, weighted per step, or
+    ungated where the motion is recognised, each weighting behind its last gate.
 
     `settings`: flat parameters (`experts_parameter_specs()`: e.g. `network.order`, `memory.k`,
     `experts.power`, `expert_gate.decay`, `gate.confidence`); the others keep their defaults."""
@@ -77,7 +78,7 @@ def make_default(horizon: int = 6, joints: int = 8, seed: int = 0,
                "rls_ar": RLSAutoregressive(TUNED_RLS, horizon, joints),
                "memory": TrajectoryMemory(memory)}
     gated = {name: GatedPredictor(model, expert_gate, hold_when_silent=False) for name, model in experts.items()}
-    return GatedPredictor(RecognitionSwitch(Experts(gated, weighting), recognition), gate)
+    return RecognitionSwitch(Experts(gated, weighting), recognition, gate)
 
 
 def make_gated_network(horizon: int = 6, joints: int = 8, seed: int = 0,

@@ -7,12 +7,18 @@ wrong, although the experts have learned it since. The snippet memory knows, fra
 it has seen the present motion before (`TrajectoryMemory.familiarity`). `RecognitionSwitch` returns
 the experts' weighted prediction without their gates where the memory's nearest stored key lies within
 `radius` x the motion scale, and with them elsewhere: a new movement, a jump, motion that does not
-repeat. The default's last gate still guards whichever is chosen.
+repeat.
 
 Both weightings run on every frame, each scoring its own predictions (no peeking), so each has a
 record when it is chosen: `ungated` weighs the members' own predictions (`View`s of them), `experts` the
 gated ones. The ungated weighting forgets faster (`decay`): its record starts with the members' errors
 on movements that were new to them, which say little about them once the movement has been seen.
+
+Each weighting has its own last gate, which judges it on the frames it is returned on: the gated one
+where the motion is new, the ungated one where it is recognised. One gate over both judged each by the
+other's record: on the second performance of a movement, the ungated weighting was held back by the
+first performance's record of the gated one, which had mostly held the pose (`separate_gates` false:
+that single gate, the default before round 6 of `research/tuning.py`).
 """
 
 from __future__ import annotations
@@ -25,10 +31,10 @@ from typing import Any, ClassVar
 import numpy as np
 
 from gwr_predictor.default_predictor.experts import Experts
-from gwr_predictor.default_predictor.gate import GatedPredictor
+from gwr_predictor.default_predictor.gate import GatedPredictor, GateParams
 from gwr_predictor.default_predictor.params import DefaultPredictorError
 from gwr_predictor.learning.checkpoint import CheckpointError
-from gwr_predictor.learning.persistence import Checkpointed, Persist, params_from_json
+from gwr_predictor.learning.persistence import Checkpointed, Persist, params_from_json, sub
 from gwr_predictor.parameter_spec import ParamSpec, check_fields
 
 #: The member whose memory judges recognition.
@@ -39,6 +45,8 @@ RECOGNITION_SPECS = {spec.name: spec for spec in (
               "motion scale per coordinate (0: never; the gated experts always)", 0.0, 1e3),
     ParamSpec("decay", 0.98, "forgetting of the ungated weighting's running squared errors per scored frame", 0.0, 1.0,
               lo_open=True, hi_open=True),
+    ParamSpec("separate_gates", True, "each weighting behind its own last gate, judged on the frames it is returned "
+              "on (false: one last gate over whichever is returned)"),
 )}
 
 
@@ -48,6 +56,7 @@ class RecognitionParams:
 
     radius: float = RECOGNITION_SPECS["radius"].default
     decay: float = RECOGNITION_SPECS["decay"].default
+    separate_gates: bool = RECOGNITION_SPECS["separate_gates"].default
 
     def __post_init__(self) -> None:
         check_fields(self, RECOGNITION_SPECS.values(), DefaultPredictorError)
@@ -88,35 +97,65 @@ class View(Checkpointed):
 
 
 class RecognitionSwitch(Checkpointed):
-    """The gated `experts`, or the same members ungated where the memory recognises the motion."""
+    """The gated `experts`, or the same members ungated where the memory recognises the motion, each
+    weighting behind its last gate (`gate`)."""
 
     kind: ClassVar[str] = "RecognitionSwitch"
     PARAMS = RecognitionParams
-    PERSIST = Persist(values=("recognised",), members={"experts": "experts", "ungated": "ungated"})
+    PERSIST = Persist(values=("recognised",), members={"experts": "experts", "ungated": "ungated", "gate": "gate",
+                                                       "ungated_gate": "ungated_gate"})
 
-    def __init__(self, experts: Experts, params: RecognitionParams | None = None) -> None:
+    def __init__(self, experts: Experts, params: RecognitionParams | None = None,
+                 gate: GateParams | None = None) -> None:
         for name, member in experts.members.items():
             if not isinstance(member, GatedPredictor):
                 raise DefaultPredictorError(f"member {name!r} of the experts is not gated")
         if not hasattr(getattr(experts.members.get(MEMORY), "model", None), "familiarity"):
             raise DefaultPredictorError(f"the experts have no {MEMORY!r} member to recognise motion by")
         self.experts = experts
-        self.params = params or RecognitionParams()
+        self.params = p = params or RecognitionParams()
         self.ungated = Experts({n: View(m.ungated) for n, m in experts.members.items()},
-                               dataclasses.replace(experts.params, decay=self.params.decay))
+                               dataclasses.replace(experts.params, decay=p.decay))
         self.recognised = 0  # frames on which the ungated prediction was returned
+        self._outputs: tuple[np.ndarray | None, np.ndarray | None] = (None, None)  # this step's weightings
+        self._recognises = False  # whether this step returns the ungated weighting
+        gate = gate or GateParams(horizon=experts.params.horizon, joints=experts.params.n_joints)
+        # the last gates view this step's weightings through bound methods, which deep copies follow
+        if p.separate_gates:
+            self.gate = GatedPredictor(View(self._gated_output), gate)
+            self.ungated_gate: GatedPredictor | None = GatedPredictor(View(self._ungated_output), gate)
+        else:
+            self.gate = GatedPredictor(View(self._returned_output), gate)
+            self.ungated_gate = None
+
+    def _gated_output(self) -> np.ndarray | None:
+        return None if self._recognises else self._outputs[0]
+
+    def _ungated_output(self) -> np.ndarray | None:
+        return self._outputs[1] if self._recognises else None
+
+    def _returned_output(self) -> np.ndarray | None:
+        return self._outputs[1] if self._recognises else self._outputs[0]
 
     def reset_sequence(self) -> None:
         self.experts.reset_sequence()
         self.ungated.reset_sequence()
+        for gate in self.gates:
+            gate.reset_sequence()
+
+    @property
+    def gates(self) -> tuple[GatedPredictor, ...]:
+        """The last gates: the gated weighting's (or the only one), then the ungated weighting's."""
+        return (self.gate,) if self.ungated_gate is None else (self.gate, self.ungated_gate)
 
     def step(self, x: np.ndarray | None, learn: bool = True) -> np.ndarray | None:
         gated = self.experts.step(x, learn)
         ungated = self.ungated.step(x, learn)
-        if gated is None or ungated is None or not self.recognises():
-            return gated
-        self.recognised += 1
-        return ungated
+        self._outputs = (gated, ungated)
+        self._recognises = gated is not None and ungated is not None and self.recognises()
+        self.recognised += self._recognises
+        outs = [gate.step(x, learn) for gate in self.gates]  # every gate scores what it is owed
+        return outs[-1] if self._recognises else outs[0]
 
     def recognises(self) -> bool:
         """Whether the memory knew the motion at the last step."""
@@ -124,6 +163,11 @@ class RecognitionSwitch(Checkpointed):
         return familiarity is not None and familiarity <= self.params.radius
 
     # --- introspection: the gated experts speak for the learner -------------------------------------
+    @property
+    def horizon(self) -> int:
+        """Frames predicted (the learner node reads a model's horizon here, or from its parameters)."""
+        return self.experts.params.horizon
+
     @property
     def frames_seen(self) -> int:
         return self.experts.frames_seen
@@ -136,14 +180,44 @@ class RecognitionSwitch(Checkpointed):
         return self.experts.neuron_counts
 
     def errors(self) -> dict[str, Any]:
-        """The experts' errors and weights, and on how many frames the motion was recognised."""
-        return {**self.experts.errors(), "recognised_frames": self.recognised}
+        """The experts' errors and weights, on how many frames the motion was recognised, and each last
+        gate's mean shrinkage per step."""
+        out = {**self.experts.errors(), "recognised_frames": self.recognised,
+               "gate_alpha_mean": self.gate.alpha().mean(axis=1).tolist()}
+        if self.ungated_gate is not None:
+            out["ungated_gate_alpha_mean"] = self.ungated_gate.alpha().mean(axis=1).tolist()
+        return out
 
     # --- persistence ----------------------------------------------------------------------------------
     @classmethod
     def _fresh(cls, header: Mapping[str, Any]) -> RecognitionSwitch:
-        experts = header.get("experts")
-        if not isinstance(experts, dict):
-            raise CheckpointError("a recognition switch's checkpoint must hold its experts")
-        # the views are linked to these gates, which restore their state in place
-        return cls(Experts._fresh(experts), params_from_json(RecognitionParams, header["params"]))
+        experts, gate = header.get("experts"), header.get("gate")
+        if not isinstance(experts, dict) or not isinstance(gate, dict):
+            raise CheckpointError("a recognition switch's checkpoint must hold its experts and its last gate")
+        # the views are linked to these gates and weightings, which restore their state in place
+        return cls(Experts._fresh(experts), params_from_json(RecognitionParams, header["params"]),
+                   params_from_json(GateParams, gate["params"]))
+
+    @classmethod
+    def upgraded(cls, header: Mapping[str, Any], arrays: Mapping[str, np.ndarray]) -> RecognitionSwitch:
+        """The default of a checkpoint written before its last gates moved behind the switch: a
+        `GatedPredictor` around a `RecognitionSwitch` (round 5) or around the gated `Experts` (before it).
+        Everything it learned is kept; its last gate's record becomes the gated weighting's, and the
+        ungated weighting's gate (and, before round 5, its weighting) starts fresh."""
+        inner, inner_arrays = header["model"], sub(arrays, "model")
+        if header.get("model_kind") == cls.kind:
+            experts_header, experts_arrays = inner["experts"], sub(inner_arrays, "experts")
+            params = params_from_json(RecognitionParams, inner["params"])
+        elif header.get("model_kind") == Experts.kind:
+            experts_header, experts_arrays, params = inner, inner_arrays, RecognitionParams()
+        else:
+            raise CheckpointError(f"a gate around a {header.get('model_kind')!r}, not the default's experts")
+        gate = params_from_json(GateParams, header["params"])
+        switch = cls(Experts._fresh(experts_header), params, gate)
+        switch.experts._restored(experts_header, experts_arrays, "model.experts.")
+        if header.get("model_kind") == cls.kind:
+            switch.ungated._restored(inner["ungated"], sub(inner_arrays, "ungated"), "model.ungated.")
+            switch.recognised = int(inner["recognised"])
+        switch.gate._restored({**header, "model": {}}, {k: v for k, v in arrays.items() if not k.startswith("model.")},
+                              "gate.")
+        return switch

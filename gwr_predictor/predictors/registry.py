@@ -213,17 +213,13 @@ def _settings_of(specs: str) -> Settings:
     return settings
 
 
-def gate_loader(wraps: str, upgrades: Mapping[str, Callable[[Any], Any]] | None = None) -> Loader:
-    """A loader of gated checkpoints that refuses a gate around another kind of model; `upgrades`: kind ->
-    what turns a model of that former kind into a `wraps` (a checkpoint written before the change)."""
+def gate_loader(wraps: str) -> Loader:
+    """A loader of gated checkpoints that refuses a gate around another kind of model."""
     def load(path: str | os.PathLike[str]) -> Predictor:
         from gwr_predictor.default_predictor.gate import GatedPredictor
         from gwr_predictor.learning.checkpoint import CheckpointError
 
         gate = GatedPredictor.load(path)
-        upgrade = (upgrades or {}).get(gate.model.kind)
-        if upgrade is not None:
-            gate.model = upgrade(gate.model)
         if gate.model.kind != wraps:
             raise CheckpointError(f"{path}: holds a gate around a {gate.model.kind!r}, expected a {wraps!r}",
                                   source=path, found=gate.model.kind, expected=wraps)
@@ -232,18 +228,32 @@ def gate_loader(wraps: str, upgrades: Mapping[str, Callable[[Any], Any]] | None 
     return load
 
 
-def _recognising(experts: Any) -> Any:
-    """A default saved before the recognition switch: everything it learned kept, the switch's ungated
-    weighting fresh."""
+def _load_default(path: str | os.PathLike[str]) -> Predictor:
+    """The default saved at `path`; one saved with its last gate around the experts (before round 6 of
+    the tuning) is upgraded, everything it learned kept (`RecognitionSwitch.upgraded`)."""
+    from gwr_predictor.default_predictor.gate import GatedPredictor
     from gwr_predictor.default_predictor.recognition import RecognitionSwitch
+    from gwr_predictor.learning.checkpoint import CheckpointError, read_checkpoint
 
-    return RecognitionSwitch(experts)
+    try:
+        return RecognitionSwitch.load(path)
+    except CheckpointError as exc:
+        if exc.found != GatedPredictor.kind:
+            raise
+    header, arrays = read_checkpoint(path, GatedPredictor.kind)
+    if header.get("model_kind") not in (RecognitionSwitch.kind, "Experts"):
+        raise CheckpointError(f"{path}: holds a gate around a {header.get('model_kind')!r}, expected the default's "
+                              "experts", source=path, found=header.get("model_kind"), expected=RecognitionSwitch.kind)
+    try:
+        return RecognitionSwitch.upgraded(header, arrays)
+    except (KeyError, ValueError, TypeError, IndexError) as exc:
+        RecognitionSwitch._inconsistent(path, exc)
 
 
 register("gated_llm_gwr", _made_by("make_gated_network"), "gated local-linear P-GWR",
          gate_loader("LocalLinearPredictor"), _settings_of("parameter_specs"))
 register(DEFAULT_PREDICTOR, _made_by("make_default"), "GWR experts (default)",
-         gate_loader("RecognitionSwitch", {"Experts": _recognising}), _settings_of("experts_parameter_specs"))
+         _load_default, _settings_of("experts_parameter_specs"))
 
 #: The product's predictors: the ones registered above, whatever registers itself later (research/).
 PRODUCT: tuple[str, ...] = tuple(_REGISTRY)
