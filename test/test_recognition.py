@@ -14,7 +14,7 @@ from gwr_predictor.default_predictor import (
     TrajectoryMemory,
     make_default,
 )
-from gwr_predictor.learning.checkpoint import write_checkpoint
+from gwr_predictor.learning.checkpoint import read_checkpoint, write_checkpoint
 from gwr_predictor.predictors.registry import DEFAULT_PREDICTOR, load_predictor
 
 NOISE = 0.002  # rad: a person never repeats a pose to the bit
@@ -162,3 +162,28 @@ def test_a_default_saved_before_the_switch_loads_with_what_it_learned(tmp_path):
     for f in x[120:]:
         assert loaded.step(f) is not None
     assert loaded.recognised > 0
+
+
+def test_the_defaults_loader_refuses_other_models_and_broken_former_layouts(tmp_path):
+    """Another predictor's checkpoint is a kind mismatch (the node tells the user to fix `predictor`); a
+    former layout with a field missing is a CheckpointError naming the file, never a KeyError."""
+    from gwr_predictor.learning.checkpoint import CheckpointError
+    from gwr_predictor.learning.hierarchy import Hierarchy
+    from gwr_predictor.predictors.registry import make_predictor
+
+    make_predictor("gated_llm_gwr").save(tmp_path / "network.npz")
+    Hierarchy().save(tmp_path / "hierarchy.npz")
+    for name, found in (("network.npz", "LocalLinearPredictor"), ("hierarchy.npz", "Hierarchy")):
+        with pytest.raises(CheckpointError) as refused:
+            load_predictor(DEFAULT_PREDICTOR, tmp_path / name)
+        assert refused.value.kind_mismatch and refused.value.found == found
+    made = make_default(settings={"recognition.separate_gates": False})
+    for f in _repeated()[0][:30]:
+        made.step(f)
+    _former_layout(made, tmp_path / "round5.npz")
+    header, arrays = read_checkpoint(tmp_path / "round5.npz", GatedPredictor.kind)
+    del header["model"]["recognised"]
+    write_checkpoint(tmp_path / "broken.npz", GatedPredictor.kind, header, arrays)
+    with pytest.raises(CheckpointError, match=r"broken\.npz") as broken:
+        load_predictor(DEFAULT_PREDICTOR, tmp_path / "broken.npz")
+    assert not broken.value.kind_mismatch

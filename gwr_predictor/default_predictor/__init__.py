@@ -1,6 +1,6 @@
 """The default predictor: growing networks that remember movements and linear models that
-extrapolate them, each behind a confidence gate, heard per horizon step by how well it did lately,
-behind a last gate.
+extrapolate them, each behind a confidence gate (lifted where the movement is recognised), heard per
+horizon step by how well it did lately, behind a last gate.
 
 What a robot runs unless told otherwise (`make_default`; registry name `gwr_experts`). Its experts:
 
