@@ -4,7 +4,10 @@ A person who repeats a movement passes the same poses in the same order, but nev
 speed twice. The memory stores snippets: a key (the newest pose and its changes over the last few
 frames) and the `future` frames that followed it, as displacements from the key's pose. A snippet is
 stored when no stored key lies within `insert_scale` x the running motion scale of it (it grows when
-required, like the GWR; nothing is forgotten; at `capacity` it stops growing). To predict, the `k`
+required, like the GWR). At `capacity` a new snippet replaces the one recalled longest ago (stored,
+if never recalled), so a person met after hours still has their movements learned; below it nothing
+is forgotten. On real motion nearly every frame is stored (the tracker's noise keeps keys apart), so
+the default 20,000 snippets last about half an hour at 10 fps. To predict, the `k`
 nearest keys are read out at the present speed: a movement made r times as fast as a stored one
 reaches the stored step k r at our step k, with r the least-squares ratio of the present changes to
 the stored ones (clipped to [`min_ratio`, `max_ratio`]), read by linear interpolation between stored
@@ -47,7 +50,8 @@ MEMORY_SPECS = {spec.name: spec for spec in (
               1, 4 * MAX_HORIZON),
     ParamSpec("velocity_weight", 0.5, "weight of the key's changes against its pose in the distance", 0.0, 100.0),
     ParamSpec("insert_scale", 0.5, "a snippet is stored when no key is within this x the motion scale", 0.0, 1e3),
-    ParamSpec("capacity", 20000, "snippets at most (the memory stops growing there)", 1, 10**7),
+    ParamSpec("capacity", 20000, "snippets at most (there a new one replaces the one recalled longest ago)", 1,
+              10**7),
     ParamSpec("min_ratio", 0.6, "slowest speed, against a stored snippet's, read out", 0.0, 1.0, lo_open=True),
     ParamSpec("max_ratio", 1.6, "fastest speed, against a stored snippet's, read out", 1.0, 10.0),
     ParamSpec("noise_floor", 0.01, "lower bound of the motion scale (rad)", 0.0, 10.0, lo_open=True),
@@ -105,7 +109,10 @@ class TrajectoryMemory(Checkpointed):
         size = min(p.capacity, 256)
         self.keys = np.empty((size, (1 + len(LAGS)) * p.n_joints))  # pose, then its changes (unweighted)
         self.futures = np.empty((size, p.future + 1, p.n_joints))  # displacements from the key's pose, step 0..future
+        self.used = np.empty(size, dtype=np.int64)  # per snippet: the frame it was stored or last recalled at
         self.size = 0
+        self.clock = 0  # frames observed (the clock of `used`)
+        self.replaced = 0  # snippets replaced at capacity
         self._motion_ms = p.noise_floor ** 2  # running mean of ||x(t) - x(t-1)||^2
         self._recent: deque[np.ndarray] = deque(maxlen=self._span + p.future)
         self.familiarity: float | None = None
@@ -130,6 +137,7 @@ class TrajectoryMemory(Checkpointed):
             d = obs - recent[-1]
             self._motion_ms += (1.0 - p.motion_decay) * (float(d @ d) - self._motion_ms)
         recent.append(obs)
+        self.clock += 1
         if len(recent) < self._span:
             return None
         frames = np.asarray(recent)  # oldest first: the snippet to store starts it, the present window ends it
@@ -151,19 +159,24 @@ class TrajectoryMemory(Checkpointed):
 
     def _store(self, key: np.ndarray, future: np.ndarray) -> None:
         p = self.params
-        if self.size >= p.capacity:
-            return
         if self.size:
             radius = max(self.motion_rms, p.noise_floor) * p.insert_scale
             if self._distances(key).min() <= radius * radius * len(key) / p.n_joints:
                 return
-        if self.size == len(self.keys):
-            grow = min(2 * len(self.keys), p.capacity)
-            self.keys = np.resize(self.keys, (grow, self.keys.shape[1]))
-            self.futures = np.resize(self.futures, (grow, *self.futures.shape[1:]))
-        self.keys[self.size] = key
-        self.futures[self.size] = future
-        self.size += 1
+        if self.size >= p.capacity:  # full: the snippet recalled longest ago makes room
+            slot = int(np.argmin(self.used[:self.size]))
+            self.replaced += 1
+        else:
+            if self.size == len(self.keys):
+                grow = min(2 * len(self.keys), p.capacity)
+                self.keys = np.resize(self.keys, (grow, self.keys.shape[1]))
+                self.futures = np.resize(self.futures, (grow, *self.futures.shape[1:]))
+                self.used = np.resize(self.used, grow)
+            slot = self.size
+            self.size += 1
+        self.keys[slot] = key
+        self.futures[slot] = future
+        self.used[slot] = self.clock
 
     def _read(self, key: np.ndarray) -> np.ndarray:
         """(horizon, J) displacements: the k nearest snippets' futures at the present speed, weighted."""
@@ -176,6 +189,7 @@ class TrajectoryMemory(Checkpointed):
         if copies.any() and self.size - np.count_nonzero(copies) >= p.k:
             d2[copies] = np.inf  # a replayed recording is not recalled from its own copy
         nearest = np.argpartition(d2, p.k - 1)[:p.k] if self.size > p.k else np.arange(self.size)
+        self.used[nearest] = self.clock
         w = 1.0 / (d2[nearest] + 1e-6)
         w /= w.sum()
         stored = self.keys[nearest, p.n_joints:]  # (k, lags * J) changes
@@ -192,11 +206,15 @@ class TrajectoryMemory(Checkpointed):
         return np.einsum("k,khj->hj", w, read)
 
     def errors(self) -> dict[str, Any]:
-        return {"snippets": self.size, "motion_rms_rad": self.motion_rms}
+        return {"snippets": self.size, "snippets_replaced": self.replaced, "motion_rms_rad": self.motion_rms}
 
     # --- persistence: the stored snippets (as many as there are; the rest is declared above) ---------
     def _save_extra(self) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
-        return {}, {"keys": self.keys[:self.size].copy(), "futures": self.futures[:self.size].copy()}
+        arrays: dict[str, np.ndarray] = {"keys": self.keys[:self.size].copy(),
+                                         "futures": self.futures[:self.size].copy()}
+        if self.size:  # a memory saved before `used` existed has none: see `_load_extra`
+            arrays["used"] = self.used[:self.size].copy()
+        return {"clock": self.clock, "replaced": self.replaced}, arrays
 
     def _load_extra(self, header: Mapping[str, Any], arrays: Mapping[str, np.ndarray]) -> None:
         n, p = self.size, self.params
@@ -210,3 +228,11 @@ class TrajectoryMemory(Checkpointed):
         self.futures = np.resize(self.futures, (room, *self.futures.shape[1:]))
         self.keys[:n] = keys
         self.futures[:n] = futures
+        # saved before snippets were replaced at capacity: recalled in the order they were stored
+        used = np.asarray(arrays["used"]) if "used" in arrays else np.arange(n)
+        if used.shape != (n,):
+            raise CheckpointError(f"snippet use times of shape {used.shape} do not fit size {n}")
+        self.used = np.resize(self.used, room)
+        self.used[:n] = used
+        self.clock = int(header.get("clock", n))
+        self.replaced = int(header.get("replaced", 0))
