@@ -187,3 +187,23 @@ def test_the_defaults_loader_refuses_other_models_and_broken_former_layouts(tmp_
     with pytest.raises(CheckpointError, match=r"broken\.npz") as broken:
         load_predictor(DEFAULT_PREDICTOR, tmp_path / "broken.npz")
     assert not broken.value.kind_mismatch
+
+
+def test_a_copy_of_the_default_predicts_on_its_own():
+    """The evaluation copies trained models (`copy.deepcopy`): the copy's last gates must view the copy's
+    weightings, not the original's, so the two predict alike on the same frames and apart on others."""
+    import copy
+
+    x, _ = _repeated()
+    made = make_default()
+    for f in x[:100]:
+        made.step(f)
+    twin = copy.deepcopy(made)
+    for f in x[100:]:
+        np.testing.assert_array_equal(made.step(f), twin.step(f))
+    other = copy.deepcopy(made)
+    for f in x[:60][::-1]:  # the original steps on alone: the copy must not see it
+        made.step(f)
+    fresh = copy.deepcopy(other)
+    for f in x[100:130]:
+        np.testing.assert_array_equal(other.step(f), fresh.step(f))

@@ -188,7 +188,6 @@ class GWR(Persistent):
             wa[:n], wo[:n], h[:n] = self._wa[:n], self._wo[:n], self._h[:n]
             age[:n, :n] = self._age[:n, :n]
         self._wa, self._wo, self._h, self._age = wa, wo, h, age
-        self._w = wa[:, :m]  # matched weights (strided view)
         self._search = _Search(wa)
         # per-row rate/decay vectors of the block [b, neighbours...], longest possible block
         self._eps_vec = np.full(cap, self._rates[1])
@@ -198,6 +197,12 @@ class GWR(Persistent):
         self._decay_c = np.full(cap, self._decay[1][1])
         self._decay_c[0] = self._decay[0][1]
         self._block = np.empty(cap, dtype=np.intp)
+
+    @property
+    def _w(self) -> np.ndarray:
+        """The matched weights: a strided view of [w | ||w||^2], taken on each use (a stored view would
+        not follow a deep copy, which copies it apart from the array it views)."""
+        return self._wa[:, :self.match_dim]
 
     def _put(self, idx: np.ndarray | int, rows: np.ndarray) -> None:
         """Write whole weight rows (matched + carried part) and refresh their norms."""

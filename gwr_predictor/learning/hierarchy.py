@@ -25,6 +25,7 @@ sequence boundary and also drops those pending predictions. Networks are never c
 
 from __future__ import annotations
 
+import copy
 from collections import deque
 from collections.abc import Mapping
 from typing import Any, ClassVar
@@ -43,13 +44,17 @@ class _Window(Persistent):
     """Eq. 5's window in time: the last `tau` rows, newest first; `flat` (a view) is their
     concatenation o(t) = w_b(t) + w_b(t-1) + ... + w_b(t-tau+1) once `full`."""
 
-    __slots__ = ("fill", "flat", "rows")
+    __slots__ = ("fill", "rows")
     PERSIST = Persist(arrays=("rows",), values=("fill",))
 
     def __init__(self, tau: int, dim: int) -> None:
         self.rows = np.zeros((tau, dim))
-        self.flat = self.rows.reshape(-1)
         self.fill = 0
+
+    @property
+    def flat(self) -> np.ndarray:
+        """The rows as one vector: a view taken on each use (a stored view would not follow a deep copy)."""
+        return self.rows.reshape(-1)
 
     def push(self, row: np.ndarray) -> bool:
         """Shift `row` in as the newest entry; True when the window holds `tau` entries."""
@@ -306,13 +311,27 @@ class Hierarchy(_OnlinePredictor):
         self._window2 = _Window(p.tau2, p.gwr2_dim)  # of GWR2's representatives: x_in(t) = o2(t)
         self._roll1 = np.empty((p.horizon - 1 + p.tau1, p.n_joints))  # roll-out scratch (see _rollout)
         self._roll2 = np.empty((p.horizon - 1 + p.tau2, p.gwr2_dim))
-        # per start row s: the row written there and the window starting there (flattened), made once
-        # here rather than sliced in every roll-out step
+        self._roll_views = self._views_of_scratch()
+
+    def _views_of_scratch(self) -> tuple[list[np.ndarray], ...]:
+        """Per start row s of the roll-out scratch: the row written there and the window starting there
+        (flattened), made once per sequence rather than sliced in every roll-out step."""
+        p = self.params
         f1, f2 = self._roll1.reshape(-1), self._roll2.reshape(-1)
         n1, n2, d2 = p.tau1 * p.n_joints, p.tau2 * p.gwr2_dim, p.gwr2_dim
         starts = range(p.horizon - 1)
-        self._roll_views = (list(self._roll1), [f1[s * p.n_joints:s * p.n_joints + n1] for s in starts],
-                            list(self._roll2), [f2[s * d2:s * d2 + n2] for s in starts])
+        return (list(self._roll1), [f1[s * p.n_joints:s * p.n_joints + n1] for s in starts],
+                list(self._roll2), [f2[s * d2:s * d2 + n2] for s in starts])
+
+    def __deepcopy__(self, memo: dict[int, Any]) -> Hierarchy:
+        """A deep copy whose roll-out views view its own scratch (copied views would be detached from it)."""
+        new = type(self).__new__(type(self))
+        memo[id(self)] = new
+        for name, value in self.__dict__.items():
+            if name != "_roll_views":
+                new.__dict__[name] = copy.deepcopy(value, memo)
+        new._roll_views = new._views_of_scratch()
+        return new
 
     def _encode(self, xs: np.ndarray, learn: bool) -> tuple[np.ndarray, np.ndarray | None]:
         """x(t) -> GWR1 -> window 1 -> GWR2 -> window 2: (x(t) as GWR1 represents it, x_in(t) or None)."""
