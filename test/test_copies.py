@@ -1,7 +1,8 @@
 """A deep copy of a learner is an independent learner in the same state: the experiments evaluate copies
 of trained models (`research/experiments/common.clone`), so a copy must predict and learn exactly as
 the original would. Views stored beside the arrays they view broke this (a copy holds them apart):
-the paper's hierarchy's copies predicted up to 1.2 rad away from the original, frozen."""
+a copy of the paper's hierarchy that went on with the same sequence predicted up to 1.2 rad away from
+the original, frozen; copies of every GWR learner drifted while learning."""
 
 from __future__ import annotations
 
