@@ -204,18 +204,18 @@ class RecognitionSwitch(Checkpointed):
         `GatedPredictor` around a `RecognitionSwitch` (round 5) or around the gated `Experts` (before it).
         Everything it learned is kept; its last gate's record becomes the gated weighting's, and the
         ungated weighting's gate (and, before round 5, its weighting) starts fresh."""
-        inner, inner_arrays = header["model"], sub(arrays, "model")
-        if header.get("model_kind") == cls.kind:
+        inner, inner_arrays, kind = header["model"], sub(arrays, "model"), header.get("model_kind")
+        if kind == cls.kind:
             experts_header, experts_arrays = inner["experts"], sub(inner_arrays, "experts")
             params = params_from_json(RecognitionParams, inner["params"])
-        elif header.get("model_kind") == Experts.kind:
+        elif kind == Experts.kind:
             experts_header, experts_arrays, params = inner, inner_arrays, RecognitionParams()
         else:
-            raise CheckpointError(f"a gate around a {header.get('model_kind')!r}, not the default's experts")
+            raise CheckpointError(f"a gate around a {kind!r}, not the default's experts")
         gate = params_from_json(GateParams, header["params"])
         switch = cls(Experts._fresh(experts_header), params, gate)
         switch.experts._restored(experts_header, experts_arrays, "model.experts.")
-        if header.get("model_kind") == cls.kind:
+        if kind == cls.kind:
             switch.ungated._restored(inner["ungated"], sub(inner_arrays, "ungated"), "model.ungated.")
             switch.recognised = int(inner["recognised"])
         switch.gate._restored({**header, "model": {}}, {k: v for k, v in arrays.items() if not k.startswith("model.")},
