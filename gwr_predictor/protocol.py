@@ -35,9 +35,13 @@ class Learner(Predictor, Protocol):
     """A predictor that grows a model worth keeping (the registry's `learner_names()`): its neurons
     can be counted and its whole state written to a checkpoint that its loader reads back.
 
+    `horizon`: frames predicted (a loaded checkpoint's, whatever the caller asked for).
     `neuron_counts`: neurons per layer, or None where the model inside has none to count.
     `save(path)`: the whole state, atomically, to continue bit for bit.
     """
+
+    @property
+    def horizon(self) -> int: ...
 
     @property
     def neuron_counts(self) -> tuple[int, ...] | None: ...

@@ -105,7 +105,7 @@ class GwrHierarchyNode(PipelineNode):
             self.release_checkpoint()
             raise
         self.gwr = inner_model(self.model)  # the GWR learner (behind the gate, if any)
-        self.horizon = int(getattr(self.model, "horizon", None) or self.model.params.horizon)
+        self.horizon = self.model.horizon
         self.gate = self.arm_gate("arm_angles")
         self.step_times: list[float] = []
         self.step_max = 0.0

@@ -284,6 +284,22 @@ def test_blend_with_unsaveable_members_refuses_to_save(tmp_path):
     assert not (tmp_path / "x.npz").exists()
 
 
+@pytest.mark.parametrize("name", ["hierarchy", "gated_llm_gwr", "gwr_experts"])
+def test_every_learner_says_its_horizon_and_keeps_it_through_a_checkpoint(name, tmp_path):
+    """The learner node publishes as many steps as the model predicts, which a loaded checkpoint decides."""
+    from gwr_predictor.predictors.registry import learner_names, load_predictor, make_predictor
+    from gwr_predictor.protocol import Learner
+
+    assert name in learner_names()
+    model = make_predictor(name, {"horizon": 4, "n_joints": 8})
+    assert isinstance(model, Learner) and model.horizon == 4
+    for x in np.random.default_rng(0).normal(0.0, 0.1, (30, 8)):
+        out = model.step(x)
+    assert out.shape == (4, 8)
+    model.save(tmp_path / "m.npz")
+    assert load_predictor(name, tmp_path / "m.npz").horizon == 4
+
+
 def test_make_predictor_names_the_hierarchy_and_both_blends():
     from gwr_predictor.learning.hierarchy import FlatPredictor, Hierarchy
     from gwr_predictor.predictors.registry import UnknownPredictorError, learner_names, make_predictor, names

@@ -259,6 +259,11 @@ class GatedPredictor(Checkpointed):
 
     # --- introspection ------------------------------------------------------------------------------
     @property
+    def horizon(self) -> int:
+        """Frames predicted (the gate gates as many steps as its model predicts)."""
+        return self.params.horizon
+
+    @property
     def neuron_counts(self) -> tuple[int, ...] | None:
         counts = getattr(self.model, "neuron_counts", None)
         return None if counts is None else tuple(counts)

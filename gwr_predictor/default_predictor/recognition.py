@@ -165,7 +165,7 @@ class RecognitionSwitch(Checkpointed):
     # --- introspection: the gated experts speak for the learner -------------------------------------
     @property
     def horizon(self) -> int:
-        """Frames predicted (the learner node reads a model's horizon here, or from its parameters)."""
+        """Frames predicted."""
         return self.experts.params.horizon
 
     @property

@@ -259,6 +259,10 @@ class _OnlinePredictor(OnlineLoop, Checkpointed):
         self._errors.forget_pending()
 
     @property
+    def horizon(self) -> int:
+        return self.params.horizon
+
+    @property
     def neuron_counts(self) -> tuple[int, ...]:
         """Neurons per layer, in `layer_names` order."""
         return tuple(getattr(self, n).n_neurons for n in self.layer_names)
