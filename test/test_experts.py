@@ -60,7 +60,8 @@ def test_a_replayed_recording_is_not_recalled_from_its_own_copy():
     copied = []
     for t, f in enumerate(x[:-6]):
         out = memory.step(f, learn=False)
-        if out is not None and t >= 4 and memory._distances(memory._key(x[t - 4:t + 1])).min() == 0.0:
+        lag = memory.params.longest_lag
+        if out is not None and t >= lag and memory._distances(memory._key(x[t - lag:t + 1])).min() == 0.0:
             copied.append(np.abs(out[-1] - x[t + 6]).max())
     assert len(copied) > 5
     assert np.median(copied) > 1e-3  # recalled from the copy: below 1e-5
@@ -141,6 +142,28 @@ def test_a_full_memory_continues_bit_for_bit_from_its_checkpoint(tmp_path):
     old = TrajectoryMemory.load(tmp_path / "former.npz")
     np.testing.assert_array_equal(old.used[:old.size], np.arange(old.size))
     assert old.replaced == 0 and old.step(x[0]) is not None
+
+
+def test_a_memory_saved_before_its_lags_were_a_setting_loads_with_its_own_lags(tmp_path):
+    """Before round 7 the key held the changes over 1, 2 and 4 frames and the saved parameters did not say
+    so: such a file loads with `longest_lag` 4 and continues bit for bit, whatever the default now is."""
+    from gwr_predictor.learning.checkpoint import read_checkpoint, write_checkpoint
+
+    assert MemoryParams().longest_lag != 4 and MemoryParams().lags == (1, 2, 4, 8)
+    x = _movement(1.0, 80) + np.random.default_rng(2).normal(scale=0.01, size=(80, 8))
+    memory = TrajectoryMemory(MemoryParams(longest_lag=4))
+    for f in x[:50]:
+        memory.step(f)
+    memory.save(tmp_path / "m.npz")
+    header, arrays = read_checkpoint(tmp_path / "m.npz", TrajectoryMemory.kind)
+    header["params"] = {k: v for k, v in header["params"].items() if k != "longest_lag"}
+    write_checkpoint(tmp_path / "former.npz", TrajectoryMemory.kind, header, arrays)
+    old = TrajectoryMemory.load(tmp_path / "former.npz")
+    assert old.params.longest_lag == 4
+    for f in x[50:]:
+        np.testing.assert_array_equal(memory.step(f), old.step(f))
+    with pytest.raises(DefaultPredictorError, match="longest_lag 6 is not a power of two"):
+        MemoryParams(longest_lag=6)
 
 
 def test_the_memory_never_reads_the_future():

@@ -1,19 +1,20 @@
 """A growing memory of movement snippets, read out by the nearest ones at the present speed.
 
-A person who repeats a movement passes the same poses in the same order, but never at the same
-speed twice. The memory stores snippets: a key (the newest pose and its changes over the last few
-frames) and the `future` frames that followed it, as displacements from the key's pose. A snippet is
-stored when no stored key lies within `insert_scale` x the running motion scale of it (it grows when
-required, like the GWR). At `capacity` a new snippet replaces the one recalled longest ago (stored,
-if never recalled), so a person met after hours still has their movements learned; below it nothing
-is forgotten. On real motion nearly every frame is stored (the tracker's noise keeps keys apart), so
-the default 20,000 snippets last about half an hour at 10 fps. To predict, the `k`
-nearest keys are read out at the present speed: a movement made r times as fast as a stored one
-reaches the stored step k r at our step k, with r the least-squares ratio of the present changes to
-the stored ones (clipped to [`min_ratio`, `max_ratio`]), read by linear interpolation between stored
-frames. The neighbours are weighted by inverse squared distance. A stored key identical to the present
-one is skipped: a person never repeats a pose to the bit, so it is the same recording replayed (a
-training epoch), and recalling it would score the memory as perfect on data it has only copied.
+A person who repeats a movement passes the same poses in the same order, but never at the same speed
+twice. The memory stores snippets: a key (the newest pose and its changes over the last 1, 2, 4 and
+8 frames: `longest_lag`) and the `future` frames that followed it, as displacements from the key's
+pose. A snippet is stored when no stored key lies within `insert_scale` x the running motion scale
+of it (it grows when required, like the GWR). At `capacity` a new snippet replaces the one recalled
+longest ago (stored, if never recalled), so a person met after hours still has their movements
+learned; below it nothing is forgotten. On real motion nearly every frame is stored (the tracker's
+noise keeps keys apart), so the default 20,000 snippets last about half an hour at 10 fps. To
+predict, the `k` nearest keys are read out at the present speed: a movement made r times as fast as
+a stored one reaches the stored step k r at our step k, with r the least-squares ratio of the
+present changes to the stored ones (clipped to [`min_ratio`, `max_ratio`]), read by linear
+interpolation between stored frames. The neighbours are weighted by inverse squared distance. A
+stored key identical to the present one is skipped: a person never repeats a pose to the bit, so it
+is the same recording replayed (a training epoch), and recalling it would score the memory as
+perfect on data it has only copied.
 
 `familiarity` says how well the memory knows the present motion: the distance to the nearest stored
 key (copies aside), per coordinate, in units of the motion scale (None where it did not read out).
@@ -33,12 +34,12 @@ import numpy as np
 from gwr_predictor.default_predictor.params import DefaultPredictorError
 from gwr_predictor.learning.checkpoint import CheckpointError
 from gwr_predictor.learning.params import DEFAULT_HORIZON, MAX_HORIZON
-from gwr_predictor.learning.persistence import Checkpointed, Persist
+from gwr_predictor.learning.persistence import Checkpointed, Persist, params_from_json
 from gwr_predictor.parameter_spec import ParamSpec, check_fields
 from gwr_predictor.predictors.baselines import observation
 
-#: Frames back whose changes the key holds: the newest pose minus the pose 1, 2 and 4 frames before.
-LAGS = (1, 2, 4)
+#: `longest_lag` of a memory saved before it was a setting (its key held the changes over 1, 2 and 4 frames).
+SAVED_LONGEST_LAG = 4
 #: A key this close (squared, rad^2) to the present one is a copy of it: the same recording replayed.
 EXACT = 1e-12
 
@@ -48,6 +49,8 @@ MEMORY_SPECS = {spec.name: spec for spec in (
     ParamSpec("k", 3, "nearest snippets read out", 1, 64),
     ParamSpec("future", 12, "frames stored after each key (>= horizon x max_ratio to read the fastest motion)",
               1, 4 * MAX_HORIZON),
+    ParamSpec("longest_lag", 8, "the key holds the pose's changes over 1, 2, 4, ... frames up to this (a power of "
+              "two)", 1, 64),
     ParamSpec("velocity_weight", 0.5, "weight of the key's changes against its pose in the distance", 0.0, 100.0),
     ParamSpec("insert_scale", 0.5, "a snippet is stored when no key is within this x the motion scale", 0.0, 1e3),
     ParamSpec("capacity", 20000, "snippets at most (there a new one replaces the one recalled longest ago)", 1,
@@ -68,6 +71,7 @@ class MemoryParams:
     n_joints: int = MEMORY_SPECS["n_joints"].default
     k: int = MEMORY_SPECS["k"].default
     future: int = MEMORY_SPECS["future"].default
+    longest_lag: int = MEMORY_SPECS["longest_lag"].default
     velocity_weight: float = MEMORY_SPECS["velocity_weight"].default
     insert_scale: float = MEMORY_SPECS["insert_scale"].default
     capacity: int = MEMORY_SPECS["capacity"].default
@@ -81,11 +85,18 @@ class MemoryParams:
         if self.future < self.horizon:
             raise DefaultPredictorError(f"MemoryParams.future {self.future} is shorter than the horizon "
                                         f"{self.horizon}")
+        if self.longest_lag & (self.longest_lag - 1):
+            raise DefaultPredictorError(f"MemoryParams.longest_lag {self.longest_lag} is not a power of two")
         if self.capacity < self.k:
             raise DefaultPredictorError(f"MemoryParams.capacity {self.capacity} is below k {self.k}")
 
     def replace(self, **changes: Any) -> MemoryParams:
         return dataclasses.replace(self, **changes)
+
+    @property
+    def lags(self) -> tuple[int, ...]:
+        """Frames back whose changes the key holds: 1, 2, 4, ... `longest_lag`."""
+        return tuple(2 ** i for i in range(self.longest_lag.bit_length()))
 
     def to_dict(self) -> dict[str, Any]:
         return dataclasses.asdict(self)
@@ -102,12 +113,12 @@ class TrajectoryMemory(Checkpointed):
 
     def __init__(self, params: MemoryParams | None = None) -> None:
         self.params = p = params or MemoryParams()
-        self._lags = np.asarray(LAGS)
-        self._span = max(LAGS) + 1
-        self._key_weights = np.concatenate([np.ones(p.n_joints), np.full(len(LAGS) * p.n_joints, p.velocity_weight)])
+        self._lags = np.asarray(p.lags)
+        self._span = p.longest_lag + 1
+        self._key_weights = np.concatenate([np.ones(p.n_joints), np.full(len(p.lags) * p.n_joints, p.velocity_weight)])
         self._grid = np.arange(1, p.horizon + 1, dtype=float)
         size = min(p.capacity, 256)
-        self.keys = np.empty((size, (1 + len(LAGS)) * p.n_joints))  # pose, then its changes (unweighted)
+        self.keys = np.empty((size, (1 + len(p.lags)) * p.n_joints))  # pose, then its changes (unweighted)
         self.futures = np.empty((size, p.future + 1, p.n_joints))  # displacements from the key's pose, step 0..future
         self.used = np.empty(size, dtype=np.int64)  # per snippet: the frame it was stored or last recalled at
         self.size = 0
@@ -207,6 +218,11 @@ class TrajectoryMemory(Checkpointed):
 
     def errors(self) -> dict[str, Any]:
         return {"snippets": self.size, "snippets_replaced": self.replaced, "motion_rms_rad": self.motion_rms}
+
+    @classmethod
+    def _fresh(cls, header: Mapping[str, Any]) -> TrajectoryMemory:
+        saved = {"longest_lag": SAVED_LONGEST_LAG, **header["params"]}  # older files keyed on lags up to 4
+        return cls(params_from_json(MemoryParams, saved))
 
     # --- persistence: the stored snippets (as many as there are; the rest is declared above) ---------
     def _save_extra(self) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
