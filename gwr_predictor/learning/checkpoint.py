@@ -240,9 +240,10 @@ def remove_stale_temp_files(path: str | os.PathLike[str]) -> list[Path]:
     return removed
 
 
-def read_checkpoint(path: str | os.PathLike[str], kind: str,
+def read_checkpoint(path: str | os.PathLike[str], kind: str | tuple[str, ...],
                     required: Iterable[str] = ()) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
-    """(header, arrays) of a checkpoint of `kind`; every name in `required` must be present."""
+    """(header, arrays) of a checkpoint of `kind` (or of any of several: the header says which); every
+    name in `required` must be present."""
     path = Path(path)
     if not path.is_file():
         raise CheckpointError(f"{path}: no such checkpoint file", source=path)
@@ -262,10 +263,11 @@ def read_checkpoint(path: str | os.PathLike[str], kind: str,
                 "what changed)") if isinstance(version, int) and version < FORMAT_VERSION else ""
         raise CheckpointError(f"{path}: format_version {version!r} is not supported (this build reads "
                               f"{FORMAT_VERSION}){hint}", source=path)
-    if header.get("kind") != kind:
+    kinds = (kind,) if isinstance(kind, str) else kind
+    if header.get("kind") not in kinds:
         found = header.get("kind")
-        raise CheckpointError(f"{path}: holds a {found!r}, expected a {kind!r}", source=path, found=found,
-                              expected=kind)
+        raise CheckpointError(f"{path}: holds a {found!r}, expected a {' or '.join(map(repr, kinds))}", source=path,
+                              found=found, expected=kinds[0])
     require_arrays(required, arrays, path)
     return header, arrays
 

@@ -235,12 +235,9 @@ def _load_default(path: str | os.PathLike[str]) -> Predictor:
     from gwr_predictor.default_predictor.recognition import RecognitionSwitch
     from gwr_predictor.learning.checkpoint import CheckpointError, read_checkpoint
 
-    try:
-        return RecognitionSwitch.load(path)
-    except CheckpointError as exc:
-        if exc.found != GatedPredictor.kind:
-            raise
-    header, arrays = read_checkpoint(path, GatedPredictor.kind)
+    header, arrays = read_checkpoint(path, (RecognitionSwitch.kind, GatedPredictor.kind))
+    if header["kind"] == RecognitionSwitch.kind:
+        return RecognitionSwitch.from_state(header, arrays, path)
     if header.get("model_kind") not in (RecognitionSwitch.kind, "Experts"):
         raise CheckpointError(f"{path}: holds a gate around a {header.get('model_kind')!r}, expected the default's "
                               "experts", source=path, found=header.get("model_kind"), expected=RecognitionSwitch.kind)
