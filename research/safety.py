@@ -22,7 +22,7 @@ from gwr_predictor.predictors.baselines import HoldLast, observation
 #: Rounds 3 and 4 came before round 5: no recognition switch, the last gate's ~100-frame memory capped
 #: by its 1-step record, its bound one standard error.
 BEFORE_ROUND5 = {"recognition.radius": 0.0, "gate.decay": 0.99, "gate.fast_step": 1, "gate.confidence": 1.0,
-                 "memory.longest_lag": 4}
+                 "memory.longest_lag": 4, "network.order": 4}
 #: The network's settings `experiment tune` chose for the gated network, which every round-4 variant
 #: used (the default's own network keeps rate 0.1 and recruit_surprise 9: `settings.EXPERT_NETWORK`).
 TUNED_NETWORK = {"network.rate": 0.2, "network.recruit_surprise": 6.0, **BEFORE_ROUND5}

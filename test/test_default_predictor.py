@@ -416,12 +416,11 @@ def _data_loss(name: str) -> tuple[dict, dict]:
 @each_default
 def test_data_loss_does_not_hurt_what_is_learned(name):
     """30 % of the training frames lost in 1 s chunks: the error on complete unseen repetitions stays
-    within 15 % of the loss-free one. Measured: gated_llm_gwr 0.96 x; gwr_experts 1.11 x since its last
-    gates judge each weighting on its own frames (0.0360 -> 0.0401 rad^2; with one last gate 0.0431 ->
-    0.0411: loss-free it gained 16 %, with the loss 2 %; docs/history.md). The full `experiment dataloss`
-    stays flat: 0.0408 -> 0.0392."""
+    within 10 % of the loss-free one. Measured: gated_llm_gwr 0.96 x; gwr_experts 1.02 x (0.0390 -> 0.0398
+    rad^2; round 7's default 1.02 x as well, round 6's, with the 5-frame memory key, 1.11 x). The full
+    `experiment dataloss` stays flat: 0.0412 -> 0.0382."""
     clean, lossy = _data_loss(name)
-    assert lossy[name]["mse"][-1] <= 1.15 * clean[name]["mse"][-1]
+    assert lossy[name]["mse"][-1] <= 1.10 * clean[name]["mse"][-1]
 
 
 @each_default
