@@ -19,10 +19,17 @@ from gwr_predictor.default_predictor import Experts, GatedPredictor, GateParams,
 from gwr_predictor.pending import PendingPredictions
 from gwr_predictor.predictors.baselines import HoldLast, observation
 
+#: Each round's default in today's terms: what it set, then every later round's change undone.
+#: Round 7's default: the network's regressor over 4 frames (round 8: 6).
+R7 = {"network.order": 4}
+#: Round 6's default: also the memory's key over the changes of 1, 2 and 4 frames (round 7 added 8).
+R6 = {"memory.longest_lag": 4, **R7}
+#: Round 5's default: also one last gate over whichever weighting is returned, its bound one standard
+#: error (the `D:` names of round 5 were measured with these).
+R5 = {"recognition.separate_gates": False, "gate.confidence": 1.0, **R6}
 #: Rounds 3 and 4 came before round 5: no recognition switch, the last gate's ~100-frame memory capped
 #: by its 1-step record, its bound one standard error.
-BEFORE_ROUND5 = {"recognition.radius": 0.0, "gate.decay": 0.99, "gate.fast_step": 1, "gate.confidence": 1.0,
-                 "memory.longest_lag": 4, "network.order": 4}
+BEFORE_ROUND5 = {"recognition.radius": 0.0, "gate.decay": 0.99, "gate.fast_step": 1, "gate.confidence": 1.0, **R6}
 #: The network's settings `experiment tune` chose for the gated network, which every round-4 variant
 #: used (the default's own network keeps rate 0.1 and recruit_surprise 9: `settings.EXPERT_NETWORK`).
 TUNED_NETWORK = {"network.rate": 0.2, "network.recruit_surprise": 6.0, **BEFORE_ROUND5}

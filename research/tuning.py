@@ -312,15 +312,10 @@ Factory = Callable[[Any, int], Any]
 #: to the tuning recordings (the memory's copy rule came later: its figures on the jump streams differ).
 ROUND3 = {**R3, "network.rate": 0.1, "network.recruit_surprise": 9.0}
 LIN3 = ("llm", "linear", "rls")
+#: Rounds 5, 6 and 7's defaults in today's terms: `research.safety`.
+R5, R6, R7 = safety.R5, safety.R6, safety.R7
 #: Round 5's steps before the last gate's memory was shortened (0.99): the radius sweep with the ungated
 #: weighting's record at the weighting's decay (`R5A`), then the decay sweep at radius 3 (`R5B`).
-#: Round 5's default in round 6's terms: one last gate over whichever weighting is returned, its bound one
-#: standard error (the `D:` names of round 5 were measured with these).
-R5 = {"recognition.separate_gates": False, "gate.confidence": 1.0, "memory.longest_lag": 4, "network.order": 4}
-#: Round 6's default in round 7's terms: the memory's key over the changes of 1, 2 and 4 frames.
-R6 = {"memory.longest_lag": 4, "network.order": 4}
-#: Round 7's default in round 8's terms: the network's regressor over 4 frames.
-R7 = {"network.order": 4}
 R5A = {"gate.decay": 0.99, "gate.fast_step": 1, "recognition.decay": 0.995, **R5}
 R5B = {"gate.decay": 0.99, "gate.fast_step": 1, **R5}
 
