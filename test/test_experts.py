@@ -58,9 +58,9 @@ def test_a_replayed_recording_is_not_recalled_from_its_own_copy():
         memory.step(f)
     memory.reset_sequence()
     copied = []
+    lag = memory.params.longest_lag
     for t, f in enumerate(x[:-6]):
         out = memory.step(f, learn=False)
-        lag = memory.params.longest_lag
         if out is not None and t >= lag and memory._distances(memory._key(x[t - lag:t + 1])).min() == 0.0:
             copied.append(np.abs(out[-1] - x[t + 6]).max())
     assert len(copied) > 5

@@ -115,10 +115,11 @@ class TrajectoryMemory(Checkpointed):
         self.params = p = params or MemoryParams()
         self._lags = np.asarray(p.lags)
         self._span = p.longest_lag + 1
-        self._key_weights = np.concatenate([np.ones(p.n_joints), np.full(len(p.lags) * p.n_joints, p.velocity_weight)])
+        self._key_weights = np.concatenate([np.ones(p.n_joints),
+                                            np.full(len(self._lags) * p.n_joints, p.velocity_weight)])
         self._grid = np.arange(1, p.horizon + 1, dtype=float)
         size = min(p.capacity, 256)
-        self.keys = np.empty((size, (1 + len(p.lags)) * p.n_joints))  # pose, then its changes (unweighted)
+        self.keys = np.empty((size, len(self._key_weights)))  # pose, then its changes (unweighted)
         self.futures = np.empty((size, p.future + 1, p.n_joints))  # displacements from the key's pose, step 0..future
         self.used = np.empty(size, dtype=np.int64)  # per snippet: the frame it was stored or last recalled at
         self.size = 0
