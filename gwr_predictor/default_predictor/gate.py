@@ -138,6 +138,9 @@ class GatedPredictor(Checkpointed):
         # per prediction: [newest pose at prediction time, model step k - that pose], filed by target step
         self._pending = PendingPredictions(p.horizon, p.joints, lead=(2,))
         self._t = 0  # steps seen, observed or not: the clock of the pending predictions
+        #: per step k, a share of step 1's alpha that step k's is raised to (None: each step its own), set
+        #: by an owner that knows step k's record cannot yet hold the present motion (`RecognitionSwitch`)
+        self.borrow: np.ndarray | None = None
         self._clear_sequence()
 
     def _clear_sequence(self) -> None:
@@ -255,7 +258,10 @@ class GatedPredictor(Checkpointed):
         out = np.minimum(cap[0], cap[1]) if len(cap) == 2 else cap.min(axis=0)
         np.minimum(out, a[0], out=out)
         np.minimum(out, 1.0, out=out)
-        return np.maximum(out, 0.0, out=out)
+        np.maximum(out, 0.0, out=out)
+        if self.borrow is not None:
+            np.maximum(out, np.minimum(self.borrow[:, None] * out[0], 1.0), out=out)
+        return out
 
     # --- introspection ------------------------------------------------------------------------------
     @property

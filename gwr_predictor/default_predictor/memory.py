@@ -17,7 +17,9 @@ is the same recording replayed (a training epoch), and recalling it would score 
 perfect on data it has only copied.
 
 `familiarity` says how well the memory knows the present motion: the distance to the nearest stored
-key (copies aside), per coordinate, in units of the motion scale (None where it did not read out).
+key (copies aside), per coordinate, in units of the motion scale (None where it did not read out);
+`travel` how far the pose has moved over the last `longest_lag` frames, in units of the motion scale
+(near 0 while a person pauses, however well the pose is known).
 """
 
 from __future__ import annotations
@@ -128,10 +130,11 @@ class TrajectoryMemory(Checkpointed):
         self._motion_ms = p.noise_floor ** 2  # running mean of ||x(t) - x(t-1)||^2
         self._recent: deque[np.ndarray] = deque(maxlen=self._span + p.future)
         self.familiarity: float | None = None
+        self.travel: float | None = None
 
     def reset_sequence(self) -> None:
         self._recent.clear()
-        self.familiarity = None
+        self.familiarity = self.travel = None
 
     @property
     def motion_rms(self) -> float:
@@ -141,7 +144,7 @@ class TrajectoryMemory(Checkpointed):
         p = self.params
         obs = observation(x, p.n_joints)
         recent = self._recent
-        self.familiarity = None
+        self.familiarity = self.travel = None
         if obs is None:
             recent.clear()
             return None
@@ -198,6 +201,7 @@ class TrajectoryMemory(Checkpointed):
         others = d2[~copies]
         scale = max(self.motion_rms, p.noise_floor)
         self.familiarity = math.sqrt(float(others.min()) * p.n_joints / len(key)) / scale if others.size else math.inf
+        self.travel = float(np.linalg.norm(key[-p.n_joints:])) / scale  # the key's change over the longest lag
         if copies.any() and self.size - np.count_nonzero(copies) >= p.k:
             d2[copies] = np.inf  # a replayed recording is not recalled from its own copy
         nearest = np.argpartition(d2, p.k - 1)[:p.k] if self.size > p.k else np.arange(self.size)

@@ -19,6 +19,14 @@ where the motion is new, the ungated one where it is recognised. One gate over b
 other's record: on the second performance of a movement, the ungated weighting was held back by the
 first performance's record of the gated one, which had mostly held the pose (`separate_gates` false:
 that single gate, the default before round 6 of `research/tuning.py`).
+
+A k-step prediction is scored k frames after it is made, so at the onset of a recognised movement the
+ungated weighting's gate judges step k by what came before: often a pause in the start pose, where
+the weighting predicted the movement to begin and it did not. With `onset_trust`, outside a
+recognised movement (the pose has travelled `onset_travel` x the motion scale over the memory's
+longest lag) and over its first k frames, step k is trusted at least `onset_trust` x step 1, whose
+scores arrive a frame after they are made; from then on each step by its own record (off by default:
+`research/tuning.py` round 9).
 """
 
 from __future__ import annotations
@@ -45,6 +53,10 @@ RECOGNITION_SPECS = {spec.name: spec for spec in (
               "motion scale per coordinate (0: never; the gated experts always)", 0.0, 1e3),
     ParamSpec("decay", 0.98, "forgetting of the ungated weighting's running squared errors per scored frame", 0.0, 1.0,
               lo_open=True, hi_open=True),
+    ParamSpec("onset_trust", 0.0, "outside a recognised movement and over its first k frames, the ungated "
+              "weighting's step k is trusted at least this x its step 1 (0: each step by its own record)", 0.0, 1.0),
+    ParamSpec("onset_travel", 2.0, "a recognised frame belongs to a movement when the pose has travelled at least "
+              "this x the motion scale over the memory's longest lag", 0.0, 1e3),
     ParamSpec("separate_gates", True, "each weighting behind its own last gate, judged on the frames it is returned "
               "on (false: one last gate over whichever is returned)"),
 )}
@@ -56,10 +68,15 @@ class RecognitionParams:
 
     radius: float = RECOGNITION_SPECS["radius"].default
     decay: float = RECOGNITION_SPECS["decay"].default
+    onset_trust: float = RECOGNITION_SPECS["onset_trust"].default
+    onset_travel: float = RECOGNITION_SPECS["onset_travel"].default
     separate_gates: bool = RECOGNITION_SPECS["separate_gates"].default
 
     def __post_init__(self) -> None:
         check_fields(self, RECOGNITION_SPECS.values(), DefaultPredictorError)
+        if self.onset_trust and not self.separate_gates:
+            raise DefaultPredictorError("RecognitionParams.onset_trust needs separate_gates (the ungated "
+                                        "weighting's own last gate)")
 
     def to_dict(self) -> dict[str, Any]:
         return dataclasses.asdict(self)
@@ -117,6 +134,7 @@ class RecognitionSwitch(Checkpointed):
         self.ungated = Experts({n: View(m.ungated) for n, m in experts.members.items()},
                                dataclasses.replace(experts.params, decay=p.decay))
         self.recognised = 0  # frames on which the ungated prediction was returned
+        self.onset = 0  # frames of the present recognised movement (with `onset_trust`)
         self._outputs: tuple[np.ndarray | None, np.ndarray | None] = (None, None)  # this step's weightings
         self._recognises = False  # whether this step returns the ungated weighting
         gate = gate or GateParams(horizon=experts.params.horizon, joints=experts.params.n_joints)
@@ -140,6 +158,7 @@ class RecognitionSwitch(Checkpointed):
     def reset_sequence(self) -> None:
         self.experts.reset_sequence()
         self.ungated.reset_sequence()
+        self.onset = 0
         for gate in self.gates:
             gate.reset_sequence()
 
@@ -154,8 +173,19 @@ class RecognitionSwitch(Checkpointed):
         self._outputs = (gated, ungated)
         self._recognises = gated is not None and ungated is not None and self.recognises()
         self.recognised += self._recognises
+        if self.params.onset_trust and self.ungated_gate is not None:
+            self._borrow(self.ungated_gate)
         outs = [gate.step(x, learn) for gate in self.gates]  # every gate scores what it is owed
         return outs[-1] if self._recognises else outs[0]
+
+    def _borrow(self, gate: GatedPredictor) -> None:
+        """Count the frames of the present recognised movement; the steps none of whose predictions made in
+        it has been scored yet (every step, outside a movement) borrow step 1's trust."""
+        travel = self.experts.members[MEMORY].model.travel
+        moving = self._recognises and travel is not None and travel >= self.params.onset_travel
+        self.onset = self.onset + 1 if moving else 0
+        young = self.onset <= np.arange(1, gate.params.horizon + 1)
+        gate.borrow = young * self.params.onset_trust if young.any() else None
 
     def recognises(self) -> bool:
         """Whether the memory knew the motion at the last step."""
@@ -189,6 +219,12 @@ class RecognitionSwitch(Checkpointed):
         return out
 
     # --- persistence ----------------------------------------------------------------------------------
+    def _save_extra(self) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
+        return {"onset": self.onset}, {}
+
+    def _load_extra(self, header: Mapping[str, Any], arrays: Mapping[str, np.ndarray]) -> None:
+        self.onset = int(header.get("onset", 0))  # saved before `onset_trust` existed: none
+
     @classmethod
     def _fresh(cls, header: Mapping[str, Any]) -> RecognitionSwitch:
         experts, gate = header.get("experts"), header.get("gate")
