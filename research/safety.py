@@ -20,8 +20,11 @@ from gwr_predictor.pending import PendingPredictions
 from gwr_predictor.predictors.baselines import HoldLast, observation
 
 #: Each round's default in today's terms: what it set, then every later round's change undone.
-#: Round 7's default: the network's regressor over 4 frames (round 8: 6).
-R7 = {"network.order": 4}
+#: Round 8's default: no trust lent to the ungated weighting's longer steps at a movement's onset (round 9:
+#: 0.75 of step 1's).
+R8 = {"recognition.onset_trust": 0.0}
+#: Round 7's default: also the network's regressor over 4 frames (round 8: 6).
+R7 = {"network.order": 4, **R8}
 #: Round 6's default: also the memory's key over the changes of 1, 2 and 4 frames (round 7 added 8).
 R6 = {"memory.longest_lag": 4, **R7}
 #: Round 5's default: also one last gate over whichever weighting is returned, its bound one standard

@@ -18,6 +18,8 @@ from gwr_predictor.learning.checkpoint import read_checkpoint, write_checkpoint
 from gwr_predictor.predictors.registry import DEFAULT_PREDICTOR, load_predictor
 
 NOISE = 0.002  # rad: a person never repeats a pose to the bit
+#: One last gate over both weightings (before round 6), which has no ungated weighting's gate to lend to.
+ONE_GATE = {"recognition.separate_gates": False, "recognition.onset_trust": 0.0}
 
 
 def _performance(speed: float, n: int = 45) -> np.ndarray:
@@ -104,8 +106,8 @@ def test_each_weighting_is_judged_by_its_own_record():
     x, index = _repeated()
     second = index == 1
     one = {"gate.confidence": 1.0}
-    separate = _abs_errors_600(make_default(settings=one), x)
-    single = _abs_errors_600(make_default(settings={**one, "recognition.separate_gates": False}), x)
+    separate = _abs_errors_600(make_default(settings={**one, "recognition.onset_trust": 0.0}), x)
+    single = _abs_errors_600(make_default(settings={**one, **ONE_GATE}), x)
     assert np.nanmean(separate[second]) < 0.95 * np.nanmean(single[second])
     first = index == 0  # nothing recognised yet: the gated weighting's gate alone, the same either way
     np.testing.assert_array_equal(separate[first], single[first])
@@ -114,7 +116,8 @@ def test_each_weighting_is_judged_by_its_own_record():
 def _former_layout(made, path) -> None:
     """Write `made` (one last gate) as round 5 saved the default: a gate around the switch."""
     header, arrays = made.state()
-    inner = {"params": {k: v for k, v in header["params"].items() if k != "separate_gates"},
+    former_keys = ("separate_gates", "onset_trust", "onset_travel")
+    inner = {"params": {k: v for k, v in header["params"].items() if k not in former_keys},
              "recognised": header["recognised"], "experts": header["experts"], "ungated": header["ungated"]}
     former = {**header["gate"], "model_kind": RecognitionSwitch.kind, "model": inner}
     own = {k[len("gate."):]: v for k, v in arrays.items() if k.startswith("gate.")}
@@ -127,7 +130,7 @@ def test_a_default_saved_with_one_last_gate_loads_with_what_it_learned(tmp_path)
     experts, the ungated weighting and the count kept, the last gate's record the gated weighting's, the
     ungated weighting's gate fresh."""
     x, _ = _repeated()
-    made = make_default(settings={"recognition.separate_gates": False})
+    made = make_default(settings=ONE_GATE)
     for f in x[:120]:
         made.step(f)
     _former_layout(made, tmp_path / "round5.npz")
@@ -178,7 +181,7 @@ def test_the_defaults_loader_refuses_other_models_and_broken_former_layouts(tmp_
         with pytest.raises(CheckpointError) as refused:
             load_predictor(DEFAULT_PREDICTOR, tmp_path / name)
         assert refused.value.kind_mismatch and refused.value.found == found
-    made = make_default(settings={"recognition.separate_gates": False})
+    made = make_default(settings=ONE_GATE)
     for f in _repeated()[0][:30]:
         made.step(f)
     _former_layout(made, tmp_path / "round5.npz")
@@ -224,10 +227,11 @@ def _paused(pause: int = 12, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
 def test_onset_trust_anticipates_a_recognised_movement_after_a_pause():
     """In the pause the ungated weighting predicts the reach to begin and it does not, so step 6's record
     is against it when the reach comes; step 1's record follows the reach a frame later. Borrowing it
-    over the onset anticipates the second performance (measured: 0.062 rad against 0.067)."""
+    over the onset anticipates the second performance (measured, all of step 1's trust: 0.062 rad against
+    0.067 lending none)."""
     x, index = _paused()
     borrowed = _abs_errors_600(make_default(settings={"recognition.onset_trust": 1.0}), x)
-    own = _abs_errors_600(make_default(), x)
+    own = _abs_errors_600(make_default(settings={"recognition.onset_trust": 0.0}), x)
     second = index == 1
     assert np.nanmean(borrowed[second]) < 0.95 * np.nanmean(own[second])
     first = index == 0  # nothing recognised yet: the gated weighting, the same either way
@@ -249,9 +253,12 @@ def test_onset_trust_lends_step_1_only_before_a_step_has_scores_of_the_movement(
     np.testing.assert_array_equal(lent[0], np.full(6, 0.5))
     np.testing.assert_array_equal(lent[3], [0.0, 0.0, 0.5, 0.5, 0.5, 0.5])
     assert max(lent) > 6 and lent[7] is None
-    assert make_default().ungated_gate.borrow is None
-    with pytest.raises(DefaultPredictorError, match="separate_gates"):
-        make_default(settings={"recognition.onset_trust": 0.5, "recognition.separate_gates": False})
+    off = make_default(settings={"recognition.onset_trust": 0.0})
+    for f in x:
+        off.step(f)
+        assert off.ungated_gate.borrow is None
+    with pytest.raises(DefaultPredictorError, match="separate_gates false, set onset_trust 0"):
+        make_default(settings={"recognition.separate_gates": False})
 
 
 def test_the_onset_count_survives_a_checkpoint_and_older_files_load_without_it(tmp_path):
@@ -264,6 +271,8 @@ def test_the_onset_count_survives_a_checkpoint_and_older_files_load_without_it(t
     for f in x[cut + 1:]:
         np.testing.assert_array_equal(loaded.step(f), made.step(f))
     header, arrays = read_checkpoint(tmp_path / "now.npz", RecognitionSwitch.kind)
-    del header["onset"]
+    del header["onset"], header["params"]["onset_trust"], header["params"]["onset_travel"]
     write_checkpoint(tmp_path / "older.npz", RecognitionSwitch.kind, header, arrays)
-    assert load_predictor(DEFAULT_PREDICTOR, tmp_path / "older.npz").onset == 0
+    older = load_predictor(DEFAULT_PREDICTOR, tmp_path / "older.npz")
+    assert older.onset == 0 and older.params.onset_trust == 0.0  # as it was learned: lending nothing
+    assert older.params.onset_travel == make_default().params.onset_travel

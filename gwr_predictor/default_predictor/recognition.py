@@ -25,8 +25,8 @@ ungated weighting's gate judges step k by what came before: often a pause in the
 the weighting predicted the movement to begin and it did not. With `onset_trust`, outside a
 recognised movement (the pose has travelled `onset_travel` x the motion scale over the memory's
 longest lag) and over its first k frames, step k is trusted at least `onset_trust` x step 1, whose
-scores arrive a frame after they are made; from then on each step by its own record (off by default:
-`research/tuning.py` round 9).
+scores arrive a frame after they are made; from then on each step by its own record (chosen on the
+tuning set, `research/tuning.py` round 9; 0 lends nothing, the default before it).
 """
 
 from __future__ import annotations
@@ -47,15 +47,17 @@ from gwr_predictor.parameter_spec import ParamSpec, check_fields
 
 #: The member whose memory judges recognition.
 MEMORY = "memory"
+#: `onset_trust` of a switch saved before it was a setting (it lent nothing).
+SAVED_ONSET_TRUST = 0.0
 
 RECOGNITION_SPECS = {spec.name: spec for spec in (
     ParamSpec("radius", 3.0, "the motion is recognised when the memory's nearest stored key is within this x the "
               "motion scale per coordinate (0: never; the gated experts always)", 0.0, 1e3),
     ParamSpec("decay", 0.98, "forgetting of the ungated weighting's running squared errors per scored frame", 0.0, 1.0,
               lo_open=True, hi_open=True),
-    ParamSpec("onset_trust", 0.0, "outside a recognised movement and over its first k frames, the ungated "
+    ParamSpec("onset_trust", 0.75, "outside a recognised movement and over its first k frames, the ungated "
               "weighting's step k is trusted at least this x its step 1 (0: each step by its own record)", 0.0, 1.0),
-    ParamSpec("onset_travel", 2.0, "a recognised frame belongs to a movement when the pose has travelled at least "
+    ParamSpec("onset_travel", 1.0, "a recognised frame belongs to a movement when the pose has travelled at least "
               "this x the motion scale over the memory's longest lag", 0.0, 1e3),
     ParamSpec("separate_gates", True, "each weighting behind its own last gate, judged on the frames it is returned "
               "on (false: one last gate over whichever is returned)"),
@@ -75,8 +77,8 @@ class RecognitionParams:
     def __post_init__(self) -> None:
         check_fields(self, RECOGNITION_SPECS.values(), DefaultPredictorError)
         if self.onset_trust and not self.separate_gates:
-            raise DefaultPredictorError("RecognitionParams.onset_trust needs separate_gates (the ungated "
-                                        "weighting's own last gate)")
+            raise DefaultPredictorError(f"recognition.onset_trust {self.onset_trust} lends to the ungated weighting's "
+                                        "own last gate: with separate_gates false, set onset_trust 0")
 
     def to_dict(self) -> dict[str, Any]:
         return dataclasses.asdict(self)
@@ -231,7 +233,7 @@ class RecognitionSwitch(Checkpointed):
         if not isinstance(experts, dict) or not isinstance(gate, dict):
             raise CheckpointError("a recognition switch's checkpoint must hold its experts and its last gate")
         # the views are linked to these gates and weightings, which restore their state in place
-        return cls(Experts._fresh(experts), params_from_json(RecognitionParams, header["params"]),
+        return cls(Experts._fresh(experts), _saved_params(header["params"]),
                    params_from_json(GateParams, gate["params"]))
 
     @classmethod
@@ -243,9 +245,9 @@ class RecognitionSwitch(Checkpointed):
         inner, inner_arrays, kind = header["model"], sub(arrays, "model"), header.get("model_kind")
         if kind == cls.kind:
             experts_header, experts_arrays = inner["experts"], sub(inner_arrays, "experts")
-            params = params_from_json(RecognitionParams, inner["params"])
+            params = _saved_params(inner["params"])
         elif kind == Experts.kind:
-            experts_header, experts_arrays, params = inner, inner_arrays, RecognitionParams()
+            experts_header, experts_arrays, params = inner, inner_arrays, _saved_params({})
         else:
             raise CheckpointError(f"a gate around a {kind!r}, not the default's experts")
         gate = params_from_json(GateParams, header["params"])
@@ -257,3 +259,10 @@ class RecognitionSwitch(Checkpointed):
         switch.gate._restored({**header, "model": {}}, {k: v for k, v in arrays.items() if not k.startswith("model.")},
                               "gate.")
         return switch
+
+
+def _saved_params(saved: Any) -> RecognitionParams:
+    """A checkpoint's settings; one written before `onset_trust` existed goes on lending nothing."""
+    if not isinstance(saved, dict):
+        raise CheckpointError(f"params must be a JSON object, got {type(saved).__name__}")
+    return params_from_json(RecognitionParams, {"onset_trust": SAVED_ONSET_TRUST, **saved})
