@@ -45,6 +45,14 @@ def test_replayed_angles_reproduce_the_recorded_predictions_exactly(ros, tmp_pat
                                                   "repetitions": 1, "loop": False, "pause_s": 0.7,
                                                   "wait_for_subscribers": 2})  # extractor and recorder
     assert source.wait(60) == 0, source.output()  # exits after its last sequence
+
+    def counted(topic: str) -> int:
+        return int(diagnostics.get("/bag_recorder", {}).get(f"recorded./{topic}", "0"))
+
+    # a learner still working through its queue must not be stopped short of it (a loaded machine)
+    probe.spin_until(lambda: counted("predictions") >= counted("arm_angles") > 60, 20,
+                     lambda: f"a prediction recorded for every angle frame ({counted('predictions')} of "
+                             f"{counted('arm_angles')})", live)
     probe.spin_for(1.0)
     for proc in reversed(live):
         code, killed = proc.stop(signal.SIGTERM)
