@@ -311,6 +311,12 @@ its experts ungated 0.631 (curve 1.311 / 0.692).
   below every baseline on 15 of 15 streams. A small gain: the onset still waits for step 6's scores
   wherever the longer steps' records are weak, which is what the bound on the take learned after the
   others asks for.
+- With it, the ungated weighting's record (`recognition.decay`, round 5's 0.98) swept again: 0.97 /
+  0.99 / 0.995 give 0.5995 / 0.6000 / 0.6013 pooled (0.5996), cold start 0.1405 / 0.2056, 0.1397 /
+  0.2032, 0.1393 / 0.2028 (0.1401 / 0.2045), worst step 1.009 / 1.009 / 1.010, demonstrator check
+  0.413 / 0.424 / 0.427 (0.416); the weighting's own `experts.decay` 0.99 0.5996; `recognition.radius`
+  2.5 0.6048. The rule's tie-break would take 0.99 for a cold start better by 0.0004 / 0.0013 rad at
+  1.8 % more squared error on the demonstrator check and no pooled gain: not changed (open).
 """
 
 from __future__ import annotations

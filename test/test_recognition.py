@@ -60,7 +60,25 @@ def test_the_memory_knows_motion_it_has_seen_and_not_a_pose_it_has_not():
     memory.step(x[-1] + 1.0)  # a jump to a pose it has never seen
     assert memory.familiarity > 10.0
     memory.step(None)
-    assert memory.familiarity is None
+    assert memory.familiarity is None and memory.travel is None
+
+
+def test_the_memory_says_how_far_the_pose_has_travelled():
+    """Over the key's longest lag, in motion scales: near 0 in a pause however well the pose is known."""
+    memory = TrajectoryMemory(MemoryParams())
+    x, _ = _repeated()
+    frames = np.concatenate([x, np.repeat(x[-1:], 20, axis=0)])
+    travel = []
+    for t, f in enumerate(frames):
+        memory.step(f)
+        travel.append(memory.travel)
+        if memory.travel is not None:  # the change over 8 frames, in units of the motion scale
+            expected = np.linalg.norm(f - frames[t - 8]) / max(memory.motion_rms, memory.params.noise_floor)
+            assert memory.travel == pytest.approx(expected)
+    assert travel[0] is None  # nothing read yet
+    reaching = [t for t in travel[len(x) - 160:len(x) - 150] if t is not None]
+    assert reaching and min(reaching) > 3.0 and travel[-1] < 1.0
+    assert memory.familiarity is not None and memory.familiarity < 1.0  # the pose is known all the same
 
 
 def test_a_movement_seen_once_is_trusted_on_its_second_performance():
