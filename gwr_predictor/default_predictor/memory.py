@@ -226,8 +226,8 @@ class TrajectoryMemory(Checkpointed):
 
     @classmethod
     def _fresh(cls, header: Mapping[str, Any]) -> TrajectoryMemory:
-        saved = {"longest_lag": SAVED_LONGEST_LAG, **header["params"]}  # older files keyed on lags up to 4
-        return cls(params_from_json(MemoryParams, saved))
+        # older files keyed on lags up to 4
+        return cls(params_from_json(MemoryParams, header["params"], before={"longest_lag": SAVED_LONGEST_LAG}))
 
     # --- persistence: the stored snippets (as many as there are; the rest is declared above) ---------
     def _save_extra(self) -> tuple[dict[str, Any], dict[str, np.ndarray]]:

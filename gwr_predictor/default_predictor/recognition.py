@@ -47,8 +47,8 @@ from gwr_predictor.parameter_spec import ParamSpec, check_fields
 
 #: The member whose memory judges recognition.
 MEMORY = "memory"
-#: `onset_trust` of a switch saved before it was a setting (it lent nothing).
-SAVED_ONSET_TRUST = 0.0
+#: The settings a switch saved before they existed was learned with: `onset_trust` (it lent nothing).
+BEFORE = {"onset_trust": 0.0}
 
 RECOGNITION_SPECS = {spec.name: spec for spec in (
     ParamSpec("radius", 3.0, "the motion is recognised when the memory's nearest stored key is within this x the "
@@ -233,7 +233,7 @@ class RecognitionSwitch(Checkpointed):
         if not isinstance(experts, dict) or not isinstance(gate, dict):
             raise CheckpointError("a recognition switch's checkpoint must hold its experts and its last gate")
         # the views are linked to these gates and weightings, which restore their state in place
-        return cls(Experts._fresh(experts), _saved_params(header["params"]),
+        return cls(Experts._fresh(experts), params_from_json(RecognitionParams, header["params"], before=BEFORE),
                    params_from_json(GateParams, gate["params"]))
 
     @classmethod
@@ -245,9 +245,10 @@ class RecognitionSwitch(Checkpointed):
         inner, inner_arrays, kind = header["model"], sub(arrays, "model"), header.get("model_kind")
         if kind == cls.kind:
             experts_header, experts_arrays = inner["experts"], sub(inner_arrays, "experts")
-            params = _saved_params(inner["params"])
+            params = params_from_json(RecognitionParams, inner["params"], before=BEFORE)
         elif kind == Experts.kind:
-            experts_header, experts_arrays, params = inner, inner_arrays, _saved_params({})
+            experts_header, experts_arrays = inner, inner_arrays
+            params = params_from_json(RecognitionParams, {}, before=BEFORE)
         else:
             raise CheckpointError(f"a gate around a {kind!r}, not the default's experts")
         gate = params_from_json(GateParams, header["params"])
@@ -259,10 +260,3 @@ class RecognitionSwitch(Checkpointed):
         switch.gate._restored({**header, "model": {}}, {k: v for k, v in arrays.items() if not k.startswith("model.")},
                               "gate.")
         return switch
-
-
-def _saved_params(saved: Any) -> RecognitionParams:
-    """A checkpoint's settings; one written before `onset_trust` existed goes on lending nothing."""
-    if not isinstance(saved, dict):
-        raise CheckpointError(f"params must be a JSON object, got {type(saved).__name__}")
-    return params_from_json(RecognitionParams, {"onset_trust": SAVED_ONSET_TRUST, **saved})

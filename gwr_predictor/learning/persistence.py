@@ -198,10 +198,13 @@ def params_to_json(params: Any) -> dict[str, Any]:
     return dataclasses.asdict(params)
 
 
-def params_from_json(cls: type, data: Any) -> Any:
-    """Inverse of `params_to_json`; the class's own checks raise on bad values."""
+def params_from_json(cls: type, data: Any, before: Mapping[str, Any] | None = None) -> Any:
+    """Inverse of `params_to_json`; the class's own checks raise on bad values. `before`: the values of
+    settings added since, which a file written without them was learned with (not today's defaults)."""
     if not isinstance(data, dict):
         raise CheckpointError(f"params must be a JSON object, got {type(data).__name__}")
+    if before:
+        data = {**before, **data}
     for method in ("from_dict", "from_flat"):
         if callable(getattr(cls, method, None)):
             return getattr(cls, method)(data)
