@@ -74,8 +74,8 @@ def test_replayed_angles_reproduce_the_recorded_predictions_exactly(ros, tmp_pat
         "wait_for_subscribers": 1, "start_delay_s": 1.0})
     assert code == 0, output
     assert f"{angles} messages published" in output
-    probe.spin_until(lambda: int(diagnostics.get("/bag_recorder", {}).get("recorded./predictions", "0"))
-                     >= len(recorded), 20, "every replayed prediction recorded", [learner, replay_recorder])
+    probe.spin_until(lambda: counted("predictions") >= len(recorded), 20, "every replayed prediction recorded",
+                     [learner, replay_recorder])
     for proc in (learner, replay_recorder):
         code, killed = proc.stop()
         assert code == 0 and not killed, proc.output()
