@@ -20,9 +20,12 @@ from gwr_predictor.pending import PendingPredictions
 from gwr_predictor.predictors.baselines import HoldLast, observation
 
 #: Each round's default in today's terms: what it set, then every later round's change undone.
-#: Round 8's default: no trust lent to the ungated weighting's longer steps at a movement's onset (round 9:
-#: 0.75 of step 1's).
-R8 = {"recognition.onset_trust": 0.0}
+#: Round 9's default: the ungated weighting's record over every prediction alike, forgetting at 0.98 (round
+#: 10: predictions outside a recognised movement weigh 0.1, forgetting at 0.995).
+R9 = {"recognition.outside_weight": 1.0, "recognition.decay": 0.98}
+#: Round 8's default: also no trust lent to the ungated weighting's longer steps at a movement's onset
+#: (round 9: 0.75 of step 1's).
+R8 = {"recognition.onset_trust": 0.0, **R9}
 #: Round 7's default: also the network's regressor over 4 frames (round 8: 6).
 R7 = {"network.order": 4, **R8}
 #: Round 6's default: also the memory's key over the changes of 1, 2 and 4 frames (round 7 added 8).

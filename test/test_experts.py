@@ -215,6 +215,23 @@ def test_weights_stay_finite_at_any_power_and_unscored_members_share_the_mean():
     assert np.isfinite(w).all() and np.allclose(w.sum(axis=0), 1.0) and np.all(w[0] > 0.99)
 
 
+def test_a_weighed_prediction_counts_its_weight_in_the_record():
+    """An owner weighs predictions it judges to say less: weight w adds w x the squared error and w to the
+    decayed count when they are scored; 0 adds nothing (the record only forgets)."""
+    records = {}
+    for w in (1.0, 0.25, 0.0):
+        experts = Experts({"off": _Constant(0.1)}, ExpertsParams(decay=0.9))
+        for t in range(12):
+            experts.step(np.zeros(8))
+            if t == 0:
+                experts.weigh_last(w)
+        records[w] = experts.sse[0].copy(), experts.weight[0].copy()
+    later = 0.9 ** (10 - np.arange(6))  # step k of the first prediction: scored at frame k + 1, then forgotten
+    for w in (1.0, 0.25):
+        np.testing.assert_allclose(records[w][0] - records[0.0][0], w * 0.01 * later)  # error 0.1 rad
+        np.testing.assert_allclose(records[w][1] - records[0.0][1], w * later)
+
+
 def test_a_member_without_a_prediction_is_left_out():
     class Silent(_Constant):
         def step(self, x, learn=True):

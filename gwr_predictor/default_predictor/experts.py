@@ -9,6 +9,9 @@ predictions weighted by 1 / MSE_k^`power`, with MSE_k each member's running squa
 best at that step now, without a hard switch that flickers between near-equal members. A member not
 scored yet at a step gets the scored members' mean MSE (all equal weights while none is scored).
 
+An owner that knows some predictions say less about the members than others (`RecognitionSwitch`:
+those made outside the movements it recognises) weighs them in the record with `weigh_last`.
+
 Predictions are scored only against frames observed later (`PendingPredictions`: no peeking). A
 member that predicts nothing at a frame (None: its window refilling after a gap or a new sequence) is
 left out of that frame's weights and is not scored for it; where no member predicts, the newest pose
@@ -86,6 +89,14 @@ class Experts(Checkpointed):
         self._pending = PendingPredictions(p.horizon, p.n_joints, (n,))
         self._outputs = np.full((n, p.horizon, p.n_joints), np.nan)
         self._t = 0
+        #: the weight in the record of the predictions made at each of the last `horizon` steps (by step
+        #: % horizon; 1 unless an owner weighs them)
+        self.record_weight = np.ones(p.horizon)
+
+    def weigh_last(self, weight: float) -> None:
+        """The weight of the last step's predictions in the running errors when they are scored (1: as
+        every other; 0: scored, but adding nothing but forgetting)."""
+        self.record_weight[(self._t - 1) % self.params.horizon] = weight
 
     def reset_sequence(self) -> None:
         """Sequence boundary: members reset, pending predictions dropped (the running errors stay)."""
@@ -101,6 +112,7 @@ class Experts(Checkpointed):
             self._score(obs, due, valid)
         self._collect([m.step(obs, learn=learn) for m in self.members.values()])
         self._pending.file(self._t, self._outputs, np.isfinite(self._outputs).all(axis=-1))
+        self.record_weight[self._t % self.params.horizon] = 1.0  # until an owner weighs them
         self._t += 1
         out = self._combine(self._outputs)
         if out is None and obs is not None:  # no member predicts yet (windows refilling): the newest pose
@@ -111,10 +123,12 @@ class Experts(Checkpointed):
         err = np.mean((due - obs) ** 2, axis=2)  # (members, horizon); NaN where a member did not predict
         scored = valid & np.isfinite(err)
         decay = np.where(scored, self.params.decay, 1.0)
+        h = self.params.horizon
+        made = self.record_weight[(self._t - 1 - np.arange(h)) % h]  # step k's was made k + 1 steps ago
         self.sse *= decay
-        self.sse += np.where(scored, err, 0.0)
+        self.sse += np.where(scored, err * made, 0.0)
         self.weight *= decay
-        self.weight += scored
+        self.weight += scored * made
         self.scored += scored
 
     def _collect(self, outputs: list[Any]) -> None:
@@ -186,6 +200,19 @@ class Experts(Checkpointed):
                 "expert_weights": {n: w[i].tolist() for i, n in enumerate(self.names)}}
 
     # --- persistence: the members by name and kind (the weighting's own state is declared above) -----
+    def _load_record_weight(self, saved: Any) -> None:
+        """The saved weights of the pending predictions (None, in a file written before predictions were
+        weighed: every one 1, as it was learned)."""
+        if saved is None:
+            return
+        try:
+            weights = np.array(saved, dtype=float)
+        except (TypeError, ValueError) as exc:
+            raise CheckpointError(f"record_weight must be {self.params.horizon} numbers") from exc
+        if weights.shape != self.record_weight.shape or not ((weights >= 0.0) & (weights <= 1.0)).all():
+            raise CheckpointError(f"record_weight must be {self.params.horizon} numbers in [0, 1]")
+        self.record_weight[...] = weights
+
     @classmethod
     def _fresh(cls, header: Mapping[str, Any]) -> Experts:
         from gwr_predictor.default_predictor.kinds import fresh_of_kind
@@ -205,9 +232,11 @@ class Experts(Checkpointed):
             header["member_kinds"][name] = kind_to_save(member, f"member {name!r}")
             header["members"][name], m_arrays = member._capture()
             arrays.update({f"member.{name}.{k}": v for k, v in m_arrays.items()})
+        header["record_weight"] = self.record_weight.tolist()
         return header, arrays
 
     def _load_extra(self, header: Mapping[str, Any], arrays: Mapping[str, np.ndarray]) -> None:
+        self._load_record_weight(header.get("record_weight"))
         for name, member in self.members.items():
             saved = header["members"][name]
             self.members[name] = member._restored(saved, sub(arrays, f"member.{name}"), f"members.{name}.")

@@ -11,8 +11,12 @@ repeat.
 
 Both weightings run on every frame, each scoring its own predictions (no peeking), so each has a
 record when it is chosen: `ungated` weighs the members' own predictions (`View`s of them), `experts` the
-gated ones. The ungated weighting forgets faster (`decay`): its record starts with the members' errors
-on movements that were new to them, which say little about them once the movement has been seen.
+gated ones. The ungated weighting's record is kept on the movements the memory recognises: a
+prediction made outside one (a new movement, where every member is new to it, or a pause) counts
+`outside_weight` as much, so the record says how each member anticipates what it knows, and can be
+long (`decay`), while a person met a minute ago still gets a weighting from the first performance
+(round 10 of `research/tuning.py`; `outside_weight` 1 with `decay` 0.98, every prediction alike over
+a short record, the default before it).
 
 Each weighting has its own last gate, which judges it on the frames it is returned on: the gated one
 where the motion is new, the ungated one where it is recognised. One gate over both judged each by the
@@ -47,14 +51,17 @@ from gwr_predictor.parameter_spec import ParamSpec, check_fields
 
 #: The member whose memory judges recognition.
 MEMORY = "memory"
-#: The settings a switch saved before they existed was learned with: `onset_trust` (it lent nothing).
-BEFORE = {"onset_trust": 0.0}
+#: The settings a switch saved before they existed was learned with: `onset_trust` (it lent nothing) and
+#: `outside_weight` (its ungated weighting's record weighed every prediction alike).
+BEFORE = {"onset_trust": 0.0, "outside_weight": 1.0}
 
 RECOGNITION_SPECS = {spec.name: spec for spec in (
     ParamSpec("radius", 3.0, "the motion is recognised when the memory's nearest stored key is within this x the "
               "motion scale per coordinate (0: never; the gated experts always)", 0.0, 1e3),
-    ParamSpec("decay", 0.98, "forgetting of the ungated weighting's running squared errors per scored frame", 0.0, 1.0,
-              lo_open=True, hi_open=True),
+    ParamSpec("decay", 0.995, "forgetting of the ungated weighting's running squared errors per scored frame", 0.0,
+              1.0, lo_open=True, hi_open=True),
+    ParamSpec("outside_weight", 0.1, "weight in the ungated weighting's record of a prediction made outside a "
+              "recognised movement (1: every prediction alike)", 0.0, 1.0),
     ParamSpec("onset_trust", 0.75, "outside a recognised movement and over its first k frames, the ungated "
               "weighting's step k is trusted at least this x its step 1 (0: each step by its own record)", 0.0, 1.0),
     ParamSpec("onset_travel", 1.0, "a recognised frame belongs to a movement when the pose has travelled at least "
@@ -70,6 +77,7 @@ class RecognitionParams:
 
     radius: float = RECOGNITION_SPECS["radius"].default
     decay: float = RECOGNITION_SPECS["decay"].default
+    outside_weight: float = RECOGNITION_SPECS["outside_weight"].default
     onset_trust: float = RECOGNITION_SPECS["onset_trust"].default
     onset_travel: float = RECOGNITION_SPECS["onset_travel"].default
     separate_gates: bool = RECOGNITION_SPECS["separate_gates"].default
@@ -175,16 +183,24 @@ class RecognitionSwitch(Checkpointed):
         self._outputs = (gated, ungated)
         self._recognises = gated is not None and ungated is not None and self.recognises()
         self.recognised += self._recognises
-        if self.params.onset_trust and self.ungated_gate is not None:
-            self._borrow(self.ungated_gate)
+        p = self.params
+        moving = self._recognises and self._travelled()
+        if p.outside_weight < 1.0:
+            self.ungated.weigh_last(1.0 if moving else p.outside_weight)
+        if p.onset_trust and self.ungated_gate is not None:
+            self._borrow(self.ungated_gate, moving)
         outs = [gate.step(x, learn) for gate in self.gates]  # every gate scores what it is owed
         return outs[-1] if self._recognises else outs[0]
 
-    def _borrow(self, gate: GatedPredictor) -> None:
-        """Count the frames of the present recognised movement; the steps none of whose predictions made in
-        it has been scored yet (every step, outside a movement) borrow step 1's trust."""
+    def _travelled(self) -> bool:
+        """Whether the pose has moved `onset_travel` x the motion scale over the memory's longest lag."""
         travel = self.experts.members[MEMORY].model.travel
-        moving = self._recognises and travel is not None and travel >= self.params.onset_travel
+        return travel is not None and travel >= self.params.onset_travel
+
+    def _borrow(self, gate: GatedPredictor, moving: bool) -> None:
+        """Count the frames of the present recognised movement (`moving`: this frame is one); the steps
+        none of whose predictions made in it has been scored yet (every step, outside a movement) borrow
+        step 1's trust."""
         self.onset = self.onset + 1 if moving else 0
         young = self.onset <= np.arange(1, gate.params.horizon + 1)
         gate.borrow = young * self.params.onset_trust if young.any() else None
