@@ -317,6 +317,39 @@ its experts ungated 0.631 (curve 1.311 / 0.692).
   0.413 / 0.424 / 0.427 (0.416); the weighting's own `experts.decay` 0.99 0.5996; `recognition.radius`
   2.5 0.6048. The rule's tie-break would take 0.99 for a cold start better by 0.0004 / 0.0013 rad at
   1.8 % more squared error on the demonstrator check and no pooled gain: not changed (open).
+
+Round 10 (`r10_round9` is round 9's default): what the ungated weighting's record holds. Round 9's
+default: 0.5996 pooled, curve 1.000 / 0.729 / 0.549, cold start 0.1401 / 0.2045, worst step 1.009,
+check 0.416. Its record scores every prediction alike, those of the first performance too, where every
+member was new to the movement; round 5 shortened it (0.98) to forget them, which leaves it short
+where the movement is known (round 9: 0.995 loses 0.002 pooled).
+- A record of the predictions made where the motion is recognised only (prototypes): decay 0.98 /
+  0.99 / 0.995 / 0.999 give 0.6017 / 0.6012 / 0.6011 / 0.6010 pooled, cold start 0.1356 / 0.2053 -
+  0.1360 / 0.2033, check 0.406-0.412, but the second performance 0.740 (0.729) and 1.017 x hold at the
+  longest step on the real climb_1 learned once (its experts ungated 1.24 x there): at the onset of a
+  second performance the record holds only the recognised pause before it. Of a recognised movement only
+  (the pose travelled `onset_travel` x the motion scale): 0.6012 / 0.6008 at 0.98 / 0.995, 1.017 x. With
+  the last gates at one standard error (`gate.confidence` 1 / 0.75): 0.6036 / 0.6026, worst 1.006, second
+  performance 0.755 / 0.747.
+- **Predictions outside weighed down** (`recognition.outside_weight` w: a prediction made outside a
+  recognised movement counts w, so the first performance still gives the second a weighting, and the
+  recognised ones soon outweigh it). Recognised frames: w 0.3 / 0.1 / 0.03 at decay 0.98 give 0.5976 /
+  0.5978 / 0.5992 pooled; at 0.995, w 0.2 / 0.1 / 0.05: 0.5961 / 0.5962 / 0.5968; w 0.1 at 0.99 / 0.998:
+  0.5968 / 0.5957 (1.015 x on climb_3 left out). Recognised movement (the library's): w 0.1 at 0.995
+  0.5959, worst step 1.008, second performance 0.717, cold start 0.1360 / 0.2036, check 0.403; with
+  `onset_trust` 0.5 / 1 0.5970 / 0.5942 (1.020 x).
+- Rule as before: the lowest pooled within the bound is the library's point (0.5959); within 0.001 of it
+  the best cold start is the same point (0.33965 summed). Chosen (the default:
+  `recognition.outside_weight` 0.1 over recognised movement, `recognition.decay` 0.995): 0.596 pooled,
+  curve 1.000 / 0.717 / 0.538, cold start 0.1360 / 0.2036 (round 9 0.1401 / 0.2045), worst step 1.008,
+  demonstrator check 0.403 (0.416): better on every tuning figure. Round 9's open tie-break on
+  `recognition.decay` is moot: the record's length is chosen with what it holds.
+- The same for the ungated weighting's last gate, which scores it only where it is returned (a
+  prototype on the chosen default): scoring it on every frame, those outside weighing w 0 / 0.1 / 0.3 /
+  1, gives 0.5960 / 0.5991 / 0.6028 / 0.6105 pooled, second performance 0.718 / 0.740 / 0.766 / 0.803,
+  check 0.407-0.432; w 0.1 outside recognised movement 0.5990; w 0.3 without lending 0.6058. The
+  ungated weighting is worse than holding on most first performances, and that record shuts its gate
+  at the second: not kept.
 """
 
 from __future__ import annotations

@@ -119,7 +119,7 @@ def test_the_switch_needs_gated_members_and_a_memory():
 def test_each_weighting_is_judged_by_its_own_record():
     """One last gate over both weightings judged the ungated one, on the second performance, by the gated
     one's record from the first, where it had mostly held the pose; a gate per weighting does not
-    (measured at a one-standard-error bound: 0.074 rad against 0.081 with one gate; holding 0.122; with
+    (measured at a one-standard-error bound: 0.074 rad against 0.082 with one gate; holding 0.122; with
     the memory's key over lags up to 4, before round 7: 0.062 against 0.072)."""
     x, index = _repeated()
     second = index == 1
