@@ -230,6 +230,9 @@ def test_a_weighed_prediction_counts_its_weight_in_the_record():
     for w in (1.0, 0.25):
         np.testing.assert_allclose(records[w][0] - records[0.0][0], w * 0.01 * later)  # error 0.1 rad
         np.testing.assert_allclose(records[w][1] - records[0.0][1], w * later)
+    for bad in (float("nan"), -0.1, 1.5):
+        with pytest.raises(DefaultPredictorError, match="record weight"):
+            experts.weigh_last(bad)
 
 
 def test_a_member_without_a_prediction_is_left_out():

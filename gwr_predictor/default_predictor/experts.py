@@ -96,6 +96,8 @@ class Experts(Checkpointed):
     def weigh_last(self, weight: float) -> None:
         """The weight of the last step's predictions in the running errors when they are scored (1: as
         every other; 0: scored, but adding nothing but forgetting)."""
+        if not 0.0 <= weight <= 1.0:  # NaN too: it would poison every running error it reached
+            raise DefaultPredictorError(f"a record weight must be in [0, 1], got {weight!r}")
         self.record_weight[(self._t - 1) % self.params.horizon] = weight
 
     def reset_sequence(self) -> None:
