@@ -350,6 +350,10 @@ where the movement is known (round 9: 0.995 loses 0.002 pooled).
   check 0.407-0.432; w 0.1 outside recognised movement 0.5990; w 0.3 without lending 0.6058. The
   ungated weighting is worse than holding on most first performances, and that record shuts its gate
   at the second: not kept.
+- With the chosen record, `recognition.radius` 2.5 / 3.5 / 4 give 0.6011 / 0.5960 / 0.5977 pooled,
+  worst step 1.009 / 1.030 / 1.029 (climb_3 left out), demonstrator check 0.381 / 0.403 / 0.403; the
+  walking streams gain nothing at 4 (0.505 / 0.522 / 0.525 against 0.496 / 0.521 / 0.503); `onset_trust`
+  0.6 0.5965. Kept: radius 3, onset_trust 0.75.
 """
 
 from __future__ import annotations
