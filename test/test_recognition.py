@@ -310,6 +310,20 @@ def test_the_ungated_record_kept_on_recognised_movement_anticipates_the_later_pe
     np.testing.assert_array_equal(kept[first], alike[first])
 
 
+def test_the_ungated_weighting_hears_its_members_at_its_own_power():
+    """The recognised movements' record weighs the members more evenly than the gated weighting's (power 3
+    against 4); 0 takes the experts' power."""
+    x, _ = _repeated()
+    made, same = make_default(), make_default(settings={"recognition.power": 0.0})
+    assert made.ungated.params.power == 3.0 and same.ungated.params.power == made.experts.params.power == 4.0
+    for f in x[:120]:
+        made.step(f)
+        same.step(f)
+    mse = made.ungated.running_mse()
+    np.testing.assert_allclose(made.ungated.weights(), (1 / mse**3) / (1 / mse**3).sum(axis=0))
+    assert not np.allclose(made.ungated.weights(), same.ungated.weights())
+
+
 def test_the_record_weights_survive_a_checkpoint_and_older_files_weigh_every_prediction_alike(tmp_path):
     x, _ = _repeated()
     made = make_default()
@@ -322,9 +336,11 @@ def test_the_record_weights_survive_a_checkpoint_and_older_files_weigh_every_pre
         np.testing.assert_array_equal(loaded.step(f), made.step(f))
     header, arrays = read_checkpoint(tmp_path / "now.npz", RecognitionSwitch.kind)
     del header["params"]["outside_weight"], header["ungated"]["record_weight"], header["experts"]["record_weight"]
+    del header["params"]["power"]
     write_checkpoint(tmp_path / "older.npz", RecognitionSwitch.kind, header, arrays)
     older = load_predictor(DEFAULT_PREDICTOR, tmp_path / "older.npz")
     assert older.params.outside_weight == 1.0  # as it was learned: every prediction alike
+    assert older.ungated.params.power == older.experts.params.power == 4.0  # weighed as the gated weighting
     np.testing.assert_array_equal(older.ungated.record_weight, np.ones(6))
     header["ungated"]["record_weight"] = [0.5, "x", 1, 1, 1, 1]
     write_checkpoint(tmp_path / "bad.npz", RecognitionSwitch.kind, header, arrays)

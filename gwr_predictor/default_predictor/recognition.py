@@ -14,9 +14,11 @@ record when it is chosen: `ungated` weighs the members' own predictions (`View`s
 gated ones. The ungated weighting's record is kept on the movements the memory recognises: a
 prediction made outside one (a new movement, where every member is new to it, or a pause) counts
 `outside_weight` as much, so the record says how each member anticipates what it knows, and can be
-long (`decay`), while a person met a minute ago still gets a weighting from the first performance
-(round 10 of `research/tuning.py`; `outside_weight` 1 with `decay` 0.98, every prediction alike over
-a short record, the default before it).
+long (`decay`), while a person met a minute ago still gets a weighting from the first performance;
+on that record the ungated weighting hears its members more evenly than the gated one (`power` 3
+against the experts' 4; round 10 of `research/tuning.py`; `outside_weight` 1, `decay` 0.98 and
+`power` 0, every prediction alike over a short record weighed as the gated weighting does, the
+default before it).
 
 Each weighting has its own last gate, which judges it on the frames it is returned on: the gated one
 where the motion is new, the ungated one where it is recognised. One gate over both judged each by the
@@ -51,15 +53,18 @@ from gwr_predictor.parameter_spec import ParamSpec, check_fields
 
 #: The member whose memory judges recognition.
 MEMORY = "memory"
-#: The settings a switch saved before they existed was learned with: `onset_trust` (it lent nothing) and
-#: `outside_weight` (its ungated weighting's record weighed every prediction alike).
-BEFORE = {"onset_trust": 0.0, "outside_weight": 1.0}
+#: The settings a switch saved before they existed was learned with: `onset_trust` (it lent nothing),
+#: `outside_weight` (its ungated weighting's record weighed every prediction alike) and `power` (the
+#: ungated weighting's was the experts').
+BEFORE = {"onset_trust": 0.0, "outside_weight": 1.0, "power": 0.0}
 
 RECOGNITION_SPECS = {spec.name: spec for spec in (
     ParamSpec("radius", 3.0, "the motion is recognised when the memory's nearest stored key is within this x the "
               "motion scale per coordinate (0: never; the gated experts always)", 0.0, 1e3),
     ParamSpec("decay", 0.995, "forgetting of the ungated weighting's running squared errors per scored frame", 0.0,
               1.0, lo_open=True, hi_open=True),
+    ParamSpec("power", 3.0, "the ungated weighting's weights go as 1 / MSE^power (0: the experts' power)", 0.0,
+              64.0),
     ParamSpec("outside_weight", 0.1, "weight in the ungated weighting's record of a prediction made outside a "
               "recognised movement (1: every prediction alike)", 0.0, 1.0),
     ParamSpec("onset_trust", 0.75, "outside a recognised movement and over its first k frames, the ungated "
@@ -77,6 +82,7 @@ class RecognitionParams:
 
     radius: float = RECOGNITION_SPECS["radius"].default
     decay: float = RECOGNITION_SPECS["decay"].default
+    power: float = RECOGNITION_SPECS["power"].default
     outside_weight: float = RECOGNITION_SPECS["outside_weight"].default
     onset_trust: float = RECOGNITION_SPECS["onset_trust"].default
     onset_travel: float = RECOGNITION_SPECS["onset_travel"].default
@@ -142,7 +148,7 @@ class RecognitionSwitch(Checkpointed):
         self.experts = experts
         self.params = p = params or RecognitionParams()
         self.ungated = Experts({n: View(m.ungated) for n, m in experts.members.items()},
-                               dataclasses.replace(experts.params, decay=p.decay))
+                               experts.params.replace(decay=p.decay, power=p.power or experts.params.power))
         self.recognised = 0  # frames on which the ungated prediction was returned
         self.onset = 0  # frames of the present recognised movement (with `onset_trust`)
         self._outputs: tuple[np.ndarray | None, np.ndarray | None] = (None, None)  # this step's weightings
