@@ -14,6 +14,7 @@ from gwr_predictor.default_predictor import (
     TrajectoryMemory,
     make_default,
 )
+from gwr_predictor.default_predictor.recognition import BEFORE
 from gwr_predictor.learning.checkpoint import CheckpointError, read_checkpoint, write_checkpoint
 from gwr_predictor.predictors.registry import DEFAULT_PREDICTOR, load_predictor
 
@@ -134,7 +135,7 @@ def test_each_weighting_is_judged_by_its_own_record():
 def _former_layout(made, path) -> None:
     """Write `made` (one last gate) as round 5 saved the default: a gate around the switch."""
     header, arrays = made.state()
-    former_keys = ("separate_gates", "onset_trust", "onset_travel", "outside_weight")
+    former_keys = ("separate_gates", "onset_travel", *BEFORE)  # the settings added after round 5
     inner = {"params": {k: v for k, v in header["params"].items() if k not in former_keys},
              "recognised": header["recognised"], "experts": header["experts"], "ungated": header["ungated"]}
     former = {**header["gate"], "model_kind": RecognitionSwitch.kind, "model": inner}
