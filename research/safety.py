@@ -20,10 +20,13 @@ from gwr_predictor.pending import PendingPredictions
 from gwr_predictor.predictors.baselines import HoldLast, observation
 
 #: Each round's default in today's terms: what it set, then every later round's change undone.
+#: Round 10's default: the snippet memory averaged its 3 nearest snippets everywhere (round 11: where the
+#: motion is familiar, 32 fitted by locally weighted ridge regression).
+R10 = {"memory.fit_k": 0}
 #: Round 9's default: the ungated weighting's record over every prediction alike, forgetting at 0.98, its
 #: weights at the experts' power (round 10: predictions outside a recognised movement weigh 0.1, forgetting
 #: at 0.995, power 3).
-R9 = {"recognition.outside_weight": 1.0, "recognition.decay": 0.98, "recognition.power": 0.0}
+R9 = {"recognition.outside_weight": 1.0, "recognition.decay": 0.98, "recognition.power": 0.0, **R10}
 #: Round 8's default: also no trust lent to the ungated weighting's longer steps at a movement's onset
 #: (round 9: 0.75 of step 1's).
 R8 = {"recognition.onset_trust": 0.0, **R9}

@@ -166,6 +166,63 @@ def test_a_memory_saved_before_its_lags_were_a_setting_loads_with_its_own_lags(t
         MemoryParams(longest_lag=6)
 
 
+def test_a_memory_saved_before_the_fit_loads_averaging_as_it_was_learned(tmp_path):
+    """A file written before `fit_k` existed was read out by the k nearest alone: it loads with `fit_k` 0
+    and continues bit for bit."""
+    from gwr_predictor.learning.checkpoint import read_checkpoint, write_checkpoint
+
+    assert MemoryParams().fit_k > 0
+    x = np.concatenate([_movement(s, 50) for s in (1.0, 0.9, 1.1)]) + np.random.default_rng(5).normal(
+        scale=0.01, size=(150, 8))
+    memory = TrajectoryMemory(MemoryParams(fit_k=0))
+    for f in x[:100]:
+        memory.step(f)
+    memory.save(tmp_path / "m.npz")
+    header, arrays = read_checkpoint(tmp_path / "m.npz", TrajectoryMemory.kind)
+    header["params"] = {k: v for k, v in header["params"].items() if k not in ("fit_k", "ridge", "fit_radius")}
+    write_checkpoint(tmp_path / "former.npz", TrajectoryMemory.kind, header, arrays)
+    old = TrajectoryMemory.load(tmp_path / "former.npz")
+    assert old.params.fit_k == 0
+    for f in x[100:]:
+        np.testing.assert_array_equal(memory.step(f), old.step(f))
+
+
+def test_the_fit_reads_the_neighbours_futures_at_the_present_key():
+    """Neighbours whose futures are an affine function of their keys' offsets: the fit recovers the value
+    at offset 0, which their weighted mean misses by the slope times their centroid's offset."""
+    rng = np.random.default_rng(3)
+    memory = TrajectoryMemory(MemoryParams(ridge=1e-9))
+    k, dims = 32, 8
+    offsets = rng.normal(size=(k, dims)) + 1.0  # the neighbours lie to one side of the present key
+    at_zero, slope = rng.normal(size=(6, 8)), rng.normal(scale=0.2, size=(dims, 48))
+    read = (at_zero.reshape(-1) + offsets @ slope).reshape(k, 6, 8)
+    w = rng.uniform(0.5, 1.0, k)
+    w /= w.sum()
+    np.testing.assert_allclose(memory._fit(w, offsets, read), at_zero, atol=1e-6)
+    assert np.abs(np.einsum("k,khj->hj", w, read) - at_zero).max() > 0.5
+
+
+def test_the_memory_fits_only_where_the_motion_is_familiar():
+    """Where the nearest key lies beyond `fit_radius` x the motion scale, the read-out is the k nearest
+    averaged, to the bit; where it lies within, the fit."""
+    rng = np.random.default_rng(4)
+    fitted, averaged = TrajectoryMemory(), TrajectoryMemory(MemoryParams(fit_k=0))
+    x = np.concatenate([_movement(s, 50) + rng.normal(scale=0.01, size=(50, 8)) for s in (1.0, 0.9, 1.1, 1.0)])
+    x = np.concatenate([x, 0.5 + np.cumsum(rng.normal(scale=0.05, size=(60, 8)), axis=0)])  # then a new motion
+    familiar, unfamiliar = [], 0
+    for f in x:
+        a, b = fitted.step(f), averaged.step(f)
+        if a is None:
+            continue
+        assert fitted.familiarity == averaged.familiarity  # the same snippets stored
+        if fitted.familiarity > fitted.params.fit_radius:
+            np.testing.assert_array_equal(a, b)
+            unfamiliar += 1
+        else:
+            familiar.append(np.abs(a - b).max())
+    assert len(familiar) > 50 and np.median(familiar) > 1e-3 and unfamiliar > 10
+
+
 def test_the_memory_never_reads_the_future():
     x = _movement(1.0, 60)
     y = x.copy()

@@ -11,7 +11,13 @@ noise keeps keys apart), so the default 20,000 snippets last about half an hour 
 predict, the `k` nearest keys are read out at the present speed: a movement made r times as fast as
 a stored one reaches the stored step k r at our step k, with r the least-squares ratio of the
 present changes to the stored ones (clipped to [`min_ratio`, `max_ratio`]), read by linear
-interpolation between stored frames. The neighbours are weighted by inverse squared distance. A
+interpolation between stored frames. The neighbours are weighted by inverse squared distance. Where
+the motion is familiar (`familiarity` at most `fit_radius`), `fit_k` neighbours are read out and their
+futures fitted as a linear function of their keys' offsets from the present key (locally weighted ridge
+regression), read at the present key: the performances stored around the present one (a little larger,
+a little faster) are interpolated between instead of averaged, which on repeated real movements
+anticipates better than the mean of the nearest (round 11 of `research/tuning.py`); elsewhere, the `k`
+nearest are averaged, since a line fitted far from every neighbour extrapolates. A
 stored key identical to the present one is skipped: a person never repeats a pose to the bit, so it
 is the same recording replayed (a training epoch), and recalling it would score the memory as
 perfect on data it has only copied.
@@ -42,13 +48,21 @@ from gwr_predictor.predictors.baselines import observation
 
 #: `longest_lag` of a memory saved before it was a setting (its key held the changes over 1, 2 and 4 frames).
 SAVED_LONGEST_LAG = 4
+#: The settings a memory saved before they existed was read out with: its key's lags, and no fit (`fit_k` 0).
+BEFORE = {"longest_lag": SAVED_LONGEST_LAG, "fit_k": 0}
 #: A key this close (squared, rad^2) to the present one is a copy of it: the same recording replayed.
 EXACT = 1e-12
 
 MEMORY_SPECS = {spec.name: spec for spec in (
     ParamSpec("horizon", DEFAULT_HORIZON, "frames predicted", 1, MAX_HORIZON),
     ParamSpec("n_joints", 8, "joints per frame", 1),
-    ParamSpec("k", 3, "nearest snippets read out", 1, 64),
+    ParamSpec("k", 3, "nearest snippets averaged where the motion is not familiar enough to fit", 1, 64),
+    ParamSpec("fit_k", 32, "where the motion is familiar, this many nearest snippets fitted instead (0: never)", 0,
+              256),
+    ParamSpec("ridge", 0.35, "the fit's ridge, x the neighbours' mean key variance about their centroid", 0.0, 1e6,
+              lo_open=True),
+    ParamSpec("fit_radius", 3.0, "the motion is familiar enough to fit where `familiarity` is at most this", 0.0,
+              1e3),
     ParamSpec("future", 12, "frames stored after each key (>= horizon x max_ratio to read the fastest motion)",
               1, 4 * MAX_HORIZON),
     ParamSpec("longest_lag", 8, "the key holds the pose's changes over 1, 2, 4, ... frames up to this (a power of "
@@ -72,6 +86,9 @@ class MemoryParams:
     horizon: int = MEMORY_SPECS["horizon"].default
     n_joints: int = MEMORY_SPECS["n_joints"].default
     k: int = MEMORY_SPECS["k"].default
+    fit_k: int = MEMORY_SPECS["fit_k"].default
+    ridge: float = MEMORY_SPECS["ridge"].default
+    fit_radius: float = MEMORY_SPECS["fit_radius"].default
     future: int = MEMORY_SPECS["future"].default
     longest_lag: int = MEMORY_SPECS["longest_lag"].default
     velocity_weight: float = MEMORY_SPECS["velocity_weight"].default
@@ -194,7 +211,8 @@ class TrajectoryMemory(Checkpointed):
         self.used[slot] = self.clock
 
     def _read(self, key: np.ndarray) -> np.ndarray:
-        """(horizon, J) displacements: the k nearest snippets' futures at the present speed, weighted."""
+        """(horizon, J) displacements: the k nearest snippets' futures at the present speed, weighted, or
+        where the motion is familiar the `fit_k` nearest fitted (`_fit`)."""
         p = self.params
         d2 = self._distances(key)
         copies = d2 <= EXACT
@@ -202,12 +220,22 @@ class TrajectoryMemory(Checkpointed):
         scale = max(self.motion_rms, p.noise_floor)
         self.familiarity = math.sqrt(float(others.min()) * p.n_joints / len(key)) / scale if others.size else math.inf
         self.travel = float(np.linalg.norm(key[-p.n_joints:])) / scale  # the key's change over the longest lag
-        if copies.any() and self.size - np.count_nonzero(copies) >= p.k:
+        if copies.any() and others.size >= p.k:
             d2[copies] = np.inf  # a replayed recording is not recalled from its own copy
-        nearest = np.argpartition(d2, p.k - 1)[:p.k] if self.size > p.k else np.arange(self.size)
+        fit = p.fit_k > 0 and self.familiarity <= p.fit_radius
+        k = min(max(p.k, p.fit_k), int(np.isfinite(d2).sum())) if fit else p.k  # a fit takes the others there are
+        nearest = np.argpartition(d2, k - 1)[:k] if self.size > k else np.arange(self.size)
         self.used[nearest] = self.clock
         w = 1.0 / (d2[nearest] + 1e-6)
         w /= w.sum()
+        read = self._at_present_speed(nearest, key)
+        if fit:
+            return self._fit(w, (self.keys[nearest] - key) * self._key_weights, read)
+        return np.einsum("k,khj->hj", w, read)
+
+    def _at_present_speed(self, nearest: np.ndarray, key: np.ndarray) -> np.ndarray:
+        """(k, horizon, J): each snippet's future read at the present speed against its own."""
+        p = self.params
         stored = self.keys[nearest, p.n_joints:]  # (k, lags * J) changes
         power = np.einsum("kd,kd->k", stored, stored)
         ratio = np.where(power > 1e-8, (stored @ key[p.n_joints:]) / np.maximum(power, 1e-8), 1.0)
@@ -218,16 +246,28 @@ class TrajectoryMemory(Checkpointed):
         frac = (at - lo)[..., None]
         rows = np.arange(len(nearest))[:, None]
         fut = self.futures[nearest]
-        read = fut[rows, lo] * (1.0 - frac) + fut[rows, hi] * frac  # (k, horizon, J)
-        return np.einsum("k,khj->hj", w, read)
+        return fut[rows, lo] * (1.0 - frac) + fut[rows, hi] * frac
+
+    def _fit(self, w: np.ndarray, offsets: np.ndarray, read: np.ndarray) -> np.ndarray:
+        """The neighbours' futures (k, horizon, J) as a linear function of their keys' (weighted) offsets
+        from the present key, by weighted ridge regression, read at offset 0: neighbours on different sides
+        of the present motion (another size, another speed) are interpolated between instead of averaged.
+        Only where the motion is familiar: far from every neighbour the line would extrapolate."""
+        futures = read.reshape(len(w), -1)
+        mean_x, mean_y = w @ offsets, w @ futures
+        x = offsets - mean_x
+        wx = x * w[:, None]
+        scatter = wx.T @ x
+        scatter[np.diag_indices_from(scatter)] += self.params.ridge * np.trace(scatter) / len(scatter) + 1e-12
+        slope = np.linalg.solve(scatter, wx.T @ (futures - mean_y))
+        return (mean_y - mean_x @ slope).reshape(read.shape[1:])
 
     def errors(self) -> dict[str, Any]:
         return {"snippets": self.size, "snippets_replaced": self.replaced, "motion_rms_rad": self.motion_rms}
 
     @classmethod
     def _fresh(cls, header: Mapping[str, Any]) -> TrajectoryMemory:
-        # older files keyed on lags up to 4
-        return cls(params_from_json(MemoryParams, header["params"], before={"longest_lag": SAVED_LONGEST_LAG}))
+        return cls(params_from_json(MemoryParams, header["params"], before=BEFORE))
 
     # --- persistence: the stored snippets (as many as there are; the rest is declared above) ---------
     def _save_extra(self) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
