@@ -403,6 +403,12 @@ step 1.009, check 0.397; its experts ungated 0.631.
   its own ungated experts with the same memory (0.625) among them, on 15 of 15 streams (round 10's
   default was behind them on 3). The fit costs speed: 610 frames/s, 0.147 x the recursive hierarchy in
   the bench's run, against 669 and 0.180 for round 10's default in the run after it.
+- With the fit, earlier rounds' settings swept again (one run each): `recognition.outside_weight` 0.05 /
+  0.2 give 0.5911 / 0.5904 pooled (worst step 1.0093 / 1.0104), `recognition.power` 2 / 4 0.5908 /
+  0.5912 (1.0113 / 1.0092), `recognition.radius` 2.5 / 3.5 0.5960 / 0.5905 (1.0131 / 1.0205),
+  `experts.power` 3 / 6 0.5906 / 0.5907 (1.0097 / 1.0105), `recognition.onset_trust` 0.5 / 1 0.5914 /
+  0.5889 (1.0097 / 1.0107), `gate.confidence` 0.25 / 0.75 0.5900 / 0.5913 (1.0171 / 1.0063): within
+  the bound nothing gains 0.001; kept.
 """
 
 from __future__ import annotations
