@@ -92,9 +92,9 @@ def _gated_hierarchy(params: Any, seed: int) -> Predictor:
 
 def _experts_ungated(params: Any, seed: int) -> Predictor:
     """The default's experts and weighting without any gate: what the gates add is the difference."""
-    from research.safety import rebuilt
+    from research.safety import ungated
 
-    return rebuilt(hierarchy_params(params), seed, member_gates=False, last_gate=False)
+    return ungated(hierarchy_params(params), seed)
 
 
 def register_all() -> None:

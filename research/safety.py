@@ -67,6 +67,11 @@ def rebuilt(params: Any, seed: int, settings: Mapping[str, Any] | None = None,
     return GatedPredictor(experts, made.gate.params) if last_gate else experts
 
 
+def ungated(params: Any, seed: int, settings: Mapping[str, Any] | None = None) -> Any:
+    """The default's own ungated model: its experts (with `settings`) weighted without any gate."""
+    return rebuilt(params, seed, settings, member_gates=False, last_gate=False)
+
+
 def _members(made: RecognitionSwitch, params: Any, member_gates: bool | tuple[str, ...] = True, hold: bool = False,
              own_gate: tuple[str, ...] = ()) -> dict[str, Any]:
     """`made`'s experts, each behind its gate or not, with a hold-last member and other gates (see `rebuilt`)."""

@@ -604,7 +604,7 @@ def factory(name: str) -> Factory:
     if name.startswith("D:"):
         return lambda p, s: safety.default(p, s, _settings(name[2:]))
     if name.startswith("U:"):
-        return lambda p, s: safety.rebuilt(p, s, _settings(name[2:]), member_gates=False, last_gate=False)
+        return lambda p, s: safety.ungated(p, s, _settings(name[2:]))
     if name.startswith("G:"):
         return lambda p, s: make_gated_network(p.horizon, p.n_joints, s, _settings(name[2:]))
     if name.startswith("X") and "_" in name:

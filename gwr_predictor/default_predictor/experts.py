@@ -92,6 +92,7 @@ class Experts(Checkpointed):
         #: the weight in the record of the predictions made at each of the last `horizon` steps (by step
         #: % horizon; 1 unless an owner weighs them)
         self.record_weight = np.ones(p.horizon)
+        self._made_ago = np.arange(1, p.horizon + 1)  # step k's prediction was made k steps before its score
 
     def weigh_last(self, weight: float) -> None:
         """The weight of the last step's predictions in the running errors when they are scored (1: as
@@ -125,8 +126,7 @@ class Experts(Checkpointed):
         err = np.mean((due - obs) ** 2, axis=2)  # (members, horizon); NaN where a member did not predict
         scored = valid & np.isfinite(err)
         decay = np.where(scored, self.params.decay, 1.0)
-        h = self.params.horizon
-        made = self.record_weight[(self._t - 1 - np.arange(h)) % h]  # step k's was made k + 1 steps ago
+        made = self.record_weight[(self._t - self._made_ago) % self.params.horizon]
         self.sse *= decay
         self.sse += np.where(scored, err * made, 0.0)
         self.weight *= decay

@@ -220,10 +220,12 @@ class TrajectoryMemory(Checkpointed):
         scale = max(self.motion_rms, p.noise_floor)
         self.familiarity = math.sqrt(float(others.min()) * p.n_joints / len(key)) / scale if others.size else math.inf
         self.travel = float(np.linalg.norm(key[-p.n_joints:])) / scale  # the key's change over the longest lag
+        recallable = self.size
         if copies.any() and others.size >= p.k:
             d2[copies] = np.inf  # a replayed recording is not recalled from its own copy
+            recallable = others.size
         fit = p.fit_k > 0 and self.familiarity <= p.fit_radius
-        k = min(max(p.k, p.fit_k), int(np.isfinite(d2).sum())) if fit else p.k  # a fit takes the others there are
+        k = min(max(p.k, p.fit_k), recallable) if fit else p.k  # a fit takes the snippets there are
         nearest = np.argpartition(d2, k - 1)[:k] if self.size > k else np.arange(self.size)
         self.used[nearest] = self.clock
         w = 1.0 / (d2[nearest] + 1e-6)
