@@ -20,9 +20,11 @@ from gwr_predictor.pending import PendingPredictions
 from gwr_predictor.predictors.baselines import HoldLast, observation
 
 #: Each round's default in today's terms: what it set, then every later round's change undone.
+#: Round 11's default: four experts, one snippet memory (round 12 added the long snippet memory).
+R11 = {"long_memory.enabled": False}
 #: Round 10's default: the snippet memory averaged its 3 nearest snippets everywhere (round 11: where the
 #: motion is familiar, 32 fitted by locally weighted ridge regression).
-R10 = {"memory.fit_k": 0}
+R10 = {"memory.fit_k": 0, **R11}
 #: Round 9's default: the ungated weighting's record over every prediction alike, forgetting at 0.98, its
 #: weights at the experts' power (round 10: predictions outside a recognised movement weigh 0.1, forgetting
 #: at 0.995, power 3).

@@ -456,7 +456,7 @@ Factory = Callable[[Any, int], Any]
 ROUND3 = {**R3, "network.rate": 0.1, "network.recruit_surprise": 9.0}
 LIN3 = ("llm", "linear", "rls")
 #: Rounds 5, 6 and 7's defaults in today's terms: `research.safety`.
-R5, R6, R7, R8, R9, R10 = safety.R5, safety.R6, safety.R7, safety.R8, safety.R9, safety.R10
+R5, R6, R7, R8, R9, R10, R11 = safety.R5, safety.R6, safety.R7, safety.R8, safety.R9, safety.R10, safety.R11
 #: Round 5's steps before the last gate's memory was shortened (0.99): the radius sweep with the ungated
 #: weighting's record at the weighting's decay (`R5A`), then the decay sweep at radius 3 (`R5B`).
 R5A = {**R5, "gate.decay": 0.99, "gate.fast_step": 1, "recognition.decay": 0.995}
@@ -575,6 +575,7 @@ VARIANTS: dict[str, Factory] = {
     "r9_round8": lambda p, s: safety.default(p, s, R8),
     "r10_round9": lambda p, s: safety.default(p, s, R9),
     "r11_round10": lambda p, s: safety.default(p, s, R10),
+    "r12_round11": lambda p, s: safety.default(p, s, R11),
     "r5_blend95": lambda p, s: safety.blended(p, s, 0.95, settings=R5A),
     "r5_blend99": lambda p, s: safety.blended(p, s, 0.99, settings=R5A),
     "r5_blend95_98": lambda p, s: safety.blended(p, s, 0.95, settings=R5B),

@@ -60,8 +60,10 @@ def test_the_default_is_registered_everywhere():
     assert [g.params.confidence for g in model.gates] == [0.5, 0.5]
     experts = model.experts
     assert isinstance(experts, Experts)
-    assert set(experts.members) == {"network", "linear", "rls_ar", "memory"}
+    assert set(experts.members) == {"network", "linear", "rls_ar", "memory", "long_memory"}
     assert all(isinstance(m, GatedPredictor) for m in experts.members.values())
+    short, long = experts.members["memory"].model.params, experts.members["long_memory"].model.params
+    assert (short.longest_lag, long.longest_lag) == (8, 16)
     assert isinstance(experts.learner, LocalLinearPredictor)
     network = make_predictor("gated_llm_gwr")
     assert isinstance(network, GatedPredictor) and isinstance(network.model, LocalLinearPredictor)

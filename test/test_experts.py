@@ -223,6 +223,60 @@ def test_the_memory_fits_only_where_the_motion_is_familiar():
     assert len(familiar) > 50 and np.median(familiar) > 1e-3 and unfamiliar > 10
 
 
+def _two_approaches(performances: int, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
+    """Two movements that differ in where they came from 13-20 frames before they part: one joint comes
+    in from +0.6 or -0.6 rad, the arm is still for 12 frames, then another joint goes the way the first
+    came from, each as often in a random order. Returns the frames and, per frame, the side (+1 or -1)
+    where the 12 still frames end (0 elsewhere)."""
+    rng = np.random.default_rng(seed)
+    frames, parting = [], []
+    for side in rng.permutation(np.resize([-1.0, 1.0], performances)):
+        come, still, go, back = np.zeros((8, 8)), np.zeros((12, 8)), np.zeros((10, 8)), np.zeros((6, 8))
+        come[:, 0] = side * np.linspace(0.6, 0.0, 8)
+        go[:, 1] = side * np.linspace(0.06, 0.6, 10)
+        back[:, 1] = side * np.linspace(0.5, 0.0, 6)
+        frames += [come, still, go, back]
+        parting += [np.zeros(8), side * (np.arange(12) == 11), np.zeros(10), np.zeros(6)]
+    x = 0.3 + np.concatenate(frames)
+    return x + rng.normal(scale=0.003, size=x.shape), np.concatenate(parting)
+
+
+def test_the_long_memory_tells_apart_movements_that_agree_over_the_short_memorys_span():
+    """Where two movements agree over the last 12 frames and part after, the short memory's key (changes
+    over up to 8 frames) cannot tell which comes; the default's long memory (16 frames) recalls it:
+    the share of the parting joint's next 6 frames' travel each anticipates, on the side it goes."""
+    x, parting = _two_approaches(30)
+    made = make_default().experts.members
+    share = {}
+    for name in ("memory", "long_memory"):
+        memory, told, went = TrajectoryMemory(made[name].model.params), [], []
+        for t, f in enumerate(x[:-6]):
+            out = memory.step(f)
+            if t > len(x) // 3 and parting[t] and out is not None:
+                told.append(parting[t] * (out[-1, 1] - f[1]))
+                went.append(parting[t] * (x[t + 6, 1] - f[1]))
+        share[name] = float(np.sum(told) / np.sum(went))
+    assert len(told) >= 18
+    assert share["long_memory"] > 0.2 and abs(share["memory"]) < 0.1, share
+
+
+def test_the_default_without_its_long_memory_is_the_four_experts():
+    """`long_memory.enabled` false is the default of round 11: the same four experts, to the bit."""
+    x, _ = _two_approaches(6)
+    four = make_default(settings={"long_memory.enabled": False})
+    made = make_default()
+    assert set(made.experts.members) - set(four.experts.members) == {"long_memory"}
+    members = {n: m for n, m in made.experts.members.items() if n != "long_memory"}
+    by_hand = RecognitionSwitch(Experts(members, made.experts.params), made.params, made.gate.params)
+    for f in x:
+        np.testing.assert_array_equal(four.step(f), by_hand.step(f))
+    longer = make_default(settings={"long_memory.longest_lag": 32, "long_memory.k": 4})
+    assert longer.experts.members["long_memory"].model.params.longest_lag == 32
+    assert longer.experts.members["memory"].model.params.longest_lag == 8
+    with pytest.raises(GwrPredictorError, match=r"long_memory\.enabled"):
+        make_default(settings={"long_memory.enabled": "yes"})
+
+
 def test_the_memory_never_reads_the_future():
     x = _movement(1.0, 60)
     y = x.copy()

@@ -8,7 +8,8 @@ What a robot runs unless told otherwise (`make_default`; registry name `gwr_expe
   linear models, consolidate with experience and recruit new neurons for movements they have not
   seen, with a global linear read-out mixed in per horizon step;
 - the snippet memory (`memory.py`): a growing memory of short movement snippets, read out by the
-  nearest ones at the present speed, so a movement seen once is anticipated when it comes again;
+  nearest ones at the present speed, so a movement seen once is anticipated when it comes again; and
+  a second one, the long memory, whose snippets' keys span twice as much of the past;
 - the `rls_ar` and `linear` baselines (`gwr_predictor.predictors`): linear models of the last frames,
   which are best while a person's movements are still new.
 
@@ -58,8 +59,9 @@ __all__ = ["make_default", "make_gated_network", *sorted(_EXPORTS)]
 
 def make_default(horizon: int = 6, joints: int = 8, seed: int = 0,
                  settings: Mapping[str, Any] | None = None) -> RecognitionSwitch:
-    """The default predictor, fresh: the four experts, each behind its gate, weighted per step, or
-    ungated where the motion is recognised, each weighting behind its last gate.
+    """The default predictor, fresh: the five experts (four with `long_memory.enabled` false), each behind
+    its gate, weighted per step, or ungated where the motion is recognised, each weighting behind its last
+    gate.
 
     `settings`: flat parameters (`experts_parameter_specs()`: e.g. `network.order`, `memory.k`,
     `experts.power`, `expert_gate.decay`, `gate.confidence`); the others keep their defaults."""
@@ -72,11 +74,14 @@ def make_default(horizon: int = 6, joints: int = 8, seed: int = 0,
     from gwr_predictor.predictors.baselines import TUNED_RLS, RLSAutoregressive
     from gwr_predictor.predictors.direct_linear import TUNED_LINEAR, DirectLinear
 
-    network, memory, weighting, recognition, expert_gate, gate = from_experts_settings(settings or {}, horizon, joints)
+    network, memory, long_memory, weighting, recognition, expert_gate, gate = from_experts_settings(
+        settings or {}, horizon, joints)
     experts = {"network": LocalLinearPredictor(network, seed=seed),
                "linear": DirectLinear(TUNED_LINEAR.replace(horizon=horizon, joints=joints)),
                "rls_ar": RLSAutoregressive(TUNED_RLS, horizon, joints),
                "memory": TrajectoryMemory(memory)}
+    if long_memory is not None:
+        experts["long_memory"] = TrajectoryMemory(long_memory)
     gated = {name: GatedPredictor(model, expert_gate, hold_when_silent=False) for name, model in experts.items()}
     return RecognitionSwitch(Experts(gated, weighting), recognition, gate)
 

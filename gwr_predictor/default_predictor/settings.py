@@ -4,9 +4,10 @@ dataclass validates with.
 - the gated network (`gated_llm_gwr`): the network's own settings, its GWR step's (`gwr.*`) and its
   gate's (`gate.*`);
 - the default (`gwr_experts`): the network's settings under `network.` (`EXPERT_NETWORK` where its
-  defaults differ from the gated network's), the snippet memory's under
-  `memory.`, the weighting's under `experts.`, where the memory's recognition lifts the gates under
-  `recognition.`, the gate in front of each expert under
+  defaults differ from the gated network's), the snippet memory's under `memory.`, the long snippet
+  memory's under `long_memory.` (`LONG_MEMORY` where its defaults differ from the snippet memory's;
+  `long_memory.enabled` false leaves it out), the weighting's under `experts.`, where the memory's
+  recognition lifts the gates under `recognition.`, the gate in front of each expert under
   `expert_gate.` and the last gates, one on each weighting, under `gate.`. The two linear experts
   run with the tuned settings of the `rls_ar` and `linear` baselines.
 
@@ -54,6 +55,15 @@ OUTER_GATE = {"decay": 0.97, "fast_step": 0, "prior": 0.001, "confidence": 0.5}
 #: (`research/tuning.py`: rate and recruit_surprise in round 4, equal where motion repeats and 14 % lower
 #: MSE on the demonstrator check; a 6-frame regressor in round 8, a better cold start and demonstrator check).
 EXPERT_NETWORK = {"rate": 0.1, "recruit_surprise": 9.0, "order": 6}
+#: Where the second snippet memory differs from the first: its key holds the pose's changes over up to 16
+#: frames (1.6 s at 10 fps, against 0.8 s) and weighs them less against the pose. Two memories that
+#: recognise a movement by different spans of its past are right on different frames, and the experts'
+#: weighting hears whichever is right now (round 12 of `research/tuning.py`: lower pooled error on the
+#: repetition streams and a better cold start than either memory alone with the others).
+LONG_MEMORY = {"longest_lag": 16, "velocity_weight": 0.15}
+#: Whether the default runs the long snippet memory (false: the four experts of round 11 and before).
+LONG_MEMORY_ENABLED = ParamSpec("long_memory.enabled", True, "long snippet memory: among the experts (false: left "
+                                "out, the default before round 12)")
 #: The GWR step's settings the default's network uses (not the activation threshold: see above).
 GWR_USED = ("firing_threshold", "eps_b", "eps_n", "rho_b", "rho_n", "kappa", "max_edge_age", "max_neurons")
 
@@ -77,6 +87,8 @@ def experts_parameter_specs() -> tuple[ParamSpec, ...]:
     network = {s.name: s for s in network_specs()}
     return (*_prefixed("network", network, "network", EXPERT_NETWORK),
             *_prefixed("memory", MEMORY_SPECS, "snippet memory"),
+            LONG_MEMORY_ENABLED,
+            *_prefixed("long_memory", MEMORY_SPECS, "long snippet memory", LONG_MEMORY),
             *_prefixed("experts", EXPERTS_SPECS, "weighting"),
             *_prefixed("recognition", RECOGNITION_SPECS, "recognition"),
             *_prefixed("expert_gate", GATE_SPECS, "each expert's gate", EXPERT_GATE),
@@ -124,14 +136,17 @@ def from_settings(settings: Mapping[str, Any], horizon: int, joints: int) -> tup
 
 
 def from_experts_settings(settings: Mapping[str, Any], horizon: int, joints: int
-                          ) -> tuple[LocalLinearParams, MemoryParams, ExpertsParams, RecognitionParams, GateParams,
-                                     GateParams]:
+                          ) -> tuple[LocalLinearParams, MemoryParams, MemoryParams | None, ExpertsParams,
+                                     RecognitionParams, GateParams, GateParams]:
     """The default's parts' parameters for flat `settings` (any subset of `experts_parameter_specs()`):
-    network, memory, weighting, recognition, each expert's gate, the last gates."""
+    network, memory, long memory (None: left out), weighting, recognition, each expert's gate, the last gates."""
     groups = _grouped(settings, experts_parameter_specs(), "the default predictor")
     network = {**EXPERT_NETWORK, **groups.get("network", {})}
+    long_memory = {**LONG_MEMORY, **groups.get("long_memory", {})}
+    enabled = long_memory.pop("enabled", LONG_MEMORY_ENABLED.default)
     return (_network(_grouped(network, network_specs(), "the network"), horizon, joints),
             MemoryParams(horizon=horizon, n_joints=joints, **groups.get("memory", {})),
+            MemoryParams(horizon=horizon, n_joints=joints, **long_memory) if enabled else None,
             ExpertsParams(horizon=horizon, n_joints=joints, **groups.get("experts", {})),
             RecognitionParams(**groups.get("recognition", {})),
             GateParams(horizon=horizon, joints=joints, **{**EXPERT_GATE, **groups.get("expert_gate", {})}),
