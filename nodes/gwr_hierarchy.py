@@ -12,8 +12,8 @@ the sequence. The model is loaded from `checkpoint` at start and saved there ato
 The node locks its checkpoint (`.<name>.lock` beside it) while it runs: a second learner on the same
 file refuses to start instead of overwriting the first one's learning.
 
-`predictor` picks the model: `gwr_experts` (the default: the local-linear P-GWR, a snippet memory and
-two linear models, each behind a confidence gate, weighted per horizon step by their recent errors,
+`predictor` picks the model: `gwr_experts` (the default: the local-linear P-GWR, two snippet memories
+and two linear models, each behind a confidence gate, weighted per horizon step by their recent errors,
 see gwr_predictor/default_predictor/; its status carries each expert's weight at the last step,
 `expert_weight_<expert>_h6`, and the network's read-out mix, `mix_weight_local_h6` /
 `mix_weight_global_h6`), `gated_llm_gwr` (that network alone behind one gate) or `hierarchy` (the
@@ -64,8 +64,8 @@ from .node_base import (
 )
 
 PARAMS = (
-    ParamSpec("predictor", DEFAULT_PREDICTOR, "model: 'gwr_experts' (default: the local-linear P-GWR, a snippet "
-              "memory and two linear models, each gated unless the memory recognises the motion, weighted by "
+    ParamSpec("predictor", DEFAULT_PREDICTOR, "model: 'gwr_experts' (default: the local-linear P-GWR, two "
+              "snippet memories and two linear models, each gated unless the memory recognises the motion, weighted by "
               "recent error), 'gated_llm_gwr' (the network alone, gated) or 'hierarchy' (GWR1 -> GWR2 -> P-GWR, "
               "the paper); the node declares the chosen one's settings as '<predictor>.<name>'",
               choices=learner_names()),

@@ -2,7 +2,7 @@
 
 No one model is best everywhere. On a movement a person has just started to repeat, a global linear
 model of the last frames extrapolates well after a few seconds; once the movement has come back a few
-times, the growing networks that remember it (the local-linear P-GWR, the snippet memory) know where
+times, the growing networks that remember it (the local-linear P-GWR, the snippet memories) know where
 it goes. `Experts` runs every member on every frame and returns, per horizon step k, the members'
 predictions weighted by 1 / MSE_k^`power`, with MSE_k each member's running squared error at step k
 (decayed by `decay` per scored frame). A large power puts nearly all the weight on the member that is

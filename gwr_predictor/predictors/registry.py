@@ -8,8 +8,8 @@ a checkpoint loader; those are the `learner_names()` the node and `pretrain` acc
 
 Built in: the baselines `hold`, `const_velocity`, `rls_ar`, `linear` (direct multi-step linear
 model), the paper's `hierarchy` (GWR1 -> GWR2 -> P-GWR), `gated_llm_gwr` (the local-linear P-GWR
-behind a confidence gate) and the default `gwr_experts` (that network, a snippet memory and the two
-linear models, each behind a gate, weighted per step by their recent errors, behind a last gate).
+behind a confidence gate) and the default `gwr_experts` (that network, two snippet memories and the
+two linear models, each behind a gate, weighted per step by their recent errors, behind a last gate).
 `register` adds one: the research part of the repository (research/, not installed) registers its
 ablations and blends this way.
 """
