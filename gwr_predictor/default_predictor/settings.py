@@ -56,11 +56,11 @@ OUTER_GATE = {"decay": 0.97, "fast_step": 0, "prior": 0.001, "confidence": 0.5}
 #: MSE on the demonstrator check; a 6-frame regressor in round 8, a better cold start and demonstrator check).
 EXPERT_NETWORK = {"rate": 0.1, "recruit_surprise": 9.0, "order": 6}
 #: Where the second snippet memory differs from the first: its key holds the pose's changes over up to 16
-#: frames (1.6 s at 10 fps, against 0.8 s) and weighs them less against the pose. Two memories that
-#: recognise a movement by different spans of its past are right on different frames, and the experts'
-#: weighting hears whichever is right now (round 12 of `research/tuning.py`: lower pooled error on the
-#: repetition streams and a better cold start than either memory alone with the others).
-LONG_MEMORY = {"longest_lag": 16, "velocity_weight": 0.15}
+#: frames (1.6 s at 10 fps, against 0.8 s), weighs them less against the pose and fits its neighbours
+#: only nearer the motion it knows. Two memories that recognise a movement by different spans of its past
+#: are right on different frames, and the experts' weighting hears whichever is right now (round 12 of
+#: `research/tuning.py`: lower pooled error on the repetition streams and a better cold start).
+LONG_MEMORY = {"longest_lag": 16, "velocity_weight": 0.15, "fit_radius": 2.0}
 #: Whether the default runs the long snippet memory (false: the four experts of round 11 and before).
 LONG_MEMORY_ENABLED = ParamSpec("long_memory.enabled", True, "long snippet memory: among the experts (false: left "
                                 "out, the default before round 12)")
