@@ -411,6 +411,28 @@ step 1.009, check 0.397; its experts ungated 0.631.
   `memory.longest_lag` 4 / 16 0.5973 / 0.5991, `memory.k` (averaged where the motion is new) 2 / 5
   0.5904 / 0.5903 (cold start summed 0.3356 / 0.3357, the default 0.3356): within the bound nothing gains
   0.001; kept.
+Round 12 (`r12_round11` is round 11's default): a second snippet memory, one expert more.
+Round 11's default: 0.5906 pooled, curve 1.000 / 0.702 / 0.532, cold start 0.1349 / 0.2007, worst step
+1.0099, check 0.392; below every baseline on 15 of 15.
+- Round 11 found the members, not their weighting, to be the limit, and one memory's key lags (4 or 16
+  instead of 8) lost. A fifth member, a second memory with another key beside the first (prototypes, then
+  `long_memory.*`): longest lag 16 (velocity weight 0.5) 0.5885 pooled, cold start 0.1338 / 0.1980,
+  check 0.381, worst step 1.0108 (real climb_2 learned once); longest lag 32 0.5922; the same lags as
+  the first with velocity weight 0 / 0.25 / 1: 0.5899 / 0.5878 / 0.5914. So two spans of the past,
+  not two copies of one memory, gain.
+- Longest lag 16 with velocity weight 0.1 / 0.15 / 0.25 / 0.35: 0.5876 / 0.5862 / 0.5861 / 0.5867
+  pooled, worst step 1.0089 / 1.0098 / 1.0106 / 1.0104. At 0.15: `fit_radius` 1.5 / 2 / 2.5 / 5 give
+  0.5875 / 0.5866 / 0.5865 / 0.5871 (worst 1.0081 / 1.0095 / 1.0097 / 1.0099); `fit_k` 16 / 64
+  0.5881 / 0.5864 (1.0105 / 1.0104); `insert_scale` 1 0.5881; fit_radius 2 with velocity weight 0.25 /
+  0.1 0.5867 / 0.5879 (1.01002 / 1.0089). The first memory's velocity weight 0.75 beside it: 0.5951
+  (its check 0.362, the best of the round, but the rule ranks the repetition streams).
+- Rule as before: the lowest pooled ratio within the bound is 0.5862 (longest lag 16, velocity weight
+  0.15, fit_radius 3); within 0.001 of it, fit_radius 2 and 2.5 (0.5866 / 0.5865) have cold starts summing
+  0.3330 / 0.3334 against 0.3337. Chosen (the default: `long_memory.longest_lag` 16,
+  `long_memory.velocity_weight` 0.15, `long_memory.fit_radius` 2, the rest as the first memory's):
+  0.5866 pooled, curve 1.000 / 0.702 / 0.528, cold start 0.1344 / 0.1986, worst step 1.0095, check
+  0.381. Its own ungated experts, with the same five members, are 0.621; the default is below every
+  baseline on 14 of 15 streams, behind them on climb_3 s101 by 0.0008 (0.7005 against 0.6996).
 """
 
 from __future__ import annotations
