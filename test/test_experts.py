@@ -277,6 +277,20 @@ def test_the_default_without_its_long_memory_is_the_four_experts():
         make_default(settings={"long_memory.enabled": "yes"})
 
 
+def test_a_default_saved_with_four_experts_continues_with_them(tmp_path):
+    """A default learned before the long memory existed (four experts) loads as it was learned and goes
+    on frame for frame: nothing it learned is dropped and no untrained expert is added."""
+    four = make_default(settings={"long_memory.enabled": False})
+    x = np.concatenate([_movement(s, 50) for s in (1.0, 0.9, 1.1)])
+    for f in x[:100]:
+        four.step(f)
+    four.save(tmp_path / "four.npz")
+    again = RecognitionSwitch.load(tmp_path / "four.npz")
+    assert set(again.experts.members) == {"network", "linear", "rls_ar", "memory"}
+    for f in x[100:]:
+        np.testing.assert_array_equal(four.step(f), again.step(f))
+
+
 def test_the_memory_never_reads_the_future():
     x = _movement(1.0, 60)
     y = x.copy()
