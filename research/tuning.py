@@ -419,7 +419,9 @@ Round 11's default: 0.5906 pooled, curve 1.000 / 0.702 / 0.532, cold start 0.134
   `long_memory.*`): longest lag 16 (velocity weight 0.5) 0.5885 pooled, cold start 0.1338 / 0.1980,
   check 0.381, worst step 1.0108 (real climb_2 learned once); longest lag 32 0.5922; the same lags as
   the first with velocity weight 0 / 0.25 / 1: 0.5899 / 0.5878 / 0.5914. So two spans of the past,
-  not two copies of one memory, gain.
+  not two copies of one memory, gain. Every point is a `D:` name with the long memory's settings (these at
+  `long_memory.fit_radius=3`, e.g. `D:long_memory.longest_lag=32,long_memory.velocity_weight=0.5,
+  long_memory.fit_radius=3` without the spaces).
 - Longest lag 16 with velocity weight 0.1 / 0.15 / 0.25 / 0.35: 0.5876 / 0.5862 / 0.5861 / 0.5867
   pooled, worst step 1.0089 / 1.0098 / 1.0106 / 1.0104. At 0.15: `fit_radius` 1.5 / 2 / 2.5 / 5 give
   0.5875 / 0.5866 / 0.5865 / 0.5871 (worst 1.0081 / 1.0095 / 1.0097 / 1.0099); `fit_k` 16 / 64

@@ -62,8 +62,8 @@ EXPERT_NETWORK = {"rate": 0.1, "recruit_surprise": 9.0, "order": 6}
 #: `research/tuning.py`: lower pooled error on the repetition streams and a better cold start).
 LONG_MEMORY = {"longest_lag": 16, "velocity_weight": 0.15, "fit_radius": 2.0}
 #: Whether the default runs the long snippet memory (false: the four experts of round 11 and before).
-LONG_MEMORY_ENABLED = ParamSpec("long_memory.enabled", True, "long snippet memory: among the experts (false: left "
-                                "out, the default before round 12)")
+LONG_MEMORY_ENABLED = ParamSpec("long_memory.enabled", True, "long snippet memory: among the experts (false: the "
+                                "other four without it)")
 #: The GWR step's settings the default's network uses (not the activation threshold: see above).
 GWR_USED = ("firing_threshold", "eps_b", "eps_n", "rho_b", "rho_n", "kappa", "max_edge_age", "max_neurons")
 
