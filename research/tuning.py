@@ -435,6 +435,13 @@ Round 11's default: 0.5906 pooled, curve 1.000 / 0.702 / 0.532, cold start 0.134
   0.5866 pooled, curve 1.000 / 0.702 / 0.528, cold start 0.1344 / 0.1986, worst step 1.0095, check
   0.381. Its own ungated experts, with the same five members, are 0.621; the default is below every
   baseline on 14 of 15 streams, behind them on climb_3 s101 by 0.0008 (0.7005 against 0.6996).
+- Beside the chosen two (prototypes, not kept): a third memory with lags up to 4 / 32 (velocity weight
+  0.1, fit_radius 2) / 8 at velocity weight 0 / 2 at velocity weight 1 gives 0.5872 / 0.5884 / 0.5876 /
+  0.5882 pooled: no gain. Recognising by the long memory's familiarity instead of the first's, or by
+  both, or by either: 0.5861 / 0.5861 / 0.5869, but 1.027 / 1.016 / 1.026 x holding at worst (a
+  climbing take learned after the others, climb_0 learned once). The ungated weighting's last gate
+  with a lower bound of 0 / 0.25 (`gate.confidence` for it alone): 0.5855 / 0.5856, second performance
+  0.693 / 0.694, but 1.0195 / 1.0139 x on the jump streams; with a ~10-frame memory (decay 0.9) 0.5926.
 """
 
 from __future__ import annotations
