@@ -224,7 +224,7 @@ def test_the_memory_fits_only_where_the_motion_is_familiar():
 
 
 def _two_approaches(performances: int, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
-    """Two movements that differ in where they came from 13-20 frames before they part: one joint comes
+    """Two movements that differ in where they came from 12-19 frames before they part: one joint comes
     in from +0.6 or -0.6 rad, the arm is still for 12 frames, then another joint goes the way the first
     came from, each as often in a random order. Returns the frames and, per frame, the side (+1 or -1)
     where the 12 still frames end (0 elsewhere)."""
@@ -271,8 +271,8 @@ def test_the_default_without_its_long_memory_is_the_four_experts():
     for f in x:
         np.testing.assert_array_equal(four.step(f), by_hand.step(f))
     longer = make_default(settings={"long_memory.longest_lag": 32, "long_memory.k": 4})
-    assert longer.experts.members["long_memory"].model.params.longest_lag == 32
-    assert longer.experts.members["memory"].model.params.longest_lag == 8
+    long, short = (longer.experts.members[n].model.params for n in ("long_memory", "memory"))
+    assert (long.longest_lag, long.k, short.longest_lag, short.k) == (32, 4, 8, 3)
     with pytest.raises(GwrPredictorError, match=r"long_memory\.enabled"):
         make_default(settings={"long_memory.enabled": "yes"})
 
