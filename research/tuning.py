@@ -442,6 +442,10 @@ Round 11's default: 0.5906 pooled, curve 1.000 / 0.702 / 0.532, cold start 0.134
   climbing take learned after the others, climb_0 learned once). The ungated weighting's last gate
   with a lower bound of 0 / 0.25 (`gate.confidence` for it alone): 0.5855 / 0.5856, second performance
   0.693 / 0.694, but 1.0195 / 1.0139 x on the jump streams; with a ~10-frame memory (decay 0.9) 0.5926.
+- With the long memory, round 11's near misses swept again: `recognition.onset_trust` 1 0.5851 pooled
+  (worst 1.0184, a climbing take learned after the others), `gate.confidence` 0.25 0.5855 (1.0139, the
+  jump streams), `recognition.outside_weight` 0.2 0.5865 (1.0100; cold start summed 0.3332 against
+  0.3330), `experts.power` 3 0.5866 (0.3339): within the bound nothing gains 0.001; kept.
 """
 
 from __future__ import annotations
