@@ -144,21 +144,27 @@ def test_a_full_memory_continues_bit_for_bit_from_its_checkpoint(tmp_path):
     assert old.replaced == 0 and old.step(x[0]) is not None
 
 
+def _saved_without(memory: TrajectoryMemory, tmp_path, names: tuple[str, ...]) -> TrajectoryMemory:
+    """`memory` saved, then loaded from a copy of the file whose parameters lack `names`: a file written
+    before those settings existed."""
+    from gwr_predictor.learning.checkpoint import read_checkpoint, write_checkpoint
+
+    memory.save(tmp_path / "m.npz")
+    header, arrays = read_checkpoint(tmp_path / "m.npz", TrajectoryMemory.kind)
+    header["params"] = {k: v for k, v in header["params"].items() if k not in names}
+    write_checkpoint(tmp_path / "former.npz", TrajectoryMemory.kind, header, arrays)
+    return TrajectoryMemory.load(tmp_path / "former.npz")
+
+
 def test_a_memory_saved_before_its_lags_were_a_setting_loads_with_its_own_lags(tmp_path):
     """Before round 7 the key held the changes over 1, 2 and 4 frames and the saved parameters did not say
     so: such a file loads with `longest_lag` 4 and continues bit for bit, whatever the default now is."""
-    from gwr_predictor.learning.checkpoint import read_checkpoint, write_checkpoint
-
     assert MemoryParams().longest_lag != 4 and MemoryParams().lags == (1, 2, 4, 8)
     x = _movement(1.0, 80) + np.random.default_rng(2).normal(scale=0.01, size=(80, 8))
     memory = TrajectoryMemory(MemoryParams(longest_lag=4))
     for f in x[:50]:
         memory.step(f)
-    memory.save(tmp_path / "m.npz")
-    header, arrays = read_checkpoint(tmp_path / "m.npz", TrajectoryMemory.kind)
-    header["params"] = {k: v for k, v in header["params"].items() if k != "longest_lag"}
-    write_checkpoint(tmp_path / "former.npz", TrajectoryMemory.kind, header, arrays)
-    old = TrajectoryMemory.load(tmp_path / "former.npz")
+    old = _saved_without(memory, tmp_path, ("longest_lag",))
     assert old.params.longest_lag == 4
     for f in x[50:]:
         np.testing.assert_array_equal(memory.step(f), old.step(f))
@@ -169,19 +175,13 @@ def test_a_memory_saved_before_its_lags_were_a_setting_loads_with_its_own_lags(t
 def test_a_memory_saved_before_the_fit_loads_averaging_as_it_was_learned(tmp_path):
     """A file written before `fit_k` existed was read out by the k nearest alone: it loads with `fit_k` 0
     and continues bit for bit."""
-    from gwr_predictor.learning.checkpoint import read_checkpoint, write_checkpoint
-
     assert MemoryParams().fit_k > 0
     x = np.concatenate([_movement(s, 50) for s in (1.0, 0.9, 1.1)]) + np.random.default_rng(5).normal(
         scale=0.01, size=(150, 8))
     memory = TrajectoryMemory(MemoryParams(fit_k=0))
     for f in x[:100]:
         memory.step(f)
-    memory.save(tmp_path / "m.npz")
-    header, arrays = read_checkpoint(tmp_path / "m.npz", TrajectoryMemory.kind)
-    header["params"] = {k: v for k, v in header["params"].items() if k not in ("fit_k", "ridge", "fit_radius")}
-    write_checkpoint(tmp_path / "former.npz", TrajectoryMemory.kind, header, arrays)
-    old = TrajectoryMemory.load(tmp_path / "former.npz")
+    old = _saved_without(memory, tmp_path, ("fit_k", "ridge", "fit_radius"))
     assert old.params.fit_k == 0
     for f in x[100:]:
         np.testing.assert_array_equal(memory.step(f), old.step(f))
@@ -277,20 +277,6 @@ def test_the_default_without_its_long_memory_is_the_four_experts():
         make_default(settings={"long_memory.enabled": "yes"})
 
 
-def test_a_default_saved_with_four_experts_continues_with_them(tmp_path):
-    """A default learned before the long memory existed (four experts) loads as it was learned and goes
-    on frame for frame: nothing it learned is dropped and no untrained expert is added."""
-    four = make_default(settings={"long_memory.enabled": False})
-    x = np.concatenate([_movement(s, 50) for s in (1.0, 0.9, 1.1)])
-    for f in x[:100]:
-        four.step(f)
-    four.save(tmp_path / "four.npz")
-    again = RecognitionSwitch.load(tmp_path / "four.npz")
-    assert set(again.experts.members) == {"network", "linear", "rls_ar", "memory"}
-    for f in x[100:]:
-        np.testing.assert_array_equal(four.step(f), again.step(f))
-
-
 def test_the_memory_never_reads_the_future():
     x = _movement(1.0, 60)
     y = x.copy()
@@ -370,15 +356,22 @@ def test_a_member_without_a_prediction_is_left_out():
     np.testing.assert_array_equal(out, np.ones((6, 8)))
 
 
-def test_the_experts_checkpoint_continues_bit_for_bit(tmp_path):
+@pytest.mark.parametrize("settings, members", [
+    ({}, {"network", "linear", "rls_ar", "memory", "long_memory"}),
+    ({"long_memory.enabled": False}, {"network", "linear", "rls_ar", "memory"}),  # as saved before the long memory
+])
+def test_the_experts_checkpoint_continues_bit_for_bit(tmp_path, settings, members):
     """Every member, its gate and the weighting come back: the loaded default predicts what the
-    uninterrupted one does, frame for frame, and holds as many snippets and neurons."""
-    model = make_default()
+    uninterrupted one does, frame for frame, and holds as many snippets and neurons. A default saved with
+    four experts (before the long memory) comes back with them: nothing it learned is dropped and no
+    untrained expert is added."""
+    model = make_default(settings=settings)
     x = np.concatenate([_movement(s, 50) for s in (1.0, 0.9, 1.1, 1.0)])
     for f in x[:150]:
         model.step(f)
     model.save(tmp_path / "m.npz")
     again = RecognitionSwitch.load(tmp_path / "m.npz")
+    assert set(again.experts.members) == set(model.experts.members) == members
     memory = again.experts.members["memory"].model
     assert memory.size == model.experts.members["memory"].model.size > 0
     recognised = model.recognised
