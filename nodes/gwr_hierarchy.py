@@ -15,8 +15,9 @@ file refuses to start instead of overwriting the first one's learning.
 `predictor` picks the model: `gwr_experts` (the default: the local-linear P-GWR, two snippet memories
 and two linear models, each behind a confidence gate, weighted per horizon step by their recent errors,
 see gwr_predictor/default_predictor/; its status carries each expert's weight at the last step,
-`expert_weight_<expert>_h6`, and the network's read-out mix, `mix_weight_local_h6` /
-`mix_weight_global_h6`), `gated_llm_gwr` (that network alone behind one gate) or `hierarchy` (the
+`expert_weight_<expert>_h6`, the network's read-out mix, `mix_weight_local_h6` /
+`mix_weight_global_h6`, and the snippets each memory holds, `snippets_<memory>`, and has replaced
+at its capacity, `snippets_replaced_<memory>`), `gated_llm_gwr` (that network alone behind one gate) or `hierarchy` (the
 paper). The node declares the chosen predictor's own settings and no other's, named
 `<predictor>.<setting>` (`gwr_experts.memory.k`, `hierarchy.gwr1.eps_b`): one params file can hold a
 section for each (config/gwr_hierarchy.yaml does), the others' are ignored without a warning.
@@ -262,6 +263,9 @@ class GwrHierarchyNode(PipelineNode):
             values[f"mix_weight_{name}_h{self.horizon}"] = float(w[-1])
         for name, w in errors.get("expert_weights", {}).items():  # the default's experts
             values[f"expert_weight_{name}_h{self.horizon}"] = float(w[-1])
+        for name, held in errors.get("snippets", {}).items():  # the default's snippet memories
+            values[f"snippets_{name}"] = held["stored"]
+            values[f"snippets_replaced_{name}"] = held["replaced"]
         times = self.step_times or [0.0]
         values["step_ms_mean"] = 1e3 * float(np.mean(times))
         values["step_ms_max"] = 1e3 * self.step_max  # both since the last status

@@ -16,7 +16,12 @@ Prints readable lines, then one JSON object as the last line:
   default_vs_recursive  the default's speed over the recursive hierarchy's: median over chunks of
                     the ratio, each chunk timed on both back to back (in alternating order), so
                     that a load coming and going hits both alike (their separate runs do not)
-  peak_rss_mb       peak resident memory with the benchmark models (before the loop/BMU probes)
+  frames_per_s_default_full / default_full_vs_recursive  the same once the default has learned
+                    `20 x size` frames of motion that never repeats (a smooth random walk): every
+                    frame is a new snippet, as on real motion, so its snippet memories are near their
+                    capacity (`snippets_default_full`) and their search is what bounds it
+  peak_rss_mb       peak resident memory with the benchmark models (before the loop/BMU probes and
+                    the full default; `peak_rss_mb_default_full` after it)
   bmu_overhead_us / bmu_ns_per_value  fit of one BMU search time = overhead + n * dim * cost,
                     to tell call overhead from memory bandwidth
 The data are synthetic smooth periodic multi-joint arm trajectories (data/synthetic.py, no
@@ -124,6 +129,33 @@ def measure_default(reference: Hierarchy, stream: np.ndarray, frames: int,
         model.step(x)
     fps, best, ratio = measure_against(reference, model, stream[:frames], chunk)
     return fps, best, ratio, int(model.neuron_counts[0])
+
+
+def random_walk_stream(n_frames: int, seed: int = 0) -> np.ndarray:
+    """(n_frames, 8) smooth motion that never repeats: each joint's velocity a damped random walk."""
+    rng = np.random.default_rng(seed)
+    kicks = rng.normal(scale=0.01, size=(n_frames, 8))
+    velocity, pose, out = np.zeros(8), np.zeros(8), np.empty((n_frames, 8))
+    for t in range(n_frames):
+        velocity = 0.9 * velocity + kicks[t]
+        pose = 0.995 * pose + velocity
+        out[t] = pose
+    return out
+
+
+def measure_default_full(reference: Hierarchy, learned: int, frames: int, chunk: int,
+                         progress: bool) -> tuple[float, float, int]:
+    """(median frames/s, speed over `reference`'s, snippets stored) of the default predictor after
+    `learned` frames of motion that never repeats (`random_walk_stream`)."""
+    from gwr_predictor.predictors.registry import DEFAULT_PREDICTOR, make_predictor
+
+    stream = random_walk_stream(learned + frames)
+    model = make_predictor(DEFAULT_PREDICTOR)
+    for x in tqdm(stream[:learned], desc="default, filling its memories", unit="frame", disable=not progress):
+        model.step(x)
+    fps, _, ratio = measure_against(reference, model, stream[learned:], chunk)
+    snippets = sum(held["stored"] for held in model.errors()["snippets"].values())
+    return fps, ratio, snippets
 
 
 def products_per_frame(params: HierarchyParams) -> tuple[int, int, int]:
@@ -246,6 +278,7 @@ def run(args: argparse.Namespace) -> int:
             _log(args.quiet, f"default  : {fps:9.0f} frames/s learn+predict, gwr_experts (the node's default), "
                              f"{neurons} P-GWR neurons after the warm-up (best {best:.0f}); "
                              f"{ratio:.3f}x the recursive hierarchy's speed (median of paired chunks)")
+            reference = h  # for the full default, timed last (its memories would count in the peak RSS)
         del h
     result["frames_per_s"] = result[f"frames_per_s_{HierarchyParams().mode}"]
 
@@ -270,6 +303,14 @@ def run(args: argparse.Namespace) -> int:
 
     result["peak_rss_mb"] = round(peak_rss_mb(), 1)  # the sized models; the probes below allocate more
     del h
+
+    learned = 2000 if args.quick else 20 * size
+    fps, ratio, snippets = measure_default_full(reference, learned, frames, chunk, progress=not args.quiet)
+    del reference
+    result.update(frames_per_s_default_full=round(fps, 1), snippets_default_full=snippets,
+                  default_full_vs_recursive=round(ratio, 3), peak_rss_mb_default_full=round(peak_rss_mb(), 1))
+    _log(args.quiet, f"default, full: {fps:5.0f} frames/s learn+predict after {learned} frames of motion that never "
+                     f"repeats ({snippets} snippets in its memories); {ratio:.3f}x the recursive hierarchy's speed")
 
     fast_us, loop_us, ratio = measure_speedup(size, 8, 100 if args.quick else 400)
     result.update(vector_step_us=round(fast_us, 2), loop_step_us=round(loop_us, 1), speedup_vs_loop=round(ratio, 1))

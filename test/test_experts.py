@@ -13,6 +13,7 @@ from gwr_predictor.default_predictor import (
     TrajectoryMemory,
     make_default,
 )
+from gwr_predictor.default_predictor.memory import EXACT
 from gwr_predictor.default_predictor.recognition import RecognitionSwitch
 from gwr_predictor.default_predictor.settings import experts_parameter_specs
 from gwr_predictor.errors import GwrPredictorError
@@ -61,7 +62,7 @@ def test_a_replayed_recording_is_not_recalled_from_its_own_copy():
     lag = memory.params.longest_lag
     for t, f in enumerate(x[:-6]):
         out = memory.step(f, learn=False)
-        if out is not None and t >= lag and memory._distances(memory._key(x[t - lag:t + 1])).min() == 0.0:
+        if out is not None and t >= lag and memory._distances(memory._key(x[t - lag:t + 1])).min() <= EXACT:
             copied.append(np.abs(out[-1] - x[t + 6]).max())
     assert len(copied) > 5
     assert np.median(copied) > 1e-3  # recalled from the copy: below 1e-5
@@ -142,6 +143,33 @@ def test_a_full_memory_continues_bit_for_bit_from_its_checkpoint(tmp_path):
     old = TrajectoryMemory.load(tmp_path / "former.npz")
     np.testing.assert_array_equal(old.used[:old.size], np.arange(old.size))
     assert old.replaced == 0 and old.step(x[0]) is not None
+
+
+def test_the_memory_measures_distance_by_its_weighted_keys_however_it_got_them(tmp_path):
+    """The search works on the keys weighted once when stored (one matrix-vector product per search):
+    they must stay the keys' own through growth, replacement at capacity and a restore."""
+    x = np.cumsum(np.random.default_rng(2).normal(scale=0.05, size=(400, 8)), axis=0)
+    memory = TrajectoryMemory(MemoryParams(capacity=300, velocity_weight=0.3))
+    for f in x:
+        memory.step(f)
+    assert memory.replaced > 0 and memory.size == 300 and len(memory.keys) > 256  # grown, then full
+    memory.save(tmp_path / "m.npz")
+    again = TrajectoryMemory.load(tmp_path / "m.npz")
+    key = memory._key(x[-9:] + 0.01)
+    for m in (memory, again):
+        direct = np.sum(((m.keys[:m.size] - key) * m._key_weights) ** 2, axis=1)
+        np.testing.assert_allclose(m._distances(key), direct, rtol=1e-9, atol=1e-12)
+        assert m._distances(m.keys[7]).min() <= EXACT  # its own copy
+
+
+def test_the_default_reports_what_its_snippet_memories_hold():
+    model = make_default(settings={"memory.capacity": 40})
+    for f in np.cumsum(np.random.default_rng(3).normal(scale=0.05, size=(120, 8)), axis=0):
+        model.step(f)
+    held = model.errors()["snippets"]
+    assert set(held) == {"memory", "long_memory"}
+    assert held["memory"]["stored"] == 40 and held["memory"]["replaced"] > 0
+    assert 40 < held["long_memory"]["stored"] <= 120 and held["long_memory"]["replaced"] == 0
 
 
 def _saved_without(memory: TrajectoryMemory, tmp_path, names: tuple[str, ...]) -> TrajectoryMemory:

@@ -284,9 +284,10 @@ def test_bench_quick_prints_its_figures_as_json(capsys):
     assert cli.main(["bench", "--quick", "--quiet"]) == 0
     result = _last_json(capsys)
     for key in ("frames_per_s", "predict_p99_ms", "peak_rss_mb", "speedup_vs_loop", "frames_per_s_default",
-                "default_vs_recursive"):
+                "default_vs_recursive", "frames_per_s_default_full", "default_full_vs_recursive"):
         assert key in result and math.isfinite(result[key]) and result[key] > 0
     assert result["predict_p99_ms"] >= result["predict_p50_ms"]
+    assert result["snippets_default_full"] > 2000  # motion that never repeats: nearly every frame stored, twice
 
 
 def test_soak_short_run_reports_memory_and_throughput(capsys):

@@ -98,6 +98,9 @@ def test_pipeline_flows_learns_moves_the_robot_and_records(ros, tmp_path):
     assert all(np.isfinite(float(last[k])) for k in ("mix_weight_local_h6", "mix_weight_global_h6"))
     assert 0 <= int(last["neurons_recruited"]) <= counts[-1]["pgwr"]  # the default's recruited neurons
     assert 0 <= int(last["frames_recognised"]) <= int(last["frames"])  # the default's recognition switch
+    assert 0 < int(last["snippets_memory"]) <= int(last["frames"])  # its snippet memories fill as it learns
+    assert 0 < int(last["snippets_long_memory"]) <= int(last["frames"])
+    assert int(last["snippets_replaced_memory"]) == 0
 
     # SIGTERM: clean exit, checkpoint written and loadable, with every learned frame
     learner = procs[3]

@@ -27,6 +27,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
+from gwr_predictor.default_predictor.gate import inner_model
 from gwr_predictor.default_predictor.params import DefaultPredictorError
 from gwr_predictor.learning.checkpoint import CheckpointError
 from gwr_predictor.learning.params import DEFAULT_HORIZON, MAX_HORIZON
@@ -195,11 +196,18 @@ class Experts(Checkpointed):
         return None if counts is None else tuple(counts)
 
     def errors(self) -> dict[str, Any]:
-        """The learner's errors (counts, neurons, P.E./C.P.E.), and per member its running MSE and its
-        weight per step (`expert_mse`, `expert_weights`)."""
+        """The learner's errors (counts, neurons, P.E./C.P.E.), per member its running MSE and its
+        weight per step (`expert_mse`, `expert_weights`), and per snippet memory the snippets it holds and
+        has replaced at capacity (`snippets`: a long session's memory filling up)."""
         mse, w = self.running_mse(), self.weights()
-        return {**self.learner.errors(), "expert_mse": {n: mse[i].tolist() for i, n in enumerate(self.names)},
-                "expert_weights": {n: w[i].tolist() for i, n in enumerate(self.names)}}
+        out = {**self.learner.errors(), "expert_mse": {n: mse[i].tolist() for i, n in enumerate(self.names)},
+               "expert_weights": {n: w[i].tolist() for i, n in enumerate(self.names)}}
+        memories = {n: inner_model(m).errors() for n, m in self.members.items()
+                    if hasattr(inner_model(m), "replaced")}
+        if memories:
+            out["snippets"] = {n: {"stored": e["snippets"], "replaced": e["snippets_replaced"]}
+                               for n, e in memories.items()}
+        return out
 
     # --- persistence: the members by name and kind (the weighting's own state is declared above) -----
     def _load_record_weight(self, saved: Any) -> None:
