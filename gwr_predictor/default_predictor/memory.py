@@ -188,9 +188,9 @@ class TrajectoryMemory(Checkpointed):
 
     def _distances(self, key: np.ndarray) -> np.ndarray:
         """Weighted squared distances of the stored keys to `key`, as |a|^2 - 2 a.b + |b|^2: one pass over
-        the keys instead of three (the difference, its weighting, its norm), ~10 x faster at 20,000 snippets.
-        Rounding leaves ~1e-14 (rad^2) where the difference is 0: far below `EXACT`, far below any two
-        keys of a recording."""
+        the keys instead of three (the difference, its weighting, its norm), which is what a full memory's
+        search costs. Rounding leaves ~1e-14 (rad^2) where the difference is 0: far below `EXACT`, far
+        below any two keys of a recording."""
         query = key * self._key_weights
         d2 = self._weighted[:self.size] @ query
         d2 *= -2.0
