@@ -17,8 +17,8 @@ and two linear models, each behind a confidence gate, weighted per horizon step 
 see gwr_predictor/default_predictor/; its status carries each expert's weight at the last step,
 `expert_weight_<expert>_h6`, the network's read-out mix, `mix_weight_local_h6` /
 `mix_weight_global_h6`, and the snippets each memory holds, `snippets_<memory>`, and has replaced
-at its capacity, `snippets_replaced_<memory>`), `gated_llm_gwr` (that network alone behind one gate) or `hierarchy` (the
-paper). The node declares the chosen predictor's own settings and no other's, named
+at its capacity, `snippets_replaced_<memory>`), `gated_llm_gwr` (that network alone behind one
+gate) or `hierarchy` (the paper). The node declares the chosen predictor's own settings and no other's, named
 `<predictor>.<setting>` (`gwr_experts.memory.k`, `hierarchy.gwr1.eps_b`): one params file can hold a
 section for each (config/gwr_hierarchy.yaml does), the others' are ignored without a warning.
 A checkpoint of another kind than `predictor` stops the node (it is neither used nor moved aside).

@@ -28,6 +28,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from gwr_predictor.default_predictor.gate import inner_model
+from gwr_predictor.default_predictor.memory import TrajectoryMemory
 from gwr_predictor.default_predictor.params import DefaultPredictorError
 from gwr_predictor.learning.checkpoint import CheckpointError
 from gwr_predictor.learning.params import DEFAULT_HORIZON, MAX_HORIZON
@@ -203,7 +204,7 @@ class Experts(Checkpointed):
         out = {**self.learner.errors(), "expert_mse": {n: mse[i].tolist() for i, n in enumerate(self.names)},
                "expert_weights": {n: w[i].tolist() for i, n in enumerate(self.names)}}
         memories = {n: inner_model(m).errors() for n, m in self.members.items()
-                    if hasattr(inner_model(m), "replaced")}
+                    if isinstance(inner_model(m), TrajectoryMemory)}
         if memories:
             out["snippets"] = {n: {"stored": e["snippets"], "replaced": e["snippets_replaced"]}
                                for n, e in memories.items()}
