@@ -48,18 +48,18 @@ EXPERT_GATE = {"decay": 0.995, "warmup": 400, "warmup_decay": 0.95, "prior": 0.0
 #: that judges each step by its own record. They keep the default within 1 % of holding the pose on real
 #: clips where the experts alone were up to 4 % above, and on a take learned after others, where the
 #: memory recognises the motion but the experts ungated are worse than holding at the longer steps
-#: (chosen on the tuning set, `research/tuning.py` rounds 5 and 6).
+#: (chosen on the tuning set, `docs/tuning.md` rounds 5 and 6).
 OUTER_GATE = {"decay": 0.97, "fast_step": 0, "prior": 0.001, "confidence": 0.5}
 #: Where the default's network expert differs from the gated network's settings (`LocalLinearParams()`,
 #: chosen by `experiment tune` for the gated network): chosen on the default's own tuning set
-#: (`research/tuning.py`: rate and recruit_surprise in round 4, equal where motion repeats and 14 % lower
+#: (`docs/tuning.md`: rate and recruit_surprise in round 4, equal where motion repeats and 14 % lower
 #: MSE on the demonstrator check; a 6-frame regressor in round 8, a better cold start and demonstrator check).
 EXPERT_NETWORK = {"rate": 0.1, "recruit_surprise": 9.0, "order": 6}
 #: Where the second snippet memory differs from the first: its key holds the pose's changes over up to 16
 #: frames (1.6 s at 10 fps, against 0.8 s), weighs them less against the pose and fits its neighbours
 #: only nearer the motion it knows. Two memories that recognise a movement by different spans of its past
 #: are right on different frames, and the experts' weighting hears whichever is right now (round 12 of
-#: `research/tuning.py`: lower pooled error on the repetition streams and a better cold start).
+#: `docs/tuning.md`: lower pooled error on the repetition streams and a better cold start).
 LONG_MEMORY = {"longest_lag": 16, "velocity_weight": 0.15, "fit_radius": 2.0}
 #: Whether the default runs the long snippet memory (false: the four experts of round 11 and before).
 LONG_MEMORY_ENABLED = ParamSpec("long_memory.enabled", True, "long snippet memory: among the experts (false: the "
