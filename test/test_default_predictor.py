@@ -20,7 +20,7 @@ from gwr_predictor.default_predictor.gate import GatedPredictor, GateError, Gate
 from gwr_predictor.evaluation.online import compare_online, run_sequence
 from gwr_predictor.learning.checkpoint import CheckpointError
 from gwr_predictor.predictors.baselines import HoldLast
-from gwr_predictor.predictors.registry import DEFAULT_PREDICTOR, load_predictor, make_predictor
+from gwr_predictor.predictors.registry import DEFAULT_PREDICTOR, PRODUCT, load_predictor, make_predictor
 from gwr_predictor.robot.closed_loop import run_closed_loop
 from gwr_predictor.robot.compensator import DelayCompensator
 from research.experiments import common
@@ -201,6 +201,25 @@ def test_gaps_fall_back_to_hold_and_recover(name):
     for f in x[52:]:  # the experts whose windows span the gap wait; the others carry on
         out = model.step(f)
     assert np.abs(out - x[-1]).max() < 1.0
+
+
+@pytest.mark.parametrize("name", PRODUCT)
+def test_a_frame_no_pose_can_be_is_a_missing_sample(name):
+    """A driver's garbage (1e100 rad, or 1e20) overflowed the running statistics: the default then
+    predicted NaN for good, or crashed, and 1e20 shut its gates for hours. Such a frame is now a missing
+    sample, exactly: every predictor answers as if None had come."""
+    x = _periodic(300)
+    garbage = {120: np.full(8, 1e100), 140: np.r_[1e20, np.zeros(7)], 141: np.full(8, -1e300), 200: np.full(8, 101.0)}
+    outputs = []
+    for frames in ({t: f for t, f in garbage.items()}, {t: None for t in garbage}):
+        model = make_predictor(name)
+        outputs.append([model.step(frames.get(t, x[t])) for t in range(len(x))])
+    for with_garbage, with_none in zip(*outputs, strict=True):
+        assert (with_garbage is None) == (with_none is None)
+        if with_none is not None:
+            np.testing.assert_array_equal(with_garbage, with_none)
+    assert np.isfinite(outputs[0][-1]).all()
+    assert np.abs(outputs[0][-1] - x[-1]).max() < 1.0
 
 
 @each_default

@@ -266,7 +266,7 @@ class TrajectoryMemory(Checkpointed):
         stored = self.keys[nearest, p.n_joints:]  # (k, lags * J) changes
         power = np.einsum("kd,kd->k", stored, stored)
         ratio = np.where(power > 1e-8, (stored @ key[p.n_joints:]) / np.maximum(power, 1e-8), 1.0)
-        np.clip(ratio, p.min_ratio, p.max_ratio, out=ratio)
+        np.clip(np.nan_to_num(ratio, nan=1.0), p.min_ratio, p.max_ratio, out=ratio)  # nan: inf / inf of absurd input
         at = np.minimum(ratio[:, None] * self._grid, p.future)  # (k, horizon) stored steps to read
         lo = at.astype(int)
         hi = np.minimum(lo + 1, p.future)

@@ -15,6 +15,17 @@ from gwr_predictor.learning.gwr import InputError
 from gwr_predictor.learning.persistence import Persist, Persistent
 from gwr_predictor.pending import PendingPredictions
 
+#: The largest angle (rad, either sign) a learner learns from: no joint angle in radians comes near. A
+#: frame with a larger one is a fault (a driver's garbage, an unset field), taken as a missing sample:
+#: one frame of 1e100 rad would overflow the squares in the running statistics and leave every later
+#: prediction NaN, and one of 1e20 rad would shut the gates for hours.
+MAX_ANGLE_RAD = 100.0
+
+
+def usable(frame: np.ndarray) -> bool:
+    """Whether a frame of angles (rad) can be learned from: finite, and none beyond `MAX_ANGLE_RAD`."""
+    return float(np.max(np.abs(frame), initial=0.0)) <= MAX_ANGLE_RAD  # False for NaN (and inf) too
+
 
 class ErrorTracker(Persistent):
     """P.E./C.P.E. per horizon step (MSE, rad^2) and per-layer quantization errors (rad).
@@ -103,13 +114,14 @@ class OnlineLoop(Persistent):
         raise NotImplementedError
 
     def _as_frame(self, x: np.ndarray | None) -> np.ndarray | None:
-        """The frame as floats, or None for a missing sample; InputError for a frame of another size."""
+        """The frame as floats, or None for a missing sample (None, non-finite, or not `usable`);
+        InputError for a frame of another size."""
         if x is None:
             return None
         frame = np.asarray(x, dtype=float)
         if frame.shape != (self.params.n_joints,):
             raise InputError(f"a frame must have shape ({self.params.n_joints},), got {frame.shape}")
-        return frame if math.isfinite(frame.sum()) else None
+        return frame if usable(frame) else None
 
     def reset_sequence(self) -> None:
         """Sequence boundary: clear windows, queues and pending predictions (never what was learned)."""
