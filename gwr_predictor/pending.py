@@ -11,9 +11,12 @@ rule, for the evaluation loop (`evaluation.online`).
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+from typing import Any
+
 import numpy as np
 
-from gwr_predictor.learning.persistence import Persist, Persistent
+from gwr_predictor.learning.persistence import Persist, Persistent, require_finite
 
 
 def target_steps(t: int | np.ndarray, horizon: int) -> np.ndarray:
@@ -31,7 +34,7 @@ class PendingPredictions(Persistent):
     again when the next prediction files into it.
     """
 
-    PERSIST = Persist(arrays=("pending", "valid"))
+    PERSIST = Persist(arrays=("pending", "valid"), nan_ok=("pending",))  # what is not valid may be anything
 
     def __init__(self, horizon: int, joints: int, lead: tuple[int, ...] = ()) -> None:
         self.horizon = horizon
@@ -53,6 +56,9 @@ class PendingPredictions(Persistent):
         valid = self.valid[..., s, :].copy()
         self.valid[..., s, :] = False
         return self.pending[..., s, :, :], valid
+
+    def _load_extra(self, header: Mapping[str, Any], arrays: Mapping[str, np.ndarray]) -> None:
+        require_finite(self.pending[self.valid], "pending")  # a prediction waiting to be scored
 
     def drop(self) -> None:
         """Forget every pending prediction (a sequence boundary)."""

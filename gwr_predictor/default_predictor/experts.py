@@ -73,7 +73,8 @@ class Experts(Checkpointed):
 
     kind: ClassVar[str] = "Experts"
     PARAMS = ExpertsParams
-    PERSIST = Persist(arrays=("sse", "weight", "scored", "_outputs"), values=("_t",), members={"_pending": ""})
+    PERSIST = Persist(arrays=("sse", "weight", "scored", "_outputs"), values=("_t",), members={"_pending": ""},
+                      nan_ok=("_outputs",))  # NaN: a member that predicted nothing
 
     def __init__(self, members: Mapping[str, Any], params: ExpertsParams | None = None) -> None:
         if not members:

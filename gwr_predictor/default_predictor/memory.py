@@ -42,7 +42,7 @@ import numpy as np
 from gwr_predictor.default_predictor.params import DefaultPredictorError
 from gwr_predictor.learning.checkpoint import CheckpointError
 from gwr_predictor.learning.params import DEFAULT_HORIZON, MAX_HORIZON
-from gwr_predictor.learning.persistence import Checkpointed, Persist, params_from_json
+from gwr_predictor.learning.persistence import Checkpointed, Persist, params_from_json, require_finite
 from gwr_predictor.parameter_spec import ParamSpec, check_fields
 from gwr_predictor.predictors.baselines import observation
 
@@ -311,6 +311,8 @@ class TrajectoryMemory(Checkpointed):
                 futures.shape != (n, *self.futures.shape[1:]):
             raise CheckpointError(f"snippets of shapes {keys.shape}, {futures.shape} do not fit size {n} and the "
                                   f"parameters (keys {self.keys.shape[1]}-d, futures {self.futures.shape[1:]})")
+        require_finite(keys, "keys")
+        require_finite(futures, "futures")
         self._resize(max(n, len(self.keys)))
         self.keys[:n] = keys
         self.futures[:n] = futures

@@ -47,20 +47,26 @@ class Persist:
     the constructor; a file's array must match). `values`: JSON-able plain values (int, float, bool,
     str, dicts of them), read back as the type the fresh object holds. `optional`: arrays that may be
     None (float). `members`: attribute -> name of stateful members (`Persistent`, or None for none).
-    `queues`: attribute -> row shape (of the object) of deques of rows or None."""
+    `queues`: attribute -> row shape (of the object) of deques of rows or None. `nan_ok`: arrays where
+    NaN means "none yet"; every other float array, optional array and queue row must be finite, since
+    a learner never holds NaN or inf there and one such value would spread through everything it
+    computes after (a corrupt file is refused, not learned from)."""
 
     arrays: tuple[str, ...] = ()
     values: tuple[str, ...] = ()
     optional: tuple[str, ...] = ()
     members: Mapping[str, str] = field(default_factory=dict)
     queues: Mapping[str, Callable[[Any], tuple[int, ...]]] = field(default_factory=dict)
+    nan_ok: tuple[str, ...] = ()
 
     def extend(self, arrays: tuple[str, ...] = (), values: tuple[str, ...] = (), optional: tuple[str, ...] = (),
                members: Mapping[str, str] | None = None,
-               queues: Mapping[str, Callable[[Any], tuple[int, ...]]] | None = None) -> Persist:
+               queues: Mapping[str, Callable[[Any], tuple[int, ...]]] | None = None,
+               nan_ok: tuple[str, ...] = ()) -> Persist:
         """This declaration plus a subclass's fields."""
         return Persist(self.arrays + arrays, self.values + values, self.optional + optional,
-                       {**self.members, **(members or {})}, {**self.queues, **(queues or {})})
+                       {**self.members, **(members or {})}, {**self.queues, **(queues or {})},
+                       self.nan_ok + nan_ok)
 
 
 def key(attr: str) -> str:
@@ -117,8 +123,12 @@ class Persistent:
             setattr(self, a, like(getattr(self, a), field_of(header, key(a), where), where + key(a)))
         for a in decl.arrays:
             copy_into(getattr(self, a), arrays[key(a)], where + key(a))
+            if a not in decl.nan_ok:
+                require_finite(getattr(self, a), where + key(a))
         for a in decl.optional:
             setattr(self, a, np.array(arrays[key(a)], dtype=float) if key(a) in arrays else None)
+            if getattr(self, a) is not None:
+                require_finite(getattr(self, a), where + key(a))
         for attr, row_shape in decl.queues.items():
             present = field_of(header, f"{key(attr)}_present", where)
             fill_queue(getattr(self, attr), present, arrays[key(attr)], row_shape(self), where + key(attr))
@@ -237,6 +247,12 @@ def copy_into(dest: np.ndarray, src: np.ndarray, name: str) -> None:
     dest[...] = src
 
 
+def require_finite(array: np.ndarray, name: str) -> None:
+    """CheckpointError naming `name` if a float `array` holds NaN or inf."""
+    if array.dtype.kind in "fc" and not np.isfinite(array).all():
+        raise CheckpointError(f"array {name!r} holds non-finite values (NaN or inf): the file is corrupt")
+
+
 def stack_queue(queue: deque[np.ndarray | None], row_shape: tuple[int, ...]) -> tuple[list[bool], np.ndarray]:
     """A queue of rows (None: absent) as (which are present, the rows stacked, zeros for the absent)."""
     rows = np.zeros((len(queue), *row_shape))
@@ -257,6 +273,7 @@ def fill_queue(queue: deque[np.ndarray | None], present: Any, rows: np.ndarray, 
                          f"(at most {queue.maxlen}, {len(present)} flags)")
     if not np.can_cast(rows.dtype, float, "same_kind"):
         raise CheckpointError(f"queue {name!r} is {rows.dtype}, expected float")
+    require_finite(rows[np.asarray(present, dtype=bool)], name)
     queue.extend(np.array(row, dtype=float) if flag else None for flag, row in zip(present, rows, strict=True))
 
 
