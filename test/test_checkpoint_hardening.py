@@ -3,8 +3,10 @@
 (a lock beside it), a symlinked checkpoint is written through, and the duplicate-instance detector
 does not stop a node on a stranger's word."""
 
+import copy
 import io
 import json
+import math
 import os
 import signal
 import stat
@@ -318,23 +320,45 @@ def test_a_nan_anywhere_in_a_checkpoint_is_refused_or_changes_nothing(tmp_path, 
     header, arrays = model.state()
     intact = type(model).from_state(header, arrays)
     expected = [intact.step(f) for f in x[200:]]
-    refused = 0
+    spoilt_states = []
     for key, array in arrays.items():
         finite = np.flatnonzero(np.isfinite(array)) if array.dtype.kind == "f" else ()
-        if not len(finite):
-            continue
-        spoilt = dict(arrays)
-        spoilt[key] = array.copy()
-        spoilt[key].reshape(-1)[finite[0]] = np.nan
+        if len(finite):
+            spoilt = dict(arrays)
+            spoilt[key] = array.copy()
+            spoilt[key].reshape(-1)[finite[0]] = np.nan
+            spoilt_states.append((key, header, spoilt))
+    for path in _float_leaves(header):
+        spoilt_header = copy.deepcopy(header)
+        _set_leaf(spoilt_header, path, math.nan)
+        spoilt_states.append(("header " + ".".join(map(str, path)), spoilt_header, arrays))
+    refused = 0
+    for what, spoilt_header, spoilt_arrays in spoilt_states:
         try:
-            loaded = type(model).from_state(header, spoilt, "spoilt.npz")
+            loaded = type(model).from_state(spoilt_header, spoilt_arrays, "spoilt.npz")
         except GwrPredictorError as exc:  # a CheckpointError; a baseline's own class for the baselines
-            assert str(exc).startswith("spoilt.npz: ")
+            assert str(exc).startswith("spoilt.npz: "), what
             refused += 1
             continue
         for f, want in zip(x[200:], expected, strict=True):
-            np.testing.assert_array_equal(loaded.step(f), want, err_msg=f"a NaN in {key!r} was learned from")
+            np.testing.assert_array_equal(loaded.step(f), want, err_msg=f"a NaN in {what} was learned from")
     assert refused > 0
+
+
+def _float_leaves(tree, path=()):
+    """Paths to the float leaves of a JSON-like header."""
+    items = tree.items() if isinstance(tree, dict) else enumerate(tree) if isinstance(tree, list) else ()
+    for k, v in items:
+        if isinstance(v, float) and math.isfinite(v):
+            yield (*path, k)
+        else:
+            yield from _float_leaves(v, (*path, k))
+
+
+def _set_leaf(tree, path, value):
+    for k in path[:-1]:
+        tree = tree[k]
+    tree[path[-1]] = value
 
 
 @pytest.mark.ros

@@ -47,10 +47,10 @@ class Persist:
     the constructor; a file's array must match). `values`: JSON-able plain values (int, float, bool,
     str, dicts of them), read back as the type the fresh object holds. `optional`: arrays that may be
     None (float). `members`: attribute -> name of stateful members (`Persistent`, or None for none).
-    `queues`: attribute -> row shape (of the object) of deques of rows or None. `nan_ok`: arrays where
-    NaN means "none yet"; every other float array, optional array and queue row must be finite, since
-    a learner never holds NaN or inf there and one such value would spread through everything it
-    computes after (a corrupt file is refused, not learned from)."""
+    `queues`: attribute -> row shape (of the object) of deques of rows or None. `nan_ok`: arrays (and
+    values) where NaN means "none yet"; every other float array, optional array, queue row and float
+    value must be finite, since a learner never holds NaN or inf there and one such value would spread
+    through everything it computes after (a corrupt file is refused, not learned from)."""
 
     arrays: tuple[str, ...] = ()
     values: tuple[str, ...] = ()
@@ -120,7 +120,10 @@ class Persistent:
         parameters returns a new object instead. `where`: the key prefix, for messages."""
         decl = self.PERSIST
         for a in decl.values:
-            setattr(self, a, like(getattr(self, a), field_of(header, key(a), where), where + key(a)))
+            value = like(getattr(self, a), field_of(header, key(a), where), where + key(a))
+            if isinstance(value, float) and a not in decl.nan_ok and not np.isfinite(value):
+                raise CheckpointError(f"value {where + key(a)!r} is {value}: the file is corrupt")
+            setattr(self, a, value)
         for a in decl.arrays:
             copy_into(getattr(self, a), arrays[key(a)], where + key(a))
             if a not in decl.nan_ok:
