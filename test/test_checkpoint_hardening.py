@@ -100,6 +100,18 @@ def many_members(path) -> None:
             zf.writestr(f"{i}.npy", b"")
 
 
+def default_with_a_nan(path) -> None:
+    """The default's own file, readable and of the right kind, with one NaN in its last gate's record:
+    loaded, it made every later prediction NaN."""
+    model = make_predictor(DEFAULT_PREDICTOR)
+    for t in range(40):
+        model.step(np.sin(0.2 * t + np.arange(8)))
+    header, arrays = model.state()
+    arrays["ungated_gate.stats"] = arrays["ungated_gate.stats"].copy()
+    arrays["ungated_gate.stats"].reshape(-1)[0] = np.nan
+    write_checkpoint(path, model.kind, header, arrays)
+
+
 CORRUPTIONS = {"deflated_bad_bits": deflated_bad_bits, "nested_header": deeply_nested_header,
                "npy_terabyte": npy_declaring_a_terabyte, "header_terabyte": header_declaring_too_much}
 
@@ -228,7 +240,8 @@ def test_one_lock_per_checkpoint_path_released_on_close(tmp_path):
 
 
 @pytest.mark.ros
-@pytest.mark.parametrize("corrupt", [deflated_bad_bits, npy_declaring_a_terabyte], ids=["deflate", "npy"])
+@pytest.mark.parametrize("corrupt", [deflated_bad_bits, npy_declaring_a_terabyte, default_with_a_nan],
+                         ids=["deflate", "npy", "nan"])
 def test_the_learner_moves_any_unreadable_checkpoint_aside_and_starts_fresh(ros, tmp_path, corrupt):
     checkpoint = tmp_path / "model.npz"
     corrupt(checkpoint)
