@@ -1,27 +1,11 @@
 """The tuning set of the candidate defaults (`research.candidates`): every setting is chosen here,
-never on a reported figure.
+never on a reported figure. What the set holds (`SEGMENTS`, `SEEDS`, `COLD_PATTERNS`, `DEMO_SEED`, the
+bounds), the rule each round chose by, and every round's record: docs/tuning.md.
 
-Disjoint from every reported column:
-
-- repetition streams (`research.repetitions`, 8 performances, the benchmark's `StreamSettings`) of
-  segments the repetition benchmark does not use, seeds 100, 101, 102 (15 streams):
-  climb_1 12.9-15.9 s, climb_3 11.3-14.3 s, omomo_sub3 0-3 s (other takes and another person than the
-  benchmark's climb_0/2/4 and omomo_sub10), cmu_walk 11.9-14.9 s and kneel 11.7-14.2 s (the benchmark
-  cuts cmu_walk 4.4-7.4 s and kneel 4.1-7.1 s: no frame in common). The segments were picked like the
-  benchmark's (most arm motion per second, end pose near the start pose) among windows outside those.
-- the demonstrator cold start on `raise_lateral_both` and `wave_both` (3 subjects x 10 repetitions,
-  demonstrator seed 0, one online pass over each pattern's 30 recordings from scratch); the reported
-  cold start is `raise_front_both`.
-- constraints only (never optimised): MAE <= 1.02 x hold-last at every step on the sudden-jump stream
-  of `test/test_default_predictor.py` with seeds 100-102, and on the real clips, one pass each and,
-  from round 5 on, each climbing take learned after the other four (the reported `experiment real`
-  conditions: used as a pass/fail bound, as the issue allows).
-
-`python -m research.tuning [--real] NAME...` scores registry names and the variants in `VARIANTS`.
-The baselines every candidate must beat per stream (`BASELINES`) include the default's own ungated
-experts (`experts_ungated`) and the gated network alone (`gated_llm_gwr`).
-
-The record of every round (what was measured, what was chosen and why, what lost): docs/tuning.md.
+`python -m research.tuning [--real] [--demo] NAME...` scores registry names, the variants in `VARIANTS`
+and `D:<setting>=<value>,...` points. The baselines every candidate must beat per stream (`BASELINES`)
+include the default's own ungated experts (`experts_ungated`) and the gated network alone
+(`gated_llm_gwr`).
 """
 
 from __future__ import annotations

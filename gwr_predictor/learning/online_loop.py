@@ -24,7 +24,7 @@ MAX_ANGLE_RAD = 100.0
 
 def usable(frame: np.ndarray) -> bool:
     """Whether a frame of angles (rad) can be learned from: finite, and none beyond `MAX_ANGLE_RAD`."""
-    return float(np.max(np.abs(frame), initial=0.0)) <= MAX_ANGLE_RAD  # False for NaN (and inf) too
+    return float(np.abs(frame).max()) <= MAX_ANGLE_RAD  # False for NaN (and inf) too; on every member's step
 
 
 class ErrorTracker(Persistent):
