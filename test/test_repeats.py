@@ -85,6 +85,14 @@ def test_streams_are_reproducible_per_seed_and_differ_between_seeds(segment):
     assert [s.name for s in a] == ["wave s3", "wave s4"]
 
 
+def test_two_cuts_of_one_clip_make_streams_of_distinct_names(segment):
+    """A tuning harness keys its figures by stream name: two cuts of one clip must not share one."""
+    segs = [(Segment("wave", 0.0, 1.0), segment), (Segment("wave", 1.0, 2.0), segment),
+            (Segment("lift", 0.0, 2.0), segment)]
+    names = [s.name for s in make_streams(segs, (3,))]
+    assert names == ["wave@0-1s s3", "wave@1-2s s3", "lift s3"]
+
+
 def test_bad_segments_and_settings_are_named(segment):
     bad = segment.copy()
     bad[5, 3] = np.nan
