@@ -1,6 +1,6 @@
 """README.md and docs/*.md cannot rot: their Python examples run, the commands and scripts their bash
-examples name exist, the source files they name exist, and their relative links (and #anchors) lead
-somewhere.
+examples name exist, the source files they name exist, their relative links (and #anchors) lead
+somewhere, and the README's results table holds its recorded runs' figures.
 
 A Python block fenced as ```python no-run is skipped; use it only for code that needs what this
 machine cannot have (a live ROS graph, a robot, a display), and say why next to the block.
@@ -156,3 +156,46 @@ def test_named_source_files_exist(path):
 def test_the_pages_have_examples_to_check():
     """Guards the extraction itself: a broken fence pattern would otherwise pass with nothing checked."""
     assert python_blocks() and bash_commands() and links() and code_paths()
+
+
+def _to_hold(stats: dict, method: str) -> float:
+    """MAE at the last step as a share of holding the pose's, from a results.json's per-method figures."""
+    return stats[method]["mae"][-1] / stats["hold"]["mae"][-1]
+
+
+#: The README's results table, column by column: the recorded run it quotes and how to read a method there.
+RESULT_COLUMNS = (
+    ("repeats", lambda r, m: r["ratio_to_hold"]["pooled"][m]),
+    ("real", lambda r, m: _to_hold(r["one_pass"]["pooled"], m)),
+    ("compare", lambda r, m: _to_hold(r["conditions"]["heldout_repetitions/frozen"], m)),
+    ("compare", lambda r, m: _to_hold(r["conditions"]["heldout_subjects/frozen"], m)),
+)
+
+
+def readme_results_rows() -> list[tuple[str, list[str]]]:
+    """(registry name, cells) of each method row of the README's results table ("hold the last pose": hold)."""
+    text = (ROOT / "README.md").read_text(encoding="utf-8")
+    section = text.split("\n## Results\n", 1)[1].split("\n## ", 1)[0]
+    rows = []
+    for line in section.splitlines():
+        cells = [c.strip() for c in line.strip().strip("|").split("|")]
+        if not line.startswith("|") or len(cells) != len(RESULT_COLUMNS) + 1 or set(cells[1]) <= set("-"):
+            continue
+        name = re.search(r"`(\w+)`", cells[0])
+        if name or cells[0].startswith("hold"):
+            rows.append((name.group(1) if name else "hold", cells[1:]))
+    return rows
+
+
+def test_the_readme_results_table_is_the_recorded_runs():
+    """Every figure of the README's table is its recorded run's (docs/results/*/results.json), to the
+    three decimals shown: a re-run that moves a figure moves the table, or this fails."""
+    import json
+
+    runs = {name: json.loads((ROOT / "docs" / "results" / name / "results.json").read_text())["results"]
+            for name in {run for run, _ in RESULT_COLUMNS}}
+    rows = readme_results_rows()
+    assert {"hold", "rls_ar", "gwr_experts"} <= {name for name, _ in rows}
+    for name, cells in rows:
+        for cell, (run, read) in zip(cells, RESULT_COLUMNS, strict=True):
+            assert cell.strip("*") == f"{read(runs[run], name):.3f}", f"README row {name}, run {run}"
