@@ -91,9 +91,8 @@ def test_robot_commands_states_and_predictions_every_kind(ros):
 @pytest.mark.ros
 def test_learner_gaps_stamps_duplicates_and_a_burst(ros):
     probe = ros.probe
-    diagnostics = probe.subscribe_diagnostics()
-    learner = ros.start("gwr_hierarchy", params=FAST)
-    ros.wait_for_node(diagnostics, "/gwr_hierarchy", timeout=60)
+    diagnostics = ros.diagnostics
+    learner = ros.start_ready("gwr_hierarchy", params=FAST)
     predictions = probe.subscribe("/predictions", Float64MultiArray)
     pub = probe.publisher("/arm_angles", JointState)
     probe.wait_for_subscribers(pub)
@@ -122,9 +121,8 @@ def test_learner_gaps_stamps_duplicates_and_a_burst(ros):
 @pytest.mark.ros
 def test_skeletons_whose_sizes_lie_and_bad_stamps(ros):
     probe = ros.probe
-    diagnostics = probe.subscribe_diagnostics()
-    proc = ros.start("angle_extractor", params=FAST)
-    ros.wait_for_node(diagnostics, "/angle_extractor", timeout=60)
+    diagnostics = ros.diagnostics
+    proc = ros.start_ready("angle_extractor", params=FAST)
     out = probe.subscribe("/arm_angles", JointState)
     pub = probe.publisher("/skeleton", Float64MultiArray)
     probe.wait_for_subscribers(pub)

@@ -213,9 +213,7 @@ def test_the_joint_name_cache_of_angle_extractor_is_bounded():
 
 @pytest.mark.ros
 def test_a_second_pipeline_on_the_same_domain_is_detected_and_stops(ros):
-    diagnostics = ros.probe.subscribe_diagnostics()
-    first = ros.start("angle_extractor", label="first", params=FAST)
-    ros.wait_for_node(diagnostics, "/angle_extractor", timeout=60)
+    first = ros.start_ready("angle_extractor", label="first", params=FAST)
     second = ros.start("angle_extractor", label="second", params=FAST)
     code = second.wait(30)
     assert code == 1, second.output()

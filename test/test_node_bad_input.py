@@ -159,9 +159,7 @@ def ros_now(probe) -> float:
 def test_a_burst_of_skeletons_is_processed_in_order(ros):
     """200 frames published back to back (a tracker catching up): every third one gives an angle frame."""
     probe = ros.probe
-    diagnostics = probe.subscribe_diagnostics()
-    proc = ros.start("angle_extractor", params=FAST)
-    ros.wait_for_node(diagnostics, "/angle_extractor", timeout=60)
+    proc = ros.start_ready("angle_extractor", params=FAST)
     out = probe.subscribe("/arm_angles", JointState)
     pub = probe.publisher("/skeleton", Float64MultiArray)
     probe.wait_for_subscribers(pub)

@@ -144,9 +144,8 @@ def test_corrupt_checkpoint_is_moved_aside_not_overwritten(ros, tmp_path):
     Hierarchy(HierarchyParams.paper()).save(checkpoint)
     truncated = checkpoint.read_bytes()[:200]  # a checkpoint cut short (a crash of another writer)
     checkpoint.write_bytes(truncated)
-    diagnostics = ros.probe.subscribe_diagnostics()
-    learner = ros.start("gwr_hierarchy", params={**FAST, "checkpoint": str(checkpoint)})
-    ros.wait_for_node(diagnostics, "/gwr_hierarchy", timeout=60)
+    diagnostics = ros.diagnostics
+    learner = ros.start_ready("gwr_hierarchy", params={**FAST, "checkpoint": str(checkpoint)})
     aside = list(tmp_path.glob("model.npz.corrupt-*"))
     assert len(aside) == 1 and aside[0].read_bytes() == truncated
     assert "unreadable checkpoint moved to" in learner.output()

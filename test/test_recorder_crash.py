@@ -25,9 +25,8 @@ def frame(k: int) -> JointState:
 
 
 def start_recorder(ros, path):
-    diagnostics = ros.probe.subscribe_diagnostics()
-    recorder = ros.start("bag_recorder", params={**RECORDER, "path": str(path)})
-    ros.wait_for_node(diagnostics, "/bag_recorder", timeout=60)
+    diagnostics = ros.diagnostics
+    recorder = ros.start_ready("bag_recorder", params={**RECORDER, "path": str(path)})
     pub = ros.probe.publisher("/arm_angles", JointState)
     ros.probe.wait_for_subscribers(pub)
     return recorder, diagnostics, pub
