@@ -353,6 +353,21 @@ def test_evaluate_prints_a_json_last_line(tmp_path, capsys):
     assert len(last["neurons"]["hierarchy"]) == 3
 
 
+def test_evaluate_predicts_as_far_as_it_scores(tmp_path, capsys):
+    """--horizon builds every model for that many frames (600 ms at 30 fps is 18), not only the scoring."""
+    from gwr_predictor.data.angle_files import save_angles_csv
+    from gwr_predictor.data.datasets import demo_angle_sequences
+
+    s = demo_angle_sequences(["wave_one"], 1, 1)[0]
+    csv = str(save_angles_csv(tmp_path / "wave.csv", s.t, s.angles))
+    assert main(["evaluate", csv, "--horizon", "18", "--methods", "hold,rls_ar", "--no-progress"]) == 0
+    last = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    assert last["horizon"] == 18 and set(last["mae_rad"]) == {"hold", "rls_ar", "gwr_experts"}
+    assert all(len(v) == 18 for v in last["mae_rad"].values())
+    assert main(["evaluate", csv, "--horizon", "18", "--param", "horizon=12", "--no-progress"]) == 2
+    assert "--horizon 18 and --param horizon=12 disagree" in capsys.readouterr().err
+
+
 def test_evaluate_reports_an_unreadable_file(tmp_path, capsys):
     bad = Path(tmp_path / "bad.csv")
     bad.write_text("hello,world\n1,2\n")

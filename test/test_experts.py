@@ -433,3 +433,22 @@ def test_the_default_takes_its_settings_by_flat_name():
         make_default(settings={"memory.kk": 5})
     with pytest.raises(GwrPredictorError, match=r"memory\.k"):
         make_default(settings={"memory.k": 0})
+
+
+@pytest.mark.parametrize("horizon", [1, 6, 12, 13, 18])
+def test_the_default_predicts_any_horizon_a_tracker_rate_asks_for(horizon):
+    """600 ms ahead is 6 frames at 10 fps and 18 at 30 fps: the memories store what the fastest read-out
+    of the horizon needs (at least the 12 tuned at 6), so no horizon fails on a setting nobody set."""
+    model = make_default(horizon=horizon)
+    memory = model.experts.members["memory"].model
+    assert memory.params.stored_future == max(12, int(np.ceil(horizon * 1.6)))
+    x = np.concatenate([_movement(1.0, 60), _movement(1.3, 60)])
+    outs = [model.step(f) for f in x]
+    assert outs[-1].shape == (horizon, 8) and np.all(np.isfinite(outs[-1]))
+    assert memory.size > 0 and memory.futures.shape[1] == memory.params.stored_future + 1
+
+
+def test_a_memory_future_shorter_than_the_horizon_is_refused_by_name():
+    with pytest.raises(DefaultPredictorError, match="future 10 is shorter than the horizon 18"):
+        MemoryParams(horizon=18, future=10)
+    assert MemoryParams(horizon=18, future=18).stored_future == 18  # what is set is what is stored

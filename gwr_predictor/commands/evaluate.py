@@ -41,7 +41,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
                         help="recordings: skeleton (.npz/.csv), angle (.csv) or mocap (.bvh, .amc, .npy/.npz "
                              "joint positions, .pt) files")
     parser.add_argument("--passes", type=int, default=1, help="times the recordings are presented (default 1)")
-    parser.add_argument("--horizon", type=int, default=None, help="frames ahead (default: the model's, 6)")
+    parser.add_argument("--horizon", type=int, default=None, help="frames every model predicts ahead and is scored at (default 6: 600 ms at 10 fps)")
     parser.add_argument("--methods", default=",".join(DEFAULT_METHODS),
                         help=f"comma-separated subset of {','.join(registry.names())}")
     parser.add_argument("--checkpoint", type=Path, default=None, help="start the hierarchy from this checkpoint")
@@ -94,10 +94,14 @@ def run(args: argparse.Namespace) -> int:
             methods = (*methods, default_method())
         options = import_options(args)
         recordings = [load_recording(p, options) for p in args.files]
-        params = HierarchyParams.from_flat(parse_overrides(args.param))
+        overrides = parse_overrides(args.param)
+        if args.horizon is not None:  # the models predict as far as they are scored
+            if overrides.setdefault("horizon", args.horizon) != args.horizon:
+                raise ValueError(f"--horizon {args.horizon} and --param horizon={overrides['horizon']} disagree")
+        params = HierarchyParams.from_flat(overrides)
         models = {m: (registry.load_predictor(m, args.checkpoint) if m == "hierarchy" and args.checkpoint
                       else registry.make_predictor(m, params, args.seed)) for m in methods}
-        horizon = args.horizon or params.horizon
+        horizon = params.horizon
         results = compare_online(models, recordings, horizon=horizon, passes=args.passes,
                                  progress=not args.no_progress, desc="evaluate")
     except (ValueError, OSError) as exc:  # RecordingError, EvaluationError, CheckpointError, bad params

@@ -50,6 +50,9 @@ from gwr_predictor.predictors.baselines import observation
 SAVED_LONGEST_LAG = 4
 #: The settings a memory saved before they existed was read out with: its key's lags, and no fit (`fit_k` 0).
 BEFORE = {"longest_lag": SAVED_LONGEST_LAG, "fit_k": 0}
+#: The fewest frames stored after a key with `future` 0: the tuned default's at its horizon of 6 (where the
+#: fastest read-out needs 10).
+SHORTEST_FUTURE = 12
 #: A key this close (squared, rad^2) to the present one is a copy of it: the same recording replayed.
 EXACT = 1e-12
 
@@ -63,8 +66,8 @@ MEMORY_SPECS = {spec.name: spec for spec in (
               lo_open=True),
     ParamSpec("fit_radius", 3.0, "the motion is familiar enough to fit where `familiarity` is at most this", 0.0,
               1e3),
-    ParamSpec("future", 12, "frames stored after each key (>= horizon x max_ratio to read the fastest motion)",
-              1, 4 * MAX_HORIZON),
+    ParamSpec("future", 0, "frames stored after each key (0: enough to read the fastest motion, horizon x max_ratio "
+              f"rounded up, at least {SHORTEST_FUTURE})", 0, 4 * MAX_HORIZON),
     ParamSpec("longest_lag", 8, "the key holds the pose's changes over 1, 2, 4, ... frames up to this (a power of "
               "two)", 1, 64),
     ParamSpec("velocity_weight", 0.5, "weight of the key's changes against its pose in the distance", 0.0, 100.0),
@@ -101,9 +104,9 @@ class MemoryParams:
 
     def __post_init__(self) -> None:
         check_fields(self, MEMORY_SPECS.values(), DefaultPredictorError)
-        if self.future < self.horizon:
+        if self.future and self.future < self.horizon:
             raise DefaultPredictorError(f"MemoryParams.future {self.future} is shorter than the horizon "
-                                        f"{self.horizon}")
+                                        f"{self.horizon} (0 follows the horizon)")
         if self.longest_lag & (self.longest_lag - 1):
             raise DefaultPredictorError(f"MemoryParams.longest_lag {self.longest_lag} is not a power of two")
         if self.capacity < self.k:
@@ -111,6 +114,12 @@ class MemoryParams:
 
     def replace(self, **changes: Any) -> MemoryParams:
         return dataclasses.replace(self, **changes)
+
+    @property
+    def stored_future(self) -> int:
+        """Frames stored after each key: `future`, or with 0 what the fastest read-out of the horizon needs
+        (a person's movement seen 6 frames ahead at 10 fps is 18 at 30 fps)."""
+        return self.future or max(SHORTEST_FUTURE, math.ceil(self.horizon * self.max_ratio - 1e-9))
 
     @property
     def lags(self) -> tuple[int, ...]:
@@ -141,13 +150,13 @@ class TrajectoryMemory(Checkpointed):
         self.keys = np.empty((size, len(self._key_weights)))  # pose, then its changes (unweighted)
         self._weighted = np.empty_like(self.keys)  # the keys x `_key_weights`, and their squared norms:
         self._norms = np.empty(size)  # a distance is then one matrix-vector product (`_distances`)
-        self.futures = np.empty((size, p.future + 1, p.n_joints))  # displacements from the key's pose, step 0..future
+        self.futures = np.empty((size, p.stored_future + 1, p.n_joints))  # displacements from the key's pose, 0..future
         self.used = np.empty(size, dtype=np.int64)  # per snippet: the frame it was stored or last recalled at
         self.size = 0
         self.clock = 0  # frames observed (the clock of `used`)
         self.replaced = 0  # snippets replaced at capacity
         self._motion_ms = p.noise_floor ** 2  # running mean of ||x(t) - x(t-1)||^2
-        self._recent: deque[np.ndarray] = deque(maxlen=self._span + p.future)
+        self._recent: deque[np.ndarray] = deque(maxlen=self._span + p.stored_future)
         self.familiarity: float | None = None
         self.travel: float | None = None
 
@@ -267,9 +276,9 @@ class TrajectoryMemory(Checkpointed):
         power = np.einsum("kd,kd->k", stored, stored)
         ratio = np.where(power > 1e-8, (stored @ key[p.n_joints:]) / np.maximum(power, 1e-8), 1.0)
         np.clip(np.nan_to_num(ratio, nan=1.0), p.min_ratio, p.max_ratio, out=ratio)  # nan: inf / inf of absurd input
-        at = np.minimum(ratio[:, None] * self._grid, p.future)  # (k, horizon) stored steps to read
+        at = np.minimum(ratio[:, None] * self._grid, p.stored_future)  # (k, horizon) stored steps to read
         lo = at.astype(int)
-        hi = np.minimum(lo + 1, p.future)
+        hi = np.minimum(lo + 1, p.stored_future)
         frac = (at - lo)[..., None]
         rows = np.arange(len(nearest))[:, None]
         fut = self.futures[nearest]
