@@ -41,7 +41,8 @@ def configure(parser: argparse.ArgumentParser) -> None:
                         help="recordings: skeleton (.npz/.csv), angle (.csv) or mocap (.bvh, .amc, .npy/.npz "
                              "joint positions, .pt) files")
     parser.add_argument("--passes", type=int, default=1, help="times the recordings are presented (default 1)")
-    parser.add_argument("--horizon", type=int, default=None, help="frames every model predicts ahead and is scored at (default 6: 600 ms at 10 fps)")
+    parser.add_argument("--horizon", type=int, default=None,
+                        help="frames every model predicts ahead and is scored at (default 6: 600 ms at 10 fps)")
     parser.add_argument("--methods", default=",".join(DEFAULT_METHODS),
                         help=f"comma-separated subset of {','.join(registry.names())}")
     parser.add_argument("--checkpoint", type=Path, default=None, help="start the hierarchy from this checkpoint")
