@@ -18,6 +18,7 @@ from gwr_predictor.default_predictor.recognition import RecognitionSwitch
 from gwr_predictor.default_predictor.settings import experts_parameter_specs
 from gwr_predictor.errors import GwrPredictorError
 from gwr_predictor.evaluation.online import compare_online
+from gwr_predictor.learning.params import MAX_HORIZON
 from gwr_predictor.predictors.baselines import HoldLast
 
 
@@ -435,14 +436,15 @@ def test_the_default_takes_its_settings_by_flat_name():
         make_default(settings={"memory.k": 0})
 
 
-@pytest.mark.parametrize("horizon", [1, 6, 12, 13, 18])
+@pytest.mark.parametrize("horizon", [1, 6, 12, 13, 18, MAX_HORIZON])
 def test_the_default_predicts_any_horizon_a_tracker_rate_asks_for(horizon):
     """600 ms ahead is 6 frames at 10 fps and 18 at 30 fps: the memories store what the fastest read-out
-    of the horizon needs (at least the 12 tuned at 6), so no horizon fails on a setting nobody set."""
+    of the horizon needs (at least the 12 tuned at 6) and every member takes any horizon the learner
+    node accepts, so no horizon fails on a setting nobody set."""
     model = make_default(horizon=horizon)
     memory = model.experts.members["memory"].model
     assert memory.params.stored_future == max(12, int(np.ceil(horizon * 1.6)))
-    x = np.concatenate([_movement(1.0, 60), _movement(1.3, 60)])
+    x = np.concatenate([_movement(1.0, 120), _movement(1.3, 120)])
     outs = [model.step(f) for f in x]
     assert outs[-1].shape == (horizon, 8) and np.all(np.isfinite(outs[-1]))
     assert memory.size > 0 and memory.futures.shape[1] == memory.params.stored_future + 1

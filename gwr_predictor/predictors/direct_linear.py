@@ -32,7 +32,7 @@ import numpy as np
 from gwr_predictor.learning.persistence import Checkpointed, Persist
 from gwr_predictor.learning.rls import RecursiveLeastSquares, window_features
 from gwr_predictor.parameter_spec import ParamSpec, check_fields
-from gwr_predictor.pipeline.conventions import DEFAULT_HORIZON
+from gwr_predictor.pipeline.conventions import DEFAULT_HORIZON, MAX_HORIZON
 from gwr_predictor.predictors.baselines import N_JOINTS, observation
 from gwr_predictor.predictors.registry import PredictorError
 
@@ -45,7 +45,7 @@ _SPECS = {spec.name: spec for spec in (
     ParamSpec("forgetting", 1.0, "RLS forgetting factor per learned pair (1: fit everything seen)", 0.9, 1.0),
     ParamSpec("delta", 1.0, "initial P = delta I (prior variance of the weights)", 0.0, lo_open=True),
     ParamSpec("max_trace", 1e6, "P is reset when its trace exceeds this (wind-up)", 0.0, lo_open=True),
-    ParamSpec("horizon", DEFAULT_HORIZON, "frames predicted", 1, 64),
+    ParamSpec("horizon", DEFAULT_HORIZON, "frames predicted", 1, MAX_HORIZON),
     ParamSpec("joints", N_JOINTS, "joints per frame", 1),
 )}
 
