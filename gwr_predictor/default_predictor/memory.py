@@ -119,6 +119,7 @@ class MemoryParams:
     def stored_future(self) -> int:
         """Frames stored after each key: `future`, or with 0 what the fastest read-out of the horizon needs
         (a person's movement seen 6 frames ahead at 10 fps is 18 at 30 fps)."""
+        # less a rounding hair: 25 x 2.2 is 55.00000000000001 in floats, and 55 frames read it
         return self.future or max(SHORTEST_FUTURE, math.ceil(self.horizon * self.max_ratio - 1e-9))
 
     @property
