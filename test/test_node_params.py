@@ -89,6 +89,30 @@ def test_bad_parameter_stops_the_node_with_exit_code_2_naming_it(ros, node, para
     assert "ready" not in output
 
 
+@pytest.mark.ros
+def test_the_learner_predicts_as_far_as_its_horizon(ros):
+    """600 ms at 30 fps is 18 frames: the default learner starts with any horizon it accepts and
+    publishes that many predicted frames (above 12 it refused to start, on its memories' `future`)."""
+    import numpy as np
+    from test_node_bad_input import FAST, joint_state
+
+    from gwr_predictor.nodes import messages
+    from gwr_predictor.nodes.messages import Float64MultiArray, JointState
+
+    learner = ros.start_ready("gwr_hierarchy", params={**FAST, "horizon": 18})
+    predictions = ros.probe.subscribe("/predictions", Float64MultiArray)
+    pub = ros.probe.publisher("/arm_angles", JointState)
+    ros.probe.wait_for_subscribers(pub)
+    t = np.arange(40)[:, None]
+    for i, row in enumerate(0.3 + 0.2 * np.sin(0.3 * t + np.arange(8)) * np.array([1, 1, -1, -1, 1, -1, 1, 1])):
+        pub.publish(joint_state(100.0 + 0.1 * i, row))
+        ros.probe.spin_for(0.02)
+    ros.probe.spin_until(lambda: len(predictions) >= 10, 30, "10 predictions", [learner])
+    _, _, values = messages.read_predictions(predictions[-1])
+    assert values.shape == (18, 8) and np.all(np.isfinite(values))
+    assert learner.running()
+
+
 def test_pretrain_uses_the_nodes_yaml_and_writes_a_checkpoint_the_node_can_load(tmp_path):
     from gwr_predictor.commands.cli import main
     from gwr_predictor.commands.pretrain import node_parameters
