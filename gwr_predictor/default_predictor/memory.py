@@ -147,17 +147,18 @@ class TrajectoryMemory(Checkpointed):
         self._key_weights = np.concatenate([np.ones(p.n_joints),
                                             np.full(len(self._lags) * p.n_joints, p.velocity_weight)])
         self._grid = np.arange(1, p.horizon + 1, dtype=float)
+        self._future = p.stored_future  # the last stored step a read-out may reach
         size = min(p.capacity, 256)
         self.keys = np.empty((size, len(self._key_weights)))  # pose, then its changes (unweighted)
         self._weighted = np.empty_like(self.keys)  # the keys x `_key_weights`, and their squared norms:
         self._norms = np.empty(size)  # a distance is then one matrix-vector product (`_distances`)
-        self.futures = np.empty((size, p.stored_future + 1, p.n_joints))  # displacements from the key's pose, 0..future
+        self.futures = np.empty((size, self._future + 1, p.n_joints))  # displacements from the key's pose, 0..future
         self.used = np.empty(size, dtype=np.int64)  # per snippet: the frame it was stored or last recalled at
         self.size = 0
         self.clock = 0  # frames observed (the clock of `used`)
         self.replaced = 0  # snippets replaced at capacity
         self._motion_ms = p.noise_floor ** 2  # running mean of ||x(t) - x(t-1)||^2
-        self._recent: deque[np.ndarray] = deque(maxlen=self._span + p.stored_future)
+        self._recent: deque[np.ndarray] = deque(maxlen=self._span + self._future)
         self.familiarity: float | None = None
         self.travel: float | None = None
 
@@ -277,9 +278,9 @@ class TrajectoryMemory(Checkpointed):
         power = np.einsum("kd,kd->k", stored, stored)
         ratio = np.where(power > 1e-8, (stored @ key[p.n_joints:]) / np.maximum(power, 1e-8), 1.0)
         np.clip(np.nan_to_num(ratio, nan=1.0), p.min_ratio, p.max_ratio, out=ratio)  # nan: inf / inf of absurd input
-        at = np.minimum(ratio[:, None] * self._grid, p.stored_future)  # (k, horizon) stored steps to read
+        at = np.minimum(ratio[:, None] * self._grid, self._future)  # (k, horizon) stored steps to read
         lo = at.astype(int)
-        hi = np.minimum(lo + 1, p.stored_future)
+        hi = np.minimum(lo + 1, self._future)
         frac = (at - lo)[..., None]
         rows = np.arange(len(nearest))[:, None]
         fut = self.futures[nearest]
