@@ -205,10 +205,13 @@ def synthetic_segments(patterns: tuple[str, ...] = ("wave_one", "raise_front_bot
 
 
 def make_streams(segments: list[tuple[Segment, np.ndarray]], seeds: tuple[int, ...],
-                 settings: StreamSettings | None = None) -> list[RepetitionStream]:
+                 settings: StreamSettings | None = None, by_cut: bool | None = None) -> list[RepetitionStream]:
     """One stream per (segment, seed), segment-major; each seeded by (seed, segment index). A stream is
-    named by its clip, and by its cut too where two segments share a clip."""
+    named by its clip, or by its cut (`by_cut`; by default where two segments share a clip)."""
     clips = [s.clip for s, _ in segments]
-    return [build_stream(seg, np.random.default_rng([seed, i]), settings,
-                         name=f"{s.clip if clips.count(s.clip) == 1 else s.name} s{seed}")
+
+    def name(s: Segment) -> str:
+        return s.name if (clips.count(s.clip) > 1 if by_cut is None else by_cut) else s.clip
+
+    return [build_stream(seg, np.random.default_rng([seed, i]), settings, name=f"{name(s)} s{seed}")
             for i, (s, seg) in enumerate(segments) for seed in seeds]

@@ -11,7 +11,6 @@ include the default's own ungated experts (`experts_ungated`) and the gated netw
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import json
 import re
 import sys
@@ -237,9 +236,7 @@ def tuning_streams(walk: bool = False) -> list[RepetitionStream]:
     """The repetition streams of the set; with `walk`, the walking check's too (named by its cut)."""
     streams = make_streams(load_segments(SEGMENTS), SEEDS, StreamSettings())
     if walk:
-        checks = make_streams(load_segments((WALK_SEGMENT,)), WALK_SEEDS, StreamSettings())
-        streams += [dataclasses.replace(s, name=f"{WALK_SEGMENT.name} s{seed}") for s, seed in zip(checks, WALK_SEEDS,
-                                                                                                     strict=True)]
+        streams += make_streams(load_segments((WALK_SEGMENT,)), WALK_SEEDS, StreamSettings(), by_cut=True)
     return streams
 
 

@@ -91,6 +91,7 @@ def test_two_cuts_of_one_clip_make_streams_of_distinct_names(segment):
             (Segment("lift", 0.0, 2.0), segment)]
     names = [s.name for s in make_streams(segs, (3,))]
     assert names == ["wave@0-1s s3", "wave@1-2s s3", "lift s3"]
+    assert [s.name for s in make_streams(segs[2:], (3,), by_cut=True)] == ["lift@0-2s s3"]  # asked for: one cut
 
 
 def test_bad_segments_and_settings_are_named(segment):
