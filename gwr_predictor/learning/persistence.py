@@ -129,9 +129,10 @@ class Persistent:
             if a not in decl.nan_ok:
                 require_finite(getattr(self, a), where + key(a))
         for a in decl.optional:
-            setattr(self, a, np.array(arrays[key(a)], dtype=float) if key(a) in arrays else None)
-            if getattr(self, a) is not None:
-                require_finite(getattr(self, a), where + key(a))
+            optional = np.array(arrays[key(a)], dtype=float) if key(a) in arrays else None
+            if optional is not None:
+                require_finite(optional, where + key(a))
+            setattr(self, a, optional)
         for attr, row_shape in decl.queues.items():
             present = field_of(header, f"{key(attr)}_present", where)
             fill_queue(getattr(self, attr), present, arrays[key(attr)], row_shape(self), where + key(attr))
