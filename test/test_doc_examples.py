@@ -8,6 +8,7 @@ machine cannot have (a live ROS graph, a robot, a display), and say why next to 
 
 from __future__ import annotations
 
+import json
 import re
 import shlex
 from pathlib import Path
@@ -190,8 +191,6 @@ def readme_results_rows() -> list[tuple[str, list[str]]]:
 def test_the_readme_results_table_is_the_recorded_runs():
     """Every figure of the README's table is its recorded run's (docs/results/*/results.json), to the
     three decimals shown: a re-run that moves a figure moves the table, or this fails."""
-    import json
-
     runs = {name: json.loads((ROOT / "docs" / "results" / name / "results.json").read_text())["results"]
             for name in {run for run, _ in RESULT_COLUMNS}}
     rows = readme_results_rows()
