@@ -27,6 +27,17 @@ def usable(frame: np.ndarray) -> bool:
     return float(np.abs(frame).max()) <= MAX_ANGLE_RAD  # False for NaN (and inf) too; on every member's step
 
 
+def frame_or_none(x: np.ndarray | None, joints: int, error: type[Exception] = InputError) -> np.ndarray | None:
+    """The sample as a (joints,) float vector, or None for a missing one (None, non-finite, or not
+    `usable`): a gap to learn around. A sample of another size is a caller's bug: `error`."""
+    if x is None:
+        return None
+    frame = np.asarray(x, dtype=float)
+    if frame.shape != (joints,):
+        raise error(f"a frame must have shape ({joints},), got {frame.shape}")
+    return frame if usable(frame) else None
+
+
 class ErrorTracker(Persistent):
     """P.E./C.P.E. per horizon step (MSE, rad^2) and per-layer quantization errors (rad).
 
@@ -114,14 +125,8 @@ class OnlineLoop(Persistent):
         raise NotImplementedError
 
     def _as_frame(self, x: np.ndarray | None) -> np.ndarray | None:
-        """The frame as floats, or None for a missing sample (None, non-finite, or not `usable`);
-        InputError for a frame of another size."""
-        if x is None:
-            return None
-        frame = np.asarray(x, dtype=float)
-        if frame.shape != (self.params.n_joints,):
-            raise InputError(f"a frame must have shape ({self.params.n_joints},), got {frame.shape}")
-        return frame if usable(frame) else None
+        """`frame_or_none` for this learner's joints."""
+        return frame_or_none(x, self.params.n_joints)
 
     def reset_sequence(self) -> None:
         """Sequence boundary: clear windows, queues and pending predictions (never what was learned)."""

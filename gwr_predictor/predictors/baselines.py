@@ -17,7 +17,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from gwr_predictor.learning.online_loop import usable
+from gwr_predictor.learning.online_loop import frame_or_none
 from gwr_predictor.learning.persistence import Checkpointed, Persist, params_from_json
 from gwr_predictor.pipeline.conventions import DEFAULT_HORIZON
 from gwr_predictor.predictors.registry import PredictorError
@@ -31,14 +31,9 @@ BaselineError = PredictorError
 
 
 def observation(x: np.ndarray | None, joints: int = N_JOINTS) -> np.ndarray | None:
-    """A finite (joints,) float vector, or None for a missing sample (None, any NaN/inf, or a frame no
-    pose can be: `usable`)."""
-    if x is None:
-        return None
-    x = np.asarray(x, dtype=float)
-    if x.shape != (joints,):
-        raise PredictorError(f"expected a ({joints},) sample, got shape {x.shape}")
-    return x if usable(x) else None
+    """A finite (joints,) float vector, or None for a missing sample (`frame_or_none`, raising
+    PredictorError for a sample of another size)."""
+    return frame_or_none(x, joints, PredictorError)
 
 
 def _check_horizon(horizon: int) -> None:
