@@ -89,14 +89,98 @@ def test_max_neurons_is_never_exceeded():
     assert g.n_neurons == 7
 
 
-def test_storage_doubles_but_never_beyond_max_neurons():
+def test_a_bounded_network_is_allocated_once_at_its_bound_and_an_unbounded_one_doubles():
     rng = np.random.default_rng(0)
-    g = GWR(2, P.replace(max_neurons=100), rng)
+    bounded, unbounded = GWR(2, P.replace(max_neurons=100), rng), GWR(2, P, rng)
+    storage = bounded._wa
     capacities = set()
     for x in rng.uniform(-50, 50, (3000, 2)):
+        bounded.learn(x)
+        unbounded.learn(x)
+        capacities.add(unbounded.capacity)
+        assert bounded._wa is storage  # never reallocated while learning
+    assert bounded.n_neurons == bounded.capacity == 100 and bounded.evicted > 0
+    assert unbounded.n_neurons > 128 and {64, 128, 256} <= capacities
+
+
+# --- eviction at max_neurons ----------------------------------------------------------------------
+def _blob(rng, centre, n=60):
+    return rng.normal(centre, 0.05, (n, 2))
+
+
+def test_at_its_bound_a_network_keeps_learning_new_regions_and_forgets_what_never_came_back():
+    """A recurring region stays represented while one-off regions pass through a full network: each new
+    one is learned (it evicts the neurons matched longest ago, the older one-offs'), never the recurring."""
+    rng = np.random.default_rng(3)
+    g = GWR(2, P.replace(max_neurons=24, activation_threshold=0.9), rng)
+    home = (0.0, 0.0)
+    for x in _blob(rng, home, 400):
         g.learn(x)
-        capacities.add(g.capacity)
-    assert g.n_neurons == 100 and capacities == {64, 100}
+    for k in range(1, 30):  # a new region each time, the home region in between
+        new = (10.0 * k, -10.0 * k)
+        for x in _blob(rng, new):
+            g.learn(x)
+        assert g.n_neurons <= 24
+        assert g.bmu(np.array(new))[1] < 0.5  # the new region is learned at the bound
+        assert g.bmu(np.array(home))[1] < 0.2  # and the recurring one was not what made room
+        for x in _blob(rng, home, 20):
+            g.learn(x)
+    assert g.evicted > 20
+    assert g.bmu(np.array(home))[1] < 0.2  # what recurs stays
+    assert g.bmu(np.array([10.0, -10.0]))[1] > 5.0  # the first one-off region, never back, is gone
+    assert np.isin(np.arange(g.n_neurons), g.edge_array()[:, :2]).all()  # every neuron still has an edge
+
+
+def test_eviction_never_takes_the_bmu_its_second_or_its_neighbours():
+    """Every neuron but the BMU's block was matched more recently, yet the room is made outside it."""
+    g = net([[0.0], [1.0], [2.0], [50.0]], edges=[(0, 1, 0), (0, 2, 0), (1, 3, 0)], counters=[0.05] * 4,
+            max_neurons=4, activation_threshold=0.5)
+    g._matched[:4] = [0, 0, 0, 5]  # the block [0, 1, 2] (BMU 0, its neighbours; second 1) matched longest ago
+    g.clock = 5
+    g.learn(np.array([-3.0]))
+    assert g.evicted == 1 and g.n_neurons == 4
+    kept = sorted(g.weights[:, 0].tolist())
+    assert kept[0] < -1.0 and 50.0 not in kept  # the new neuron in, neuron 3 out
+    assert g.last_matched.max() == g.clock == 6
+
+
+def test_a_network_saved_at_its_bound_continues_bit_for_bit_evictions_included():
+    rng = np.random.default_rng(5)
+    g = GWR(2, P.replace(max_neurons=20, activation_threshold=0.9), rng)
+    data = rng.uniform(-20, 20, (1200, 2))
+    for x in data[:600]:
+        g.learn(x)
+    h = GWR.from_state(g.state())
+    for x in data[600:]:
+        assert g.learn(x) == h.learn(x)
+    assert g.evicted == h.evicted > 100
+    np.testing.assert_array_equal(g.weights, h.weights)
+    np.testing.assert_array_equal(g.last_matched, h.last_matched)
+    np.testing.assert_array_equal(g.edge_array(), h.edge_array())
+
+
+def test_a_network_saved_before_eviction_existed_loads_with_a_fresh_record():
+    rng = np.random.default_rng(5)
+    g = GWR(2, P.replace(max_neurons=20), rng)
+    for x in rng.uniform(-20, 20, (200, 2)):
+        g.learn(x)
+    state = g.state()
+    for added in ("last_matched", "clock", "evicted"):
+        del state[added]
+    h = GWR.from_state(state)
+    assert h.clock == 0 and not h.last_matched.any() and h.evicted == 0
+    np.testing.assert_array_equal(h.weights, g.weights)
+    for x in rng.uniform(-20, 20, (300, 2)):
+        h.learn(x)
+    assert h.n_neurons <= 20
+
+
+@pytest.mark.parametrize("last_matched", [[-1] * 2, [0.5, 0], [0, 1, 2], [9, 0]])
+def test_a_record_of_last_matches_that_does_not_fit_is_refused(last_matched):
+    g = net([[0.0], [1.0]], edges=[(0, 1, 0)])
+    state = {**g.state(), "last_matched": np.array(last_matched), "clock": 3}
+    with pytest.raises(InputError, match="last-matched steps"):
+        GWR.from_state(state)
 
 
 # --- Eq. 3: firing counters ---------------------------------------------------------------------

@@ -148,13 +148,22 @@ def test_neurons_that_have_not_consolidated_learn_exactly_as_without_recruitment
     assert np.isfinite(recruiting.readout_mse[0]) and recruiting.readout_mse[0] > 0  # tracked all along
 
 
-def test_recruitment_stops_at_max_neurons():
+def test_at_max_neurons_a_recruit_takes_the_place_of_the_neuron_matched_longest_ago():
+    """Full (3 neurons): B's recruit evicts the neuron that never matched (not A's, nor its neighbour), and
+    B is learned as below the bound while A's read-out stays as it was."""
     xa, ya = _movement(0, 0.0, 1.0)
-    xb, yb = _movement(1, 0.2, -1.0)
-    net = _net(6.0, max_neurons=3)
+    xb, yb = _movement(1, 0.3, -1.0)
+    net = LocalLinearPGWR.from_parts(
+        np.array([[0.0, 0.0, 0.0], [5.0, 5.0, 0.0], [-9.0, -9.0, 0.0]]), np.zeros((3, 2, 1)),
+        GWRParams(activation_threshold=1e-9, max_neurons=3), edges=[(0, 1, 0)], counters=np.ones(3),
+        match_dim=2, distance_factor=1.0, rate=0.1, delta=1e-4, visits=np.zeros(3), consolidate_after=200,
+        readout_mse=np.full(3, np.nan), recruit_surprise=6.0)
     _learn(net, xa, ya)
+    a_learned = _mse(net, xa, ya)
     _learn(net, xb, yb)
-    assert net.recruited == 1 and net.n_neurons == 3
+    assert net.recruited >= 1 and net.evicted == net.recruited and net.n_neurons == 3
+    assert np.abs(net.weights_in - [-9.0, -9.0]).sum(axis=1).min() > 1.0  # the neuron that never matched is gone
+    assert _mse(net, xa, ya) == a_learned and _mse(net, xb, yb) < 0.01
 
 
 def _switching(frames: int) -> np.ndarray:

@@ -37,8 +37,9 @@ so the output varies continuously between prototypes. Here, in addition:
   A consolidated neighbour that such a pair surprises is not moved by it either, or the new
   movement's neurons would drag the old movement's away from it.
 
-Everything else (counters, edges, ageing, removal, unbounded growth) is the GWR of `gwr.py`; the
-matrices and visit counts move with their neurons in the same vectorised steps.
+Everything else (counters, edges, ageing, removal, eviction at `max_neurons`) is the GWR of `gwr.py`;
+the matrices and visit counts move with their neurons in the same vectorised steps. A recruit at
+`max_neurons` evicts as an insertion does.
 `predictor.LocalLinearPredictor` is the online predictor around it.
 """
 
@@ -185,15 +186,23 @@ class LocalLinearPGWR(PredictiveGWR):
         BMU (NaN: none yet), what recruitment compares a new pair's error with."""
         return self._mse[:self._n]
 
-    def _recruit(self, x_in: np.ndarray, y: np.ndarray, b: int) -> int:
-        """A new neuron at the pair (x_in, y) with b's matrix, full plasticity and an edge to b."""
+    def _recruit(self, x_in: np.ndarray, y: np.ndarray, b: int, keep: np.ndarray) -> int:
+        """A new neuron at the pair (x_in, y) with b's matrix, full plasticity and an edge to b; at
+        `max_neurons` the neuron best-matching longest ago outside `keep` (b's block) makes room first
+        (none recruited if all are kept). Returns b's index after."""
         self._search.kept = None  # the step's search (`search_keep`) is stale once the network changes
+        if self.params.max_neurons is not None and self._n >= self.params.max_neurons:
+            victim = self._victim(keep, b)
+            if victim < 0:
+                return b
+            b = victim if self._evict(victim) == b else b
         r = self._append(x_in, y, b)
         self._put(r, np.concatenate([x_in, y]))
-        self._age[r, b] = self._age[b, r] = 0
+        self._edges.link(r, b)
+        self._matched[r] = self._matched[b] = self.clock
         self.last_inserted = r
         self.recruited += 1
-        return r
+        return b
 
     # --- learning and prediction -----------------------------------------------------------------
     def learn_local(self, x_in: np.ndarray, y: np.ndarray, neighbour_rate: float = 0.0) -> int:
@@ -207,7 +216,7 @@ class LocalLinearPGWR(PredictiveGWR):
         moved by the pair (plasticity 0)."""
         aff = self.search_keep(x_in)
         b = int(aff.argmax())
-        nb = (self._age[b, :self._n] >= 0).nonzero()[0]
+        nb, slots = self.neighbour_slots(b)
         if neighbour_rate > 0:
             block: np.ndarray = np.empty(nb.size + 1, dtype=nb.dtype)
             block[0] = b
@@ -226,16 +235,14 @@ class LocalLinearPGWR(PredictiveGWR):
             bmu_surprised = False
             if plasticity is not None:
                 surprised = (plasticity < 1.0) & (e2 > self.recruit_surprise * self._mse[block])  # NaN: False
-                # the BMU only while there is room to recruit (at max_neurons it learns the pair as usual)
-                surprised[0] &= self.params.max_neurons is None or self._n < self.params.max_neurons
                 bmu_surprised = bool(surprised[0])
                 plasticity[surprised] = 0.0  # a surprised consolidated neuron is not moved by the pair
             if bmu_surprised:
                 self._streak[b] += 1.0
                 if self._streak[b] >= self.recruit_after:
                     self._streak[b] = 0.0
-                    self._recruit(x_in, y, b)
-                    return b
+                    self.clock += 1
+                    return self._recruit(x_in, y, b, block)
             else:  # a surprising pair is not what the neuron usually misses: only the others count
                 self._streak[b] = 0.0
                 known = self._mse[b]
@@ -246,7 +253,7 @@ class LocalLinearPGWR(PredictiveGWR):
         gain = rates / (dd + self.delta)
         a += np.einsum("ki,ko->kio", gain[:, None] * d, err)  # rank-1 NLMS step per neuron
         self._A[block] = a
-        b = self.learn_unchecked(x_in, y, neighbours=Prepared(b, nb, float(dd[0]), plasticity, block.size))
+        b = self.learn_unchecked(x_in, y, neighbours=Prepared(b, nb, slots, float(dd[0]), plasticity, block.size))
         self._visits[b] += 1.0
         self._most_visits = max(self._most_visits, float(self._visits[b]))
         return b
@@ -274,8 +281,10 @@ class LocalLinearPGWR(PredictiveGWR):
         """The network as a checkpoint member: its settings come from its owner's parameters."""
         arrays = {"weights": self.weights.copy(), "matrices": self.matrices.copy(), "visits": self.visits.copy(),
                   "readout_mse": self.readout_mse.copy(), "surprise_streaks": self.surprise_streaks.copy(),
-                  "counters": self.counters.copy(), "edges": self.edge_array()}
-        return {"distance_factor": self.distance_factor, "recruited": self.recruited}, arrays
+                  "counters": self.counters.copy(), "edges": self.edge_array(),
+                  "last_matched": self.last_matched.copy()}
+        return {"distance_factor": self.distance_factor, "recruited": self.recruited, "clock": self.clock,
+                "evicted": self.evicted}, arrays
 
     def _restored(self, header: Mapping[str, Any], arrays: Mapping[str, np.ndarray],
                   where: str = "") -> LocalLinearPGWR:
@@ -286,6 +295,8 @@ class LocalLinearPGWR(PredictiveGWR):
             delta=self.delta, visits=arrays["visits"], consolidate_after=self.consolidate_after,
             readout_mse=arrays["readout_mse"], recruit_surprise=self.recruit_surprise,
             recruited=int(header["recruited"]), streaks=arrays["surprise_streaks"], recruit_after=self.recruit_after)
+        net._restore_clock(arrays.get("last_matched"), int(header.get("clock", 0)))
+        net.evicted = int(header.get("evicted", 0))
         if net.out_dim != self.out_dim:
             raise DefaultPredictorError(f"outputs are {net.out_dim}-d, the parameters say {self.out_dim}")
         return net

@@ -13,20 +13,25 @@ One `learn(x)` step, in this order (pinned down so that the firing-counter arith
 6. Edges of b older than max_edge_age are removed, then neurons left without any edge
    (swap-with-last compaction, highest index first).
 
+At `max_neurons` (beyond the paper) the network keeps learning: an insertion first removes the neuron
+that was best-matching longest ago (with its edges; never b, s or b's neighbours), so what recurs stays
+and what never came back makes room. Edges age only at their BMU's end, so a neuron of motion that never
+returns would otherwise stay for ever.
+
 "Neighbours" are the neurons linked to b when the step starts. A fresh neuron (h = 1) is therefore
 trained 8 times as BMU before it can cause an insertion: h after k firings is 0.7, 0.4945, ...,
 0.1150 (k = 7), 0.0938 (k = 8) with rho_b = 0.3, kappa = 1.05.
 
-Storage is chosen for ~1,000-5,000 neurons: weights in a contiguous capacity-doubling matrix whose
-last column holds each neuron's squared norm, kept up to date on every change, so the BMU search
-is one BLAS matrix-vector product [w | ||w||^2] . [x | -1/2] = w.x - ||w||^2 / 2 followed by an
-argmax (the nearest neuron maximises it; ||x||^2 is common to all), all of it in one internal
-searcher (`_Search`: BMU and second BMU, the kept product), so `learn` reads as the steps above.
-Edges live in a dense
-symmetric int16 age matrix (-1 = no edge): the neighbours of b are one row scan and ageing is one
-indexed operation. b and its neighbours are updated together as one small gathered block. Only the
-first `match_dim` values of a vector are matched; the rest are carried in a second matrix (the
-Predictive GWR's output weights), so the matched block stays contiguous for BLAS.
+Storage is chosen for ~1,000-5,000 neurons: weights in a contiguous matrix, allocated once at
+`max_neurons` (doubling as it fills only when unbounded), whose last column holds each neuron's
+squared norm, kept up to date on every change, so the BMU search is one BLAS matrix-vector product
+[w | ||w||^2] . [x | -1/2] = w.x - ||w||^2 / 2 followed by an argmax (the nearest neuron maximises
+it; ||x||^2 is common to all), all of it in one internal searcher (`_Search`: BMU and second BMU, the
+kept product), so `learn` reads as the steps above. Edges live in an `EdgeTable` (a few slots per
+neuron, `edges.py`): memory and each step linear in n at most. b and its neighbours are updated
+together as one small gathered block. Only the first `match_dim` values of a vector are matched; the
+rest are carried in a second matrix (the Predictive GWR's output weights), so the matched block
+stays contiguous for BLAS.
 """
 
 from __future__ import annotations
@@ -38,14 +43,16 @@ from typing import Any, NamedTuple, TypeVar
 
 import numpy as np
 
+from gwr_predictor.learning.edges import EdgeTable
 from gwr_predictor.learning.errors import LearningError
 from gwr_predictor.learning.params import MAX_EDGE_AGE_LIMIT, GWRParams
 from gwr_predictor.learning.persistence import Persistent
 
 _G = TypeVar("_G", bound="GWR")
 
-_NO_EDGE = -1
 _MIN_CAPACITY = 64
+#: `_matched` of a neuron that may not be evicted now
+_KEEP = np.iinfo(np.int64).max
 
 
 #: LearningError, for what a network cannot take: an input vector of the wrong shape or with non-finite
@@ -111,12 +118,14 @@ class _Search:
 
 class Prepared(NamedTuple):
     """What a caller has just computed for one query on a network, handed to its learning step so that
-    nothing is computed twice: the BMU b, b's neighbours, ||x - w_b||^2 and, for a subclass that
-    scales its neurons' rates, the factors (None: full rates) it found for a block of `scaled` neurons
-    starting with b (0: none found; the block [b, neighbours...] if `scaled` is its size)."""
+    nothing is computed twice: the BMU b, b's neighbours (ascending) and their slots in b's edge row,
+    ||x - w_b||^2 and, for a subclass that scales its neurons' rates, the factors (None: full rates) it
+    found for a block of `scaled` neurons starting with b (0: none found; the block [b, neighbours...]
+    if `scaled` is its size)."""
 
     b: int
     neighbours: np.ndarray
+    slots: np.ndarray
     dist2: float
     rate_scale: np.ndarray | None = None
     scaled: int = 0
@@ -124,11 +133,17 @@ class Prepared(NamedTuple):
 class GWR(Persistent):
     """A GWR network over `dim`-dimensional vectors; see the module docstring for the step."""
 
-    # the storage `_alloc` (re)builds: [w | ||w||^2], carried weights, firing counters, edge ages
+    # the storage `_alloc` (re)builds: [w | ||w||^2], carried weights, firing counters, edges, and the
+    # learning step at which each neuron was last the BMU (or inserted): what eviction reads
     _wa: np.ndarray
     _wo: np.ndarray
     _h: np.ndarray
-    _age: np.ndarray
+    _edges: EdgeTable
+    _matched: np.ndarray
+    #: learning steps taken (the clock of `_matched`)
+    clock: int = 0
+    #: neurons removed at `max_neurons` to make room for a new one
+    evicted: int = 0
 
     def __init__(self, dim: int, params: GWRParams, rng: np.random.Generator, *,
                  match_dim: int | None = None, init_low: float | np.ndarray = -1.0,
@@ -169,10 +184,10 @@ class GWR(Persistent):
         self._alloc(self._capacity_for(capacity, needed))
 
     def _capacity_for(self, preferred: int, needed: int) -> int:
-        """`preferred` rows (at least the minimum), but never beyond max_neurons nor below `needed`."""
-        cap = max(_MIN_CAPACITY, preferred)
+        """max_neurons rows when bounded (allocated once: no reallocation while learning); unbounded,
+        `preferred` rows (at least the minimum), never below `needed`."""
         limit = self.params.max_neurons
-        return max(cap if limit is None else min(cap, limit), needed)
+        return max(max(_MIN_CAPACITY, preferred) if limit is None else limit, needed)
 
     def _alloc(self, cap: int) -> None:
         """(Re)allocate the arrays with room for `cap` neurons, keeping the first n."""
@@ -183,20 +198,23 @@ class GWR(Persistent):
         wa = np.zeros((cap, m + 1))
         wo = np.zeros((cap, self.dim - m))
         h = np.zeros(cap)
-        age = np.full((cap, cap), _NO_EDGE, dtype=np.int16)
+        matched = np.zeros(cap, dtype=np.int64)
         if old is not None and n:
-            wa[:n], wo[:n], h[:n] = self._wa[:n], self._wo[:n], self._h[:n]
-            age[:n, :n] = self._age[:n, :n]
-        self._wa, self._wo, self._h, self._age = wa, wo, h, age
+            wa[:n], wo[:n], h[:n], matched[:n] = self._wa[:n], self._wo[:n], self._h[:n], self._matched[:n]
+            self._edges = self._edges.grown(cap, n)
+        else:
+            self._edges = EdgeTable(cap)
+        self._wa, self._wo, self._h, self._matched = wa, wo, h, matched
         self._search = _Search(wa)
         # per-row rate/decay vectors of the block [b, neighbours...], longest possible block
-        self._eps_vec = np.full(cap, self._rates[1])
+        block = self._edges.degree + 1
+        self._eps_vec = np.full(block, self._rates[1])
         self._eps_vec[0] = self._rates[0]
-        self._decay_a = np.full(cap, self._decay[1][0])
+        self._decay_a = np.full(block, self._decay[1][0])
         self._decay_a[0] = self._decay[0][0]
-        self._decay_c = np.full(cap, self._decay[1][1])
+        self._decay_c = np.full(block, self._decay[1][1])
         self._decay_c[0] = self._decay[0][1]
-        self._block = np.empty(cap, dtype=np.intp)
+        self._block = np.empty(block, dtype=np.intp)
 
     @property
     def _w(self) -> np.ndarray:
@@ -242,9 +260,20 @@ class GWR(Persistent):
                 raise InputError(f"edges must join two distinct neurons in [0, {n}), got {edges.tolist()[:5]}")
             if (a < 0).any() or (a > MAX_EDGE_AGE_LIMIT + 1).any():  # int16 storage with room to age
                 raise InputError(f"edge ages must be in [0, {MAX_EDGE_AGE_LIMIT + 1}]")
-            net._age[i, j] = a
-            net._age[j, i] = a
+            net._edges.fill(edges)
         return net
+
+    def _restore_clock(self, matched: np.ndarray | None, clock: int) -> None:
+        """Eviction's record from a checkpoint: when each neuron was last the BMU, on a clock at `clock`
+        (None, from a checkpoint without it: all at 0, so the first evictions go by index)."""
+        n = self._n
+        if matched is None:
+            return
+        matched = np.asarray(matched)
+        if matched.shape != (n,) or matched.dtype.kind not in "iu" or (matched < 0).any() or (matched > clock).any():
+            raise InputError(f"last-matched steps must be {n} whole numbers in [0, clock {clock}]")
+        self._matched[:n] = matched
+        self.clock = int(clock)
 
     # --- read-only views ------------------------------------------------------------------------
     @property
@@ -253,7 +282,7 @@ class GWR(Persistent):
 
     @property
     def capacity(self) -> int:
-        """Neurons the arrays have room for (doubles when full, never beyond max_neurons)."""
+        """Neurons the arrays have room for (max_neurons when bounded; doubles when full otherwise)."""
         return self._h.shape[0]
 
     @property
@@ -268,19 +297,26 @@ class GWR(Persistent):
         """(n,) view of the firing counters h."""
         return self._h[:self._n]
 
+    @property
+    def last_matched(self) -> np.ndarray:
+        """(n,) view of the learning step (`clock`) at which each neuron was last the BMU or inserted."""
+        return self._matched[:self._n]
+
     def edge_array(self) -> np.ndarray:
         """(E, 3) int64 array of edges (i, j, age) with i < j, in row-major order."""
-        n = self._n
-        i, j = np.nonzero(np.triu(self._age[:n, :n] >= 0, 1))
-        return np.stack([i, j, self._age[i, j]], axis=1).astype(np.int64)
+        return self._edges.edge_array(self._n)
 
     def neighbours(self, i: int) -> np.ndarray:
-        return np.flatnonzero(self._age[i, :self._n] >= 0)
+        """Neighbours of neuron i, ascending."""
+        return self._edges.neighbours(i)[0]
+
+    def neighbour_slots(self, b: int) -> tuple[np.ndarray, np.ndarray]:
+        """(b's neighbours ascending, their slots in b's edge row): what `Prepared` carries."""
+        return self._edges.neighbours(b)
 
     def edge_age(self, i: int, j: int) -> int | None:
         """Age of edge i-j, or None when there is none."""
-        a = int(self._age[i, j])
-        return None if a < 0 else a
+        return self._edges.age(i, j)
 
     # --- matching -------------------------------------------------------------------------------
     def _check_input(self, x: Any, size: int) -> np.ndarray:
@@ -350,20 +386,23 @@ class GWR(Persistent):
         xm, xc = (x[:m], x[m:]) if carried is None else (x, carried)
         b, s = self._search.two_nearest(xm, n)  # 1. the two nearest neurons
         known = neighbours if neighbours is not None and neighbours[0] == b else None
-        dist = math.sqrt(known[2]) if known is not None else self._distance(b, xm)
+        dist = math.sqrt(known[3]) if known is not None else self._distance(b, xm)
         self.last_distance = dist
+        self.clock += 1
 
-        age = self._age
-        nb = known[1] if known is not None else (age[b, :n] >= 0).nonzero()[0]
+        edges = self._edges
+        nb, slots = (known[1], known[2]) if known is not None else edges.neighbours(b)
         k = nb.size + 1
         block = self._block[:k]  # [b, neighbours...]
         block[0] = b
         block[1:] = nb
         h = self._h.take(block)
         hb = float(h[0])
-        insert = (math.exp(-self.distance_factor * dist) < p.activation_threshold
-                  and hb < p.firing_threshold
-                  and (p.max_neurons is None or n < p.max_neurons))
+        insert = math.exp(-self.distance_factor * dist) < p.activation_threshold and hb < p.firing_threshold
+        victim = -1
+        if insert and p.max_neurons is not None and n >= p.max_neurons:  # full: who makes room (if anyone may)
+            victim = self._victim(block, s)
+            insert = victim >= 0
         if not insert:  # Eq. 4 on b and its neighbours at once
             rate = self._step_rates(block, h, neighbours if known else None)
             wa = self._wa.take(block, axis=0)
@@ -381,9 +420,7 @@ class GWR(Persistent):
             self._wa[block] = wa
         # ageing of b's edges and firing counters (Eq. 3), in both branches
         if k > 1:
-            ages = age[b].take(nb) + 1
-            age[b, nb] = ages
-            age[nb, b] = ages
+            ages = edges.grow_older(b, nb, slots)
         h *= self._decay_a[:k]
         h += self._decay_c[:k]
         if self._clip_counters:
@@ -392,19 +429,39 @@ class GWR(Persistent):
         # topology
         r = -1
         if insert:  # Eq. 2
+            if victim >= 0:
+                moved = self._evict(victim)
+                b, s = (victim if b == moved else b), (victim if s == moved else s)
+                nb = np.where(nb == moved, victim, nb)
             r = self._append(xm, xc, b)
-            age = self._age  # may have been reallocated
-            age[b, s] = age[s, b] = _NO_EDGE
-            age[r, b] = age[b, r] = 0
-            age[r, s] = age[s, r] = 0
+            edges = self._edges  # may have been reallocated
+            edges.unlink(b, s)
+            edges.link(r, b)
+            edges.link(r, s)
+            self._matched[r] = self.clock
         else:
-            age[b, s] = age[s, b] = 0
+            edges.link(b, s)
         if k > 1 and max(ages.tolist()) > p.max_edge_age:
             old = nb[(ages > p.max_edge_age) & (nb != s)]
             if old.size:
                 b, r = self._drop_edges(b, old, r)
+        self._matched[b] = self.clock
         self.last_inserted = r
         return b
+
+    def _victim(self, keep: np.ndarray, also: int) -> int:
+        """The neuron best-matching longest ago outside `keep` and `also` (-1: every neuron is kept)."""
+        matched = self._matched[:self._n].copy()
+        matched[keep] = _KEEP
+        matched[also] = _KEEP
+        v = int(matched.argmin())
+        return -1 if matched[v] == _KEEP else v
+
+    def _evict(self, victim: int) -> int:
+        """Remove `victim` and its edges to make room; returns the old index of the neuron moved into its slot."""
+        self._edges.unlink_all(victim)
+        self.evicted += 1
+        return self._remove(victim)
 
     def _step_rates(self, block: np.ndarray, h: np.ndarray, prepared: Prepared | None = None) -> np.ndarray:
         """(k, 1) rates of Eq. 4 (and 9) for the block [b, neighbours...] with firing counters h:
@@ -429,11 +486,11 @@ class GWR(Persistent):
 
     def _drop_edges(self, b: int, old: np.ndarray, r: int) -> tuple[int, int]:
         """Remove edges b-old, then the `old` neurons left isolated; returns b and r re-indexed."""
-        age = self._age
-        age[b, old] = _NO_EDGE
-        age[old, b] = _NO_EDGE
-        for i in np.sort(old)[::-1].tolist():  # a handful of edges, not a loop over the network
-            if (age[i, :self._n] >= 0).any():
+        edges = self._edges
+        for i in old.tolist():  # a handful of edges, not a loop over the network
+            edges.unlink(b, i)
+        for i in np.sort(old)[::-1].tolist():
+            if edges.has_edges(i):
                 continue
             moved = self._remove(i)
             b = i if b == moved else b
@@ -444,21 +501,16 @@ class GWR(Persistent):
         """Delete isolated neuron i by moving the last neuron into its slot; returns the old index
         of the moved neuron (== i when i was last)."""
         last = self._n - 1
-        age = self._age
         if i != last:
-            for arr in (self._wa, self._wo, self._h):
+            for arr in (self._wa, self._wo, self._h, self._matched):
                 arr[i] = arr[last]
-            age[i, :last + 1] = age[last, :last + 1]
-            age[:last + 1, i] = age[:last + 1, last]
-            age[i, i] = _NO_EDGE
-        age[last, :last + 1] = _NO_EDGE
-        age[:last + 1, last] = _NO_EDGE
+            self._edges.move(last, i)
         self._n = last
         return last
 
     # --- persistence ----------------------------------------------------------------------------
     #: The array members of `state()`; the others are plain JSON-able values.
-    STATE_ARRAYS = ("weights", "counters", "edges")
+    STATE_ARRAYS = ("weights", "counters", "edges", "last_matched")
 
     def state(self) -> dict[str, Any]:
         """Arrays and plain values that reproduce this network exactly (see `from_state`); the one
@@ -467,6 +519,9 @@ class GWR(Persistent):
             "weights": self.weights.copy(),
             "counters": self.counters.copy(),
             "edges": self.edge_array(),
+            "last_matched": self.last_matched.copy(),
+            "clock": self.clock,
+            "evicted": self.evicted,
             "match_dim": self.match_dim,
             "distance_factor": self.distance_factor,
             "params": dataclasses.asdict(self.params),
@@ -474,9 +529,13 @@ class GWR(Persistent):
 
     @classmethod
     def from_state(cls, state: dict[str, Any]) -> GWR:
+        """The network of `state()`; one saved before eviction existed (no `last_matched`) starts its record anew."""
         params = GWRParams(**state["params"])
-        return cls.from_arrays(state["weights"], params, edges=state["edges"], counters=state["counters"],
-                               match_dim=int(state["match_dim"]), distance_factor=float(state["distance_factor"]))
+        net = cls.from_arrays(state["weights"], params, edges=state["edges"], counters=state["counters"],
+                              match_dim=int(state["match_dim"]), distance_factor=float(state["distance_factor"]))
+        net._restore_clock(state.get("last_matched"), int(state.get("clock", 0)))
+        net.evicted = int(state.get("evicted", 0))
+        return net
 
     def _capture(self) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
         """A network as a checkpoint member: `state`, its arrays apart."""
@@ -486,7 +545,7 @@ class GWR(Persistent):
     def _restored(self, header: Mapping[str, Any], arrays: Mapping[str, np.ndarray], where: str = "") -> GWR:
         """The saved network in place of this one (built from the owner's parameters), which it must
         match in size, matching part, distance factor and parameters (a network's size is not fixed)."""
-        net = type(self).from_state({**header, **{a: arrays[a] for a in self.STATE_ARRAYS}})
+        net = type(self).from_state({**header, **{a: arrays[a] for a in self.STATE_ARRAYS if a in arrays}})
         for what in ("dim", "match_dim", "distance_factor", "params"):
             if getattr(net, what) != getattr(self, what):
                 raise InputError(f"layer {where.rstrip('.')} has {what} {getattr(net, what)!r}, "
