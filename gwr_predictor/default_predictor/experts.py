@@ -20,6 +20,7 @@ is held.
 
 from __future__ import annotations
 
+import copy
 import dataclasses
 from collections.abc import Mapping
 from dataclasses import dataclass
@@ -27,7 +28,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from gwr_predictor.default_predictor.gate import inner_model
+from gwr_predictor.default_predictor.gate import GateBank, inner_model
 from gwr_predictor.default_predictor.memory import TrajectoryMemory
 from gwr_predictor.default_predictor.params import DefaultPredictorError
 from gwr_predictor.learning.checkpoint import CheckpointError
@@ -96,6 +97,17 @@ class Experts(Checkpointed):
         #: % horizon; 1 unless an owner weighs them)
         self.record_weight = np.ones(p.horizon)
         self._made_ago = np.arange(1, p.horizon + 1)  # step k's prediction was made k steps before its score
+        members_list = list(self.members.values())
+        #: the members' gates stepped as one, where they are alike (None: each member steps itself)
+        self._bank = GateBank(members_list) if GateBank.takes(members_list) else None
+
+    def __deepcopy__(self, memo: dict[int, Any]) -> Experts:
+        """A copy whose gate bank is rebuilt over the copied gates (a deep copy of a view is no view)."""
+        new = copy.copy(self)
+        memo[id(self)] = new
+        new.__dict__.update({k: copy.deepcopy(v, memo) for k, v in self.__dict__.items() if k != "_bank"})
+        new._bank = None if self._bank is None else GateBank(list(new.members.values()))
+        return new
 
     def weigh_last(self, weight: float) -> None:
         """The weight of the last step's predictions in the running errors when they are scored (1: as
@@ -116,7 +128,12 @@ class Experts(Checkpointed):
         due, valid = self._pending.take(self._t)
         if obs is not None:
             self._score(obs, due, valid)
-        self._collect([m.step(obs, learn=learn) for m in self.members.values()])
+        if self._bank is not None:
+            predictions, predicting = self._bank.step(obs, learn)
+            np.copyto(self._outputs, predictions)
+            self._outputs[~predicting] = np.nan
+        else:
+            self._collect([m.step(obs, learn=learn) for m in self.members.values()])
         self._pending.file(self._t, self._outputs, np.isfinite(self._outputs).all(axis=-1))
         self.record_weight[self._t % self.params.horizon] = 1.0  # until an owner weighs them
         self._t += 1
@@ -126,7 +143,7 @@ class Experts(Checkpointed):
         return out
 
     def _score(self, obs: np.ndarray, due: np.ndarray, valid: np.ndarray) -> None:
-        err = np.mean((due - obs) ** 2, axis=2)  # (members, horizon); NaN where a member did not predict
+        err = ((due - obs) ** 2).sum(axis=2) / self.params.n_joints  # (members, horizon); NaN: no prediction
         scored = valid & np.isfinite(err)
         decay = np.where(scored, self.params.decay, 1.0)
         made = self.record_weight[(self._t - self._made_ago) % self.params.horizon]
@@ -156,6 +173,12 @@ class Experts(Checkpointed):
     def weights(self, available: np.ndarray | None = None) -> np.ndarray:
         """(members, horizon) weights summing to 1 per step over the `available` members (default all)."""
         p = self.params
+        if (available is None or available.all()) and self.weight.all():  # the usual frame, in fewer calls
+            mse = self.sse / self.weight
+            np.maximum(mse, p.floor, out=mse)
+            inv = mse.min(axis=0, keepdims=True) / mse
+            inv **= p.power
+            return inv / inv.sum(axis=0, keepdims=True)
         avail = np.ones(self.sse.shape, dtype=bool) if available is None else available
         mse = np.where(avail, self.running_mse(), np.nan)
         known = np.isfinite(mse)
@@ -170,6 +193,8 @@ class Experts(Checkpointed):
 
     def _combine(self, preds: np.ndarray) -> np.ndarray | None:
         avail = np.isfinite(preds).all(axis=2)  # (members, horizon)
+        if avail.all():
+            return np.einsum("mh,mhj->hj", self.weights(avail), preds)
         if not avail.any():
             return None
         w = self.weights(avail)

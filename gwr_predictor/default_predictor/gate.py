@@ -38,7 +38,8 @@ adapting when `step` is called with learn=False (they are running statistics, no
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+import math
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any, ClassVar
 
@@ -125,7 +126,7 @@ class GatedPredictor(Checkpointed):
         if horizon < p.horizon:
             raise DefaultPredictorError(f"the gate's horizon {p.horizon} exceeds the model's {horizon}")
         # per memory: [S_xy, S_xx, S_yy, n], each (horizon, joints) (pooled: equal across joints)
-        self._stats = np.zeros((len(p.memories), 4, p.horizon, p.joints))
+        self._stats: np.ndarray = np.zeros((len(p.memories), 4, p.horizon, p.joints))
         self._new = np.ones((4, p.horizon, p.joints))  # scratch of `_score` (row _N stays 1)
         self._filed = np.empty((2, p.horizon, p.joints))  # scratch of `step`: newest pose, model's step
         self._decays = np.array([d for d, _ in p.memories])[:, None, None, None]  # per memory, over `_stats`
@@ -163,12 +164,8 @@ class GatedPredictor(Checkpointed):
         out = self.model.step(obs, learn=learn)
         diff = None
         if out is not None and self._last is not None:
-            out = np.asarray(out, dtype=float)
-            if out.ndim != 2 or out.shape[0] < p.horizon or out.shape[1] != p.joints:
-                raise DefaultPredictorError(f"{type(self.model).__name__} returned shape {out.shape}; need at least "
-                                f"({p.horizon}, {p.joints})")
-            diff = out[:p.horizon] - self._last
-            if not np.isfinite(diff.sum()):
+            diff = self._checked(out) - self._last
+            if not math.isfinite(diff.sum()):
                 diff = None
         if diff is not None:  # a prediction implies a newest pose
             filed = self._filed
@@ -178,6 +175,15 @@ class GatedPredictor(Checkpointed):
         self._t += 1
         self._out_diff = diff
         return self._gated(diff)
+
+    def _checked(self, out: Any) -> np.ndarray:
+        """The model's prediction, its first `horizon` steps (DefaultPredictorError if its shape is wrong)."""
+        p = self.params
+        out = np.asarray(out, dtype=float)
+        if out.ndim != 2 or out.shape[0] < p.horizon or out.shape[1] != p.joints:
+            raise DefaultPredictorError(f"{type(self.model).__name__} returned shape {out.shape}; need at least "
+                                        f"({p.horizon}, {p.joints})")
+        return out[:p.horizon]
 
     def predict(self) -> np.ndarray | None:
         """The last `step`'s gated prediction, with the current alphas; no state change."""
@@ -231,34 +237,7 @@ class GatedPredictor(Checkpointed):
         min(a, 2 lcb_long, 2 lcb_short): the long memory's least-squares estimate, capped by each
         memory at the largest shrinkage that still saves squared error against hold-last at the lower
         bound (2 alpha S_xy - alpha^2 S_xx >= 0 for alpha <= 2 a)."""
-        s = self._stats
-        sxy = s[:, _XY]
-        sxx = s[:, _XX] + self._prior
-        a = sxy / sxx
-        cap = a * 2.0  # 2 (a - z se(a)), the doubling exact: 2 a - (2 z) se
-        b = self._bounded
-        if b:  # z se(a), se(a)^2 = RSS / ((n - 1) S_xx), RSS = S_yy - 2 a S_xy + a^2 S_xx (in place, few calls)
-            sxy_b, a_b = sxy[:b], a[:b]
-            se = a_b * s[:b, _XX]
-            se -= sxy_b
-            se -= sxy_b
-            se *= a_b
-            se += s[:b, _YY]
-            np.maximum(se, 0.0, out=se)
-            dof = np.maximum(s[:b, _N], 2.0)
-            dof -= 1.0
-            dof *= sxx[:b]
-            se /= dof
-            np.sqrt(se, out=se)
-            se *= self._z2[:b]
-            cap[:b] -= se
-        fast = self.params.fast_step
-        if fast and len(cap) > 1:  # the short memory: every step capped by one step's record
-            cap[1] = cap[1, fast - 1]
-        out = np.minimum(cap[0], cap[1]) if len(cap) == 2 else cap.min(axis=0)
-        np.minimum(out, a[0], out=out)
-        np.minimum(out, 1.0, out=out)
-        np.maximum(out, 0.0, out=out)
+        out = shrinkage(self._stats, self._prior, self._z2, self._bounded, self.params.fast_step)
         if self.borrow is not None:
             np.maximum(out, np.minimum(self.borrow[:, None] * out[0], 1.0), out=out)
         return out
@@ -297,6 +276,153 @@ class GatedPredictor(Checkpointed):
         from gwr_predictor.default_predictor.kinds import kind_to_save
 
         return {"model_kind": kind_to_save(self.model, "the gated model")}, {}
+
+
+class GateBank:
+    """The gates of several members of one weighting (`Experts`), alike in their parameters, stepped as
+    one: each gate's running sums, pending predictions and counts are rows of arrays the bank holds and
+    the gate views, so each stays a whole `GatedPredictor` (its alpha, errors, checkpoint) while a frame
+    costs one set of numpy calls for all of them instead of one per gate (the same numbers: every
+    operation is the gate's own, done row by row).
+
+    For gates that are not silent-holding (`hold_when_silent` false), lend nothing (`borrow`) and step in
+    step (one clock); `GateBank.takes` says whether a set of members qualifies."""
+
+    def __init__(self, gates: Sequence[GatedPredictor]) -> None:
+        self.gates = list(gates)
+        first = self.gates[0]
+        self.params = first.params
+        self.stats = np.stack([g._stats for g in self.gates], axis=1)  # (memory, gate, 4, horizon, joints)
+        self.decays = np.stack([g._decays for g in self.gates], axis=1)
+        self.scored = np.stack([g._scored for g in self.gates])  # (gate, horizon)
+        self.pending = np.stack([g._pending.pending for g in self.gates])  # (gate, 2, horizon, horizon, joints)
+        self.valid = np.stack([g._pending.valid for g in self.gates])
+        for i, g in enumerate(self.gates):  # each gate's state is now a view of its row
+            g._stats, g._decays, g._scored = self.stats[:, i], self.decays[:, i], self.scored[i]
+            g._pending.pending, g._pending.valid = self.pending[i], self.valid[i]
+        self._new = np.ones((len(self.gates), 4, self.params.horizon, self.params.joints))
+        self._z2 = first._z2[:, None]
+        self._slots, self._k = first._pending._slots, first._pending._k
+
+    @staticmethod
+    def takes(members: Sequence[Any]) -> bool:
+        """Whether `members` can be stepped as one bank."""
+        first = members[0]
+        return all(type(m) is GatedPredictor and m.params == first.params and not m.hold_when_silent
+                   and m._t == first._t for m in members)
+
+    def step(self, obs: np.ndarray | None, learn: bool) -> tuple[np.ndarray, np.ndarray]:
+        """Every gate's `step` on the checked observation: (gate, horizon, joints) predictions and which
+        gates predict (the rows of the others are undefined)."""
+        gates, p = self.gates, self.params
+        if any(g.borrow is not None or g._t != gates[0]._t for g in gates):  # not a bank this step
+            outs = [g.step(obs, learn) for g in gates]
+            ok = np.array([o is not None for o in outs])
+            return np.array([o if o is not None else np.zeros((p.horizon, p.joints)) for o in outs]), ok
+        t = gates[0]._t
+        s = t % p.horizon
+        valid = self.valid[:, 0, s, :].copy()  # (gate, horizon): row k made k + 1 steps ago
+        self.valid[:, :, s, :] = False
+        due = self.pending[:, :, s]  # (gate, 2, horizon, joints)
+        if obs is not None:
+            self._score(obs, due, valid)
+            last = obs.copy()
+            for g in gates:
+                g._last = last
+        outs = [g.model.step(obs, learn=learn) for g in gates]
+        ok = np.array([o is not None and g._last is not None for o, g in zip(outs, gates, strict=True)])
+        diff = np.zeros((len(gates), p.horizon, p.joints))
+        for i in ok.nonzero()[0].tolist():
+            diff[i] = gates[i]._checked(outs[i])
+        diff -= gates[0]._last if gates[0]._last is not None else 0.0
+        ok &= np.isfinite(diff.reshape(len(gates), -1).sum(axis=1))
+        for i, g in enumerate(gates):
+            g._out_diff = diff[i] if ok[i] else None
+            g._t = t + 1
+        if ok.all():  # file every prediction (a prediction implies a newest pose)
+            self.pending[:, 0, self._slots[t % p.horizon], self._k, :] = gates[0]._last
+            self.pending[:, 1, self._slots[t % p.horizon], self._k, :] = diff
+            self.valid[:, :, self._slots[t % p.horizon], self._k] = True
+        else:
+            for i in ok.nonzero()[0].tolist():
+                filed = gates[i]._filed
+                filed[0] = gates[i]._last
+                filed[1] = diff[i]
+                gates[i]._pending.file(t, filed)
+        out = shrinkage(self.stats, gates[0]._prior, self._z2, gates[0]._bounded, p.fast_step)
+        out *= diff
+        out += gates[0]._last if gates[0]._last is not None else 0.0
+        return out, ok
+
+    def _score(self, obs: np.ndarray, due: np.ndarray, valid: np.ndarray) -> None:
+        """Every gate's `_score`: the products of the predictions due now, into each gate's sums."""
+        p = self.params
+        any_ok: np.ndarray = valid.any(axis=1)
+        if not any_ok.any():
+            return
+        if p.warmup:
+            rows = any_ok.nonzero()[0]
+            self.decays[0, rows, 0, 0, 0] = p.warmup_decay + (p.decay - p.warmup_decay) * np.minimum(
+                1.0, self.scored[rows, 0] / p.warmup)
+        diff = due[:, 1]
+        resid = obs - due[:, 0]
+        new = self._new
+        if p.per_joint:
+            np.multiply(resid, diff, out=new[:, _XY])
+            np.multiply(diff, diff, out=new[:, _XX])
+            np.multiply(resid, resid, out=new[:, _YY])
+        else:
+            new[:, _XY] = np.vecdot(resid, diff)[..., None]
+            new[:, _XX] = np.vecdot(diff, diff)[..., None]
+            new[:, _YY] = np.vecdot(resid, resid)[..., None]
+        if valid.all():  # the common case: every gate has a scored prediction at every step
+            self.stats *= self.decays
+            self.stats += new
+            self.scored += 1
+            return
+        for i in any_ok.nonzero()[0].tolist():  # as each gate's `_score` does, on its views
+            g, ok = self.gates[i], valid[i]
+            if ok.all():
+                g._stats *= g._decays
+                g._stats += new[i]
+                g._scored += 1
+                continue
+            rows = ok.nonzero()[0]
+            g._stats[:, :, rows] = g._decays * g._stats[:, :, rows] + new[i][:, rows]
+            g._scored[rows] += 1
+
+
+def shrinkage(s: np.ndarray, prior: float, z2: np.ndarray, bounded: int, fast_step: int) -> np.ndarray:
+    """`GatedPredictor.alpha` from the running sums `s` (memory, ..., 4, horizon, joints) of one gate or of
+    several alike (the leading `...`), with z2 (memory, 1, ...) the doubled bounds of the first `bounded`
+    memories; a new array (..., horizon, joints)."""
+    sxy = s[:, ..., _XY, :, :]
+    sxx = s[:, ..., _XX, :, :] + prior
+    a = sxy / sxx
+    cap = a * 2.0  # 2 (a - z se(a)), the doubling exact: 2 a - (2 z) se
+    b = bounded
+    if b:  # z se(a), se(a)^2 = RSS / ((n - 1) S_xx), RSS = S_yy - 2 a S_xy + a^2 S_xx (in place, few calls)
+        sxy_b, a_b = sxy[:b], a[:b]
+        se = a_b * s[:b, ..., _XX, :, :]
+        se -= sxy_b
+        se -= sxy_b
+        se *= a_b
+        se += s[:b, ..., _YY, :, :]
+        np.maximum(se, 0.0, out=se)
+        dof = np.maximum(s[:b, ..., _N, :, :], 2.0)
+        dof -= 1.0
+        dof *= sxx[:b]
+        se /= dof
+        np.sqrt(se, out=se)
+        se *= z2[:b]
+        cap[:b] -= se
+    if fast_step and len(cap) > 1:  # the short memory: every step capped by one step's record
+        cap[1] = cap[1, ..., fast_step - 1, None, :]
+    out = np.minimum(cap[0], cap[1]) if len(cap) == 2 else cap.min(axis=0)
+    np.minimum(out, a[0], out=out)
+    np.minimum(out, 1.0, out=out)
+    np.maximum(out, 0.0, out=out)
+    return out
 
 
 def inner_model(model: Any) -> Any:

@@ -148,12 +148,17 @@ class TrajectoryMemory(Checkpointed):
                                             np.full(len(self._lags) * p.n_joints, p.velocity_weight)])
         self._grid = np.arange(1, p.horizon + 1, dtype=float)
         self._future = p.stored_future  # the last stored step a read-out may reach
-        size = min(p.capacity, 256)
+        # allocated once at capacity (the system maps the pages as snippets come): nothing grows while learning
+        size = p.capacity
         self.keys = np.empty((size, len(self._key_weights)))  # pose, then its changes (unweighted)
         self._weighted = np.empty_like(self.keys)  # the keys x `_key_weights`, and their squared norms:
         self._norms = np.empty(size)  # a distance is then one matrix-vector product (`_distances`)
         self.futures = np.empty((size, self._future + 1, p.n_joints))  # displacements from the key's pose, 0..future
         self.used = np.empty(size, dtype=np.int64)  # per snippet: the frame it was stored or last recalled at
+        # what a read leaves for the store of its own key `future` frames later (`_nearest_stored`): per read,
+        # (clock, nearest squared distance, its slot); per store since, (clock, slot)
+        self._reads: deque[tuple[int, float, int]] = deque(maxlen=self._future + 1)
+        self._stores: deque[tuple[int, int]] = deque(maxlen=self._future + 1)
         self.size = 0
         self.clock = 0  # frames observed (the clock of `used`)
         self.replaced = 0  # snippets replaced at capacity
@@ -197,15 +202,16 @@ class TrajectoryMemory(Checkpointed):
         now = window[-1]
         return np.concatenate([now, (now - window[-1 - self._lags]).reshape(-1)])
 
-    def _distances(self, key: np.ndarray) -> np.ndarray:
-        """Weighted squared distances of the stored keys to `key`, as |a|^2 - 2 a.b + |b|^2: one pass over
-        the keys instead of three (the difference, its weighting, its norm), which is what a full memory's
-        search costs. Rounding leaves ~1e-14 (rad^2) where the difference is 0: far below `EXACT`, far
-        below any two keys of a recording."""
+    def _distances(self, key: np.ndarray, rows: slice | np.ndarray | None = None) -> np.ndarray:
+        """Weighted squared distances of the stored keys (all, or `rows`) to `key`, as |a|^2 - 2 a.b + |b|^2:
+        one pass over the keys instead of three (the difference, its weighting, its norm), which is what a
+        full memory's search costs. Rounding leaves ~1e-14 (rad^2) where the difference is 0: far below
+        `EXACT`, far below any two keys of a recording."""
+        rows = slice(0, self.size) if rows is None else rows
         query = key * self._key_weights
-        d2 = self._weighted[:self.size] @ query
+        d2 = self._weighted[rows] @ query
         d2 *= -2.0
-        d2 += self._norms[:self.size]
+        d2 += self._norms[rows]
         d2 += query @ query
         return np.maximum(d2, 0.0, out=d2)
 
@@ -213,21 +219,32 @@ class TrajectoryMemory(Checkpointed):
         p = self.params
         if self.size:
             radius = max(self.motion_rms, p.noise_floor) * p.insert_scale
-            if self._distances(key).min() <= radius * radius * len(key) / p.n_joints:
+            if self._nearest_stored(key) <= radius * radius * len(key) / p.n_joints:
                 return
         if self.size >= p.capacity:  # full: the snippet recalled longest ago makes room
             slot = int(np.argmin(self.used[:self.size]))
             self.replaced += 1
         else:
-            if self.size == len(self.keys):
-                grow = min(2 * len(self.keys), p.capacity)
-                self._resize(grow)
             slot = self.size
             self.size += 1
         self.keys[slot] = key
         self._weigh(slice(slot, slot + 1))
         self.futures[slot] = future
         self.used[slot] = self.clock
+        self._stores.append((self.clock, slot))
+
+    def _nearest_stored(self, key: np.ndarray) -> float:
+        """The squared distance of the nearest stored key to the key being stored, which the read `future`
+        frames ago searched for already: its nearest then, unless that snippet was replaced since, against
+        the few stored since (one search of a full memory per frame instead of two)."""
+        then = self.clock - self._future
+        read = next((r for r in self._reads if r[0] == then), None)
+        if read is None:
+            return float(self._distances(key).min())
+        since = [slot for clock, slot in self._stores if clock > then]
+        if read[2] in since:  # the nearest then is gone
+            return float(self._distances(key).min())
+        return min(read[1], float(self._distances(key, np.asarray(since)).min())) if since else read[1]
 
     def _weigh(self, rows: slice) -> None:
         """The weighted keys and their squared norms of stored `rows` (the same call stored or loaded, so a
@@ -236,20 +253,14 @@ class TrajectoryMemory(Checkpointed):
         np.multiply(self.keys[rows], self._key_weights, out=weighted)
         self._norms[rows] = np.einsum("nd,nd->n", weighted, weighted)
 
-    def _resize(self, rows: int) -> None:
-        """Room for `rows` snippets (the stored ones kept)."""
-        self.keys = np.resize(self.keys, (rows, self.keys.shape[1]))
-        self._weighted = np.resize(self._weighted, (rows, self.keys.shape[1]))
-        self._norms = np.resize(self._norms, rows)
-        self.futures = np.resize(self.futures, (rows, *self.futures.shape[1:]))
-        self.used = np.resize(self.used, rows)
-
     def _read(self, key: np.ndarray) -> np.ndarray:
         """(horizon, J) displacements: the k nearest snippets' futures at the present speed, weighted, or
         where the motion is familiar the `fit_k` nearest fitted (`_fit`)."""
         p = self.params
         d2 = self._distances(key)
-        nearest_other, recallable = float(d2.min()), self.size
+        closest = int(d2.argmin())
+        nearest_other, recallable = float(d2[closest]), self.size
+        self._reads.append((self.clock, nearest_other, closest))
         if nearest_other <= EXACT:  # copies (a recording replayed): left out of the minimum, and of recall if
             copies = d2 <= EXACT  # enough others are left
             masked = np.where(copies, np.inf, d2)
@@ -259,7 +270,8 @@ class TrajectoryMemory(Checkpointed):
                 d2, recallable = masked, others  # a replayed recording is not recalled from its own copy
         scale = max(self.motion_rms, p.noise_floor)
         self.familiarity = math.sqrt(nearest_other * p.n_joints / len(key)) / scale
-        self.travel = float(np.linalg.norm(key[-p.n_joints:])) / scale  # the key's change over the longest lag
+        change = key[-p.n_joints:]  # the key's change over the longest lag
+        self.travel = math.sqrt(float(change.dot(change))) / scale
         fit = p.fit_k > 0 and self.familiarity <= p.fit_radius
         k = min(max(p.k, p.fit_k), recallable) if fit else p.k  # a fit takes the snippets there are
         nearest = np.argpartition(d2, k - 1)[:k] if self.size > k else np.arange(self.size)
@@ -277,14 +289,14 @@ class TrajectoryMemory(Checkpointed):
         stored = self.keys[nearest, p.n_joints:]  # (k, lags * J) changes
         power = np.einsum("kd,kd->k", stored, stored)
         ratio = np.where(power > 1e-8, (stored @ key[p.n_joints:]) / np.maximum(power, 1e-8), 1.0)
-        np.clip(np.nan_to_num(ratio, nan=1.0), p.min_ratio, p.max_ratio, out=ratio)  # nan: inf / inf of absurd input
+        np.clip(ratio, p.min_ratio, p.max_ratio, out=ratio)
+        ratio[ratio != ratio] = 1.0  # NaN (inf / inf of absurd input): the stored speed
         at = np.minimum(ratio[:, None] * self._grid, self._future)  # (k, horizon) stored steps to read
         lo = at.astype(int)
         hi = np.minimum(lo + 1, self._future)
         frac = (at - lo)[..., None]
-        rows = np.arange(len(nearest))[:, None]
-        fut = self.futures[nearest]
-        return fut[rows, lo] * (1.0 - frac) + fut[rows, hi] * frac
+        rows = nearest[:, None]
+        return self.futures[rows, lo] * (1.0 - frac) + self.futures[rows, hi] * frac
 
     def _fit(self, w: np.ndarray, offsets: np.ndarray, read: np.ndarray) -> np.ndarray:
         """The neighbours' futures (k, horizon, J) as a linear function of their keys' (weighted) offsets
@@ -324,7 +336,6 @@ class TrajectoryMemory(Checkpointed):
                                   f"parameters (keys {self.keys.shape[1]}-d, futures {self.futures.shape[1:]})")
         require_finite(keys, "keys")
         require_finite(futures, "futures")
-        self._resize(max(n, len(self.keys)))
         self.keys[:n] = keys
         self.futures[:n] = futures
         self._weigh(slice(0, n))
