@@ -357,7 +357,7 @@ class GateBank:
     def _score(self, obs: np.ndarray, due: np.ndarray, valid: np.ndarray) -> None:
         """Every gate's `_score`: the products of the predictions due now, into each gate's sums."""
         p = self.params
-        any_ok: np.ndarray = valid.any(axis=1)
+        any_ok = np.asarray(valid.any(axis=1))
         if not any_ok.any():
             return
         if p.warmup:
