@@ -271,7 +271,7 @@ def _check_member(zf: zipfile.ZipFile, info: zipfile.ZipInfo, path: Path) -> tup
 def check_network_sizes(path: Path, shapes: Mapping[str, tuple[int, ...]]) -> None:
     """CheckpointError if a network (a `<name>weights` array beside `<name>edges`) declares more neurons
     than `MAX_NETWORK_NEURONS`, read from the npy headers before anything is allocated: a network's
-    edges grow with the square of its neurons, so a few kB declaring 40,000 neurons took gigabytes.
+    edges grow with the square of its neurons, so a few kB of zeros could ask for gigabytes.
     A layer's own, smaller `max_neurons` is checked when the network is built (`GWR.from_arrays`)."""
     for name in shapes:
         prefix = name.removesuffix("edges")

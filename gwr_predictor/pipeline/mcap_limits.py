@@ -1,13 +1,13 @@
 """Sizes an MCAP file declares, checked against the file before a reader allocates them.
 
 The readers (rosbags' MCAP storage, the `mcap` library) read a record, a chunk or a chunk index's
-chunk by the length the file states: 8 changed bytes claiming a 1 TB chunk ended every bag command in
-a `MemoryError`. `check_mcap` walks the records' length prefixes (seeks and a few bytes per record,
-never a record's body) and refuses, naming the file, the record and the offset, any record that
-reaches past the end of the file, any chunk whose parts do not fit inside its record or whose
-uncompressed size is over `MAX_CHUNK_BYTES`, and any chunk index that points outside the file.
-A file that was cut off (no end magic) is left to the reader, which refuses it or recovers what
-is there; only its first record is checked, which rosbags reads before it looks for the end.
+chunk by the length the file states, so 8 changed bytes can make them ask for a terabyte.
+`check_mcap` walks the records' length prefixes (seeks and a few bytes per record, never a record's
+body) and refuses, naming the file, the record and the offset, any record that reaches past the end
+of the file, any chunk whose parts do not fit inside its record or whose uncompressed size is over
+`MAX_CHUNK_BYTES`, and any chunk index that points outside the file. A file that was cut off (no
+end magic) is left to the reader, which refuses it or recovers what is there; only its first record
+is checked, which rosbags reads before it looks for the end.
 """
 
 from __future__ import annotations
