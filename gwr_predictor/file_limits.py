@@ -20,10 +20,11 @@ import tokenize
 import zipfile
 import zlib
 from collections.abc import Iterator
-from pathlib import Path
 from typing import IO
 
 import numpy as np
+
+from gwr_predictor.user_files import human_size, regular_file_size
 
 #: A binary recording (`.npz` members inflated, `.npy`, `.pt`): over 6 hours at 30 fps of 15 joints.
 MAX_RECORDING_BYTES = 256 << 20
@@ -35,6 +36,11 @@ MAX_CSV_BYTES = MAX_TEXT_BYTES
 MAX_SKELETON_BYTES = 4 << 20
 #: A model checkpoint (npz members inflated).
 MAX_CHECKPOINT_BYTES = 2 << 30
+#: Neurons of one network a checkpoint may declare (checked in the array headers, before reading), for
+#: layers without a `max_neurons` and above a larger one: the edges of a network take 2 n^2 bytes (this
+#: many: 800 MB), and the largest networks the experiments report, the upper layers without
+#: normalisation, grow past 10,000. A checkpoint of a larger network is refused naming this limit.
+MAX_NETWORK_NEURONS = 20_000
 #: Joints of one skeleton (BVH joints and End Sites, ASF bone starts and ends, array columns / 3).
 #: Real skeletons with fingers and face have up to about 150.
 MAX_JOINTS = 512
@@ -51,17 +57,11 @@ MAX_ARCHIVE_MEMBERS = 1024
 WORK_CHUNK_VALUES = 1 << 22
 
 
-def _human(n: int) -> str:
-    return f"{n / (1 << 20):.0f} MB" if n >= 1 << 20 else f"{n} bytes"
-
-
 def check_file_size(path: str | os.PathLike[str], limit: int, what: str,
                     error: type[Exception] = ValueError) -> int:
-    """The size of `path` in bytes; `error` naming the file if it is larger than `limit`."""
-    size = Path(path).stat().st_size
-    if size > limit:
-        raise error(f"{path}: {_human(size)} is too large for a {what} (limit {_human(limit)}); refused before reading")
-    return size
+    """The size of `path` in bytes; `error` naming the file if it is larger than `limit` or not a
+    regular file (a FIFO would block its reader for ever, /dev/zero never end)."""
+    return regular_file_size(path, limit, what, error)
 
 
 def check_count(path: str | os.PathLike[str], count: int, limit: int, what: str, error: type[Exception]) -> int:
@@ -106,8 +106,8 @@ def check_npz_members(path: str | os.PathLike[str], limit: int, what: str,
     except (zipfile.BadZipFile, OSError, ValueError, EOFError, NotImplementedError, RuntimeError, struct.error):
         return 0
     if total > limit:
-        raise error(f"{path}: its arrays inflate to {_human(total)}, too large for a {what} "
-                    f"(limit {_human(limit)}); refused before reading")
+        raise error(f"{path}: its arrays inflate to {human_size(total)}, too large for a {what} "
+                    f"(limit {human_size(limit)}); refused before reading")
     return total
 
 

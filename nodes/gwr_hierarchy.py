@@ -214,7 +214,13 @@ class GwrHierarchyNode(PipelineNode):
         if last is not None:
             self.handle_gap(stamp - last)
         start = time.perf_counter()
-        predictions = self.model.step(angles, learn=self.params["learn"])
+        try:
+            predictions = self.model.step(angles, learn=self.params["learn"])
+        except MemoryError:  # a network that cannot grow: what it learned stays, the next frame may fit
+            self.counters.count("frames.out_of_memory")
+            self.counters.warn_throttled("frames.out_of_memory", "out of memory while learning a frame: frame "
+                                         "skipped, the model keeps what it learned (give its layers a max_neurons)")
+            return
         elapsed = time.perf_counter() - start
         self.step_times.append(elapsed)
         self.step_max = max(self.step_max, elapsed)
@@ -277,7 +283,7 @@ class GwrHierarchyNode(PipelineNode):
     def save_checkpoint(self) -> bool:
         try:
             self.model.save(self.checkpoint)
-        except (CheckpointError, OSError) as exc:
+        except (CheckpointError, OSError, MemoryError) as exc:
             self.counters.count("checkpoint.save_failed")
             self.counters.warn_throttled("checkpoint", f"could not save the checkpoint: {exc}")
             self.error = f"checkpoint save failed: {exc}"

@@ -450,15 +450,20 @@ class InstanceSightings:
 
 class _StopSignals:
     """SIGINT and SIGTERM request a clean stop: spinning ends, the final hook runs while the context
-    is still valid (it may log and publish), then the node is destroyed and rclpy shut down."""
+    is still valid (it may log and publish), then the node is destroyed and rclpy shut down. While
+    the node is being built (`starting`) there is nothing to save yet: a signal interrupts at once,
+    even a read that blocks."""
 
     def __init__(self) -> None:
         self.received: int | None = None
+        self.starting = True
         for sig in (signal.SIGINT, signal.SIGTERM):
             signal.signal(sig, self._handle)
 
     def _handle(self, signum: int, _frame: Any) -> None:
         self.received = signum
+        if self.starting:
+            raise KeyboardInterrupt
 
 
 DRAIN_LIMIT_S = 2.0
@@ -495,6 +500,7 @@ def run_node(node_cls: type[PipelineNode], args: list[str] | None = None) -> int
     code = EXIT_OK
     try:
         node = node_cls()
+        stop.starting = False
         logger = node.get_logger()
         logger.info("ready")  # scripts wait for this line
         executor = SingleThreadedExecutor()
@@ -517,7 +523,8 @@ def run_node(node_cls: type[PipelineNode], args: list[str] | None = None) -> int
         logger.error(f"stopping: {exc}")
         code = EXIT_FATAL
     except (KeyboardInterrupt, ExternalShutdownException):
-        pass
+        if node is None and stop.received is not None:
+            logger.info(f"{signal.Signals(stop.received).name} received while starting: stopped")
     finally:
         if node is not None:
             try:

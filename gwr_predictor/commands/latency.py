@@ -14,6 +14,7 @@ from pathlib import Path
 
 from gwr_predictor.pipeline.bags import BagError
 from gwr_predictor.pipeline.message_latency import latency_report
+from gwr_predictor.user_files import write_output
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
@@ -28,12 +29,10 @@ def run(args: argparse.Namespace) -> int:
     out = args.out or (args.run if bag != args.run else args.run.parent)
     try:
         report = latency_report(bag)
+        path = write_output(out / "latency.json", report.to_json() + "\n", "latency report", BagError)
     except BagError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 1
-    out.mkdir(parents=True, exist_ok=True)
-    path = out / "latency.json"
-    path.write_text(report.to_json() + "\n")
     for line in report.summary_lines():
         print(line)
     print(f"written: {path}")

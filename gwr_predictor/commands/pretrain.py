@@ -23,6 +23,8 @@ import numpy as np
 from gwr_predictor.data.datasets import demo_angle_sequences
 from gwr_predictor.data.demonstrator import PATTERNS, DemonstratorError
 from gwr_predictor.default_predictor.gate import inner_model
+from gwr_predictor.learning.checkpoint import check_checkpoint_place
+from gwr_predictor.pipeline.params_file import load_params_file
 from gwr_predictor.predictors.registry import (
     DEFAULT_PREDICTOR,
     learner_names,
@@ -56,25 +58,18 @@ def configure(parser: argparse.ArgumentParser) -> None:
 
 
 def node_parameters(path: Path, node: str = NODE_NAME) -> dict[str, Any]:
-    """The flat (dotted) ros__parameters of `node` in a ROS params YAML (keys '/**', 'node', '/node', '/**/node')."""
-    import yaml
-
-    from gwr_predictor.pipeline.params_file import ParamsFileError, flatten
-
-    try:
-        doc = yaml.safe_load(path.read_text()) or {}
-    except (OSError, yaml.YAMLError) as exc:
-        raise ParamsFileError(f"{path}: cannot read the params file: {exc}") from None
+    """The flat (dotted) ros__parameters of `node` in a ROS params YAML (keys '/**', 'node', '/node',
+    '/**/node'), the file checked as the nodes check theirs (`params_file.load_params_file`)."""
+    sections = load_params_file(path)
     flat: dict[str, Any] = {}
     for key in ("/**", node, "/" + node, "/**/" + node):
-        section = doc.get(key, {}) if isinstance(doc, dict) else {}
-        params = section.get("ros__parameters", {}) if isinstance(section, dict) else {}
-        flat.update(flatten(params))
+        flat.update(sections.get(key, {}))
     return flat
 
 
 def run(args: argparse.Namespace) -> int:
     try:
+        check_checkpoint_place(args.out)  # before the training, which takes minutes
         flat = node_parameters(args.params_file) if args.params_file else {}
         seed = args.seed if args.seed is not None else int(flat.get("seed", 0))
         seqs = demo_angle_sequences(args.patterns or None, args.subjects, args.repetitions, args.data_seed)
@@ -113,7 +108,6 @@ def run(args: argparse.Namespace) -> int:
         if time.monotonic() - start > args.max_seconds and epoch < args.epochs:
             print(f"time budget of {args.max_seconds:.0f} s used up after epoch {epoch}", flush=True)
             break
-    args.out.parent.mkdir(parents=True, exist_ok=True)
     model.reset_sequence()
     model.save(args.out)
     elapsed = time.monotonic() - start

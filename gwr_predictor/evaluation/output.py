@@ -19,7 +19,7 @@ from typing import Any
 
 import numpy as np
 
-from gwr_predictor import json_safe
+from gwr_predictor import json_safe, user_files
 from gwr_predictor.evaluation.errors import EvaluationError
 
 #: EvaluationError, for an output that cannot be written; the message names the file.
@@ -48,16 +48,10 @@ def to_jsonable(obj: Any) -> Any:
 
 
 def write_json(path: Path, obj: Any) -> Path:
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
     text = json.dumps(to_jsonable(obj), indent=1)
     if len(text) > 100_000:  # long traces: compact, to keep results small enough to commit
         text = json.dumps(to_jsonable(obj), separators=(",", ":"))
-    try:
-        path.write_text(text + "\n")
-    except OSError as exc:
-        raise ExperimentOutputError(f"cannot write {path}: {exc}") from exc
-    return path
+    return user_files.write_output(path, text + "\n", "results file", ExperimentOutputError)
 
 
 def fmt(value: Any, digits: int = 3) -> str:
@@ -87,16 +81,13 @@ def save_figure(fig: Any, out: Path, name: str, dpi: int = 80) -> str:
     import matplotlib.pyplot as plt
     from PIL import Image
 
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
-    path = out / f"{name}.png"
+    path = Path(out) / f"{name}.png"
     buf = io.BytesIO()
     try:
-        fig.savefig(buf, format="png", dpi=dpi, bbox_inches="tight")
-        with Image.open(buf) as img:
-            img.convert("RGB").quantize(colors=64).save(path, optimize=True)
-    except OSError as exc:
-        raise ExperimentOutputError(f"cannot write {path}: {exc}") from exc
+        with user_files.replacing(path, "figure", ExperimentOutputError) as tmp:
+            fig.savefig(buf, format="png", dpi=dpi, bbox_inches="tight")
+            with Image.open(buf) as img:
+                img.convert("RGB").quantize(colors=64).save(tmp, format="PNG", optimize=True)
     finally:
         plt.close(fig)
     return path.name
@@ -127,9 +118,6 @@ def write_output(out: Path, output: ExperimentOutput, seed: int, quick: bool,
                                                   "figures": output.figures})
     md = [f"# {output.title}", "", f"`{command}` ({output.elapsed_s:.0f} s).", "", *output.markdown, ""]
     md += [f"![{f}]({f})" for f in output.figures]
-    md_path = out / "results.md"
-    try:
-        md_path.write_text("\n".join(md).rstrip() + "\n")
-    except OSError as exc:
-        raise ExperimentOutputError(f"cannot write {md_path}: {exc}") from exc
+    md_path = user_files.write_output(out / "results.md", "\n".join(md).rstrip() + "\n", "results file",
+                                      ExperimentOutputError)
     return json_path, md_path

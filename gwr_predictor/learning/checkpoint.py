@@ -20,7 +20,6 @@ import fcntl
 import json
 import os
 import re
-import stat
 import tempfile
 import zipfile
 from collections.abc import Iterable, Mapping
@@ -30,8 +29,17 @@ from typing import Any, NoReturn
 import numpy as np
 
 from gwr_predictor.errors import GwrPredictorError
-from gwr_predictor.file_limits import MAX_CHECKPOINT_BYTES, check_zip_directory, npy_header
+from gwr_predictor.file_limits import MAX_CHECKPOINT_BYTES, MAX_NETWORK_NEURONS, check_zip_directory, npy_header
 from gwr_predictor.learning.errors import LearningError
+from gwr_predictor.user_files import (
+    check_folder,
+    final_target,
+    fsync_folder,
+    new_file_mode,
+    open_lock_file,
+    open_to_read,
+    regular_file_size,
+)
 
 MAGIC = "gwr_predictor.checkpoint"
 #: The one format this build reads and writes; older files are refused with a clear message (their
@@ -58,10 +66,7 @@ class CheckpointLock:
         self._fd: int | None = None
         real = Path(os.path.realpath(path))  # every name of one file gets one lock
         self.lock_path = real.with_name(f".{real.name}.lock")
-        try:
-            fd = os.open(self.lock_path, os.O_RDWR | os.O_CREAT | os.O_CLOEXEC, 0o666)
-        except OSError as exc:
-            raise CheckpointError(f"{path}: cannot create its lock file {self.lock_path}: {exc}", source=path) from exc
+        fd = open_lock_file(self.lock_path, f"lock file of checkpoint {path}", CheckpointError)
         try:
             fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except OSError as exc:
@@ -114,7 +119,7 @@ def write_checkpoint(path: str | os.PathLike[str], kind: str, header: Mapping[st
     dest = destination(path)
     folder = dest.parent
     try:
-        mode = _mode_for(dest)
+        mode = new_file_mode(dest)
         fd, tmp = tempfile.mkstemp(prefix=f".{dest.name}.", suffix=".tmp", dir=folder)
     except OSError as exc:
         raise CheckpointError(f"{path}: cannot create a temporary file in {folder}: {exc}", source=path) from exc
@@ -131,48 +136,14 @@ def write_checkpoint(path: str | os.PathLike[str], kind: str, header: Mapping[st
         if isinstance(exc, OSError):
             raise CheckpointError(f"{path}: writing failed: {exc}", source=path) from exc
         raise
-    _fsync_dir(folder)
+    fsync_folder(folder)
 
 
 def destination(path: str | os.PathLike[str]) -> Path:
     """The file a checkpoint path stands for: a symlink's final target (dangling or not), so that a
-    save updates the target instead of replacing the link; else the path itself."""
-    path = Path(path)
-    return Path(os.path.realpath(path)) if path.is_symlink() else path
-
-
-def _mode_for(dest: Path) -> int:
-    """Permission bits for the file that replaces `dest`: its own, or the umask default if new."""
-    try:
-        return stat.S_IMODE(dest.stat().st_mode)
-    except FileNotFoundError:
-        return 0o666 & ~_umask()
-
-
-def _umask() -> int:
-    """The process umask, read without changing it where Linux shows it (os.umask can only swap)."""
-    with contextlib.suppress(OSError, ValueError):
-        with open("/proc/self/status") as f:
-            for line in f:
-                if line.startswith("Umask:"):
-                    return int(line.split()[1], 8)
-    mask = os.umask(0o022)
-    os.umask(mask)
-    return mask
-
-
-def _fsync_dir(folder: Path) -> None:
-    """Make the rename itself durable (best effort: not every platform can open a folder)."""
-    try:
-        fd = os.open(folder, os.O_RDONLY)
-    except OSError:
-        return
-    try:
-        os.fsync(fd)
-    except OSError:
-        pass
-    finally:
-        os.close(fd)
+    save updates the target instead of replacing the link; else the path itself. CheckpointError for
+    a symlink loop (every save would fail)."""
+    return final_target(path, "checkpoint", CheckpointError)
 
 
 _ZIP_LOCAL = b"PK\x03\x04"
@@ -185,13 +156,10 @@ def looks_like_checkpoint(path: str | os.PathLike[str]) -> bool:
     Truncated or corrupt checkpoints still begin this way; anything else (a folder, a user's
     file) is not ours, so it is neither moved aside nor overwritten.
     """
-    path = Path(path)
-    if not path.is_file():
-        return False
     try:
-        with open(path, "rb") as f:
+        with open_to_read(path, None, "checkpoint", CheckpointError) as f:
             head = f.read(30 + len(_FIRST_MEMBER))
-    except OSError:
+    except (OSError, CheckpointError):
         return False
     return head[:4] == _ZIP_LOCAL and head[30:] == _FIRST_MEMBER
 
@@ -218,15 +186,10 @@ def check_checkpoint_place(path: str | os.PathLike[str]) -> None:
     if path.exists() and not looks_like_checkpoint(path):
         raise CheckpointError(f"{path} exists and is not a gwr_predictor checkpoint: refusing to move or overwrite it",
                               source=path)
-    dest = destination(path)
-    folder = dest.parent if str(dest.parent) else Path(".")
     try:
-        folder.mkdir(parents=True, exist_ok=True)
-        fd, probe = tempfile.mkstemp(prefix=f".{dest.name}.", suffix=".tmp", dir=folder)
-        os.close(fd)
-        os.unlink(probe)
-    except OSError as exc:
-        raise CheckpointError(f"{path}: the checkpoint cannot be written in {folder}: {exc}", source=path) from exc
+        check_folder(destination(path).parent, f"checkpoint {path}", CheckpointError)
+    except CheckpointError as exc:
+        raise CheckpointError(str(exc), source=path) from None
 
 
 def remove_stale_temp_files(path: str | os.PathLike[str]) -> list[Path]:
@@ -245,9 +208,8 @@ def read_checkpoint(path: str | os.PathLike[str], kind: str | tuple[str, ...],
     """(header, arrays) of a checkpoint of `kind` (or of any of several: the header says which); every
     name in `required` must be present."""
     path = Path(path)
-    if not path.is_file():
-        raise CheckpointError(f"{path}: no such checkpoint file", source=path)
     try:
+        regular_file_size(path, MAX_CHECKPOINT_BYTES, "checkpoint", CheckpointError)
         check_zip_directory(path, MAX_CHECKPOINT_BYTES, "checkpoint", CheckpointError)
     except CheckpointError as exc:
         exc.source = path
@@ -278,8 +240,8 @@ def _read_arrays(path: Path) -> dict[str, np.ndarray]:
     CheckpointError: an unreadable checkpoint must be set aside, never crash its reader."""
     try:
         with zipfile.ZipFile(path) as zf:
-            for info in zf.infolist():
-                _check_member(zf, info, path)
+            shapes = {info.filename.removesuffix(".npy"): _check_member(zf, info, path) for info in zf.infolist()}
+        check_network_sizes(path, shapes)
         with np.load(path, allow_pickle=False) as npz:
             return {name: npz[name] for name in npz.files}
     except CheckpointError:
@@ -289,9 +251,10 @@ def _read_arrays(path: Path) -> dict[str, np.ndarray]:
                               f"{type(exc).__name__}: {exc}", source=path) from exc
 
 
-def _check_member(zf: zipfile.ZipFile, info: zipfile.ZipInfo, path: Path) -> None:
-    """A member must be an npy array whose declared shape x item size is exactly the data it holds
-    (so numpy never allocates more than the member's size, which `check_zip_directory` bounded)."""
+def _check_member(zf: zipfile.ZipFile, info: zipfile.ZipInfo, path: Path) -> tuple[int, ...]:
+    """The shape of a member, which must be an npy array whose declared shape x item size is exactly the
+    data it holds (so numpy never allocates more than the member's size, which `check_zip_directory`
+    bounded)."""
     if not info.filename.endswith(".npy"):
         raise CheckpointError(f"{path}: member {info.filename!r} is not an array: not a gwr_predictor checkpoint",
                               source=path)
@@ -302,6 +265,22 @@ def _check_member(zf: zipfile.ZipFile, info: zipfile.ZipInfo, path: Path) -> Non
     if dtype.hasobject or declared != stored:
         raise CheckpointError(f"{path}: member {info.filename!r} declares shape {shape} of {dtype} "
                               f"({declared:,} bytes) but holds {stored:,} bytes: corrupt or forged", source=path)
+    return shape
+
+
+def check_network_sizes(path: Path, shapes: Mapping[str, tuple[int, ...]]) -> None:
+    """CheckpointError if a network (a `<name>weights` array beside `<name>edges`) declares more neurons
+    than `MAX_NETWORK_NEURONS`, read from the npy headers before anything is allocated: a network's
+    edges grow with the square of its neurons, so a few kB of zeros could ask for gigabytes.
+    A layer's own, smaller `max_neurons` is checked when the network is built (`GWR.from_arrays`)."""
+    for name in shapes:
+        prefix = name.removesuffix("edges")
+        if prefix != name and (not prefix or prefix.endswith(".")) and f"{prefix}weights" in shapes:
+            neurons = (shapes[f"{prefix}weights"] or (0,))[0]
+            if neurons > MAX_NETWORK_NEURONS:
+                raise CheckpointError(f"{path}: network {prefix.rstrip('.') or 'gwr'!r} declares {neurons:,} neurons, "
+                                      f"over the limit of {MAX_NETWORK_NEURONS:,} (gwr_predictor.file_limits); "
+                                      "refused before reading", source=path)
 
 
 _JSON_STRING = re.compile(r'"(?:[^"\\]|\\.)*+"')

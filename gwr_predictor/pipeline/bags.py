@@ -25,7 +25,7 @@ import shutil
 import struct
 from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
-from pathlib import Path
+from pathlib import Path, PurePath
 from typing import Any, NamedTuple
 
 import numpy as np
@@ -40,15 +40,20 @@ from gwr_predictor.parameter_spec import ParameterError
 from gwr_predictor.pipeline import conventions
 from gwr_predictor.pipeline.conventions import ArrayDim, PackedArray
 from gwr_predictor.pipeline.errors import PipelineError
+from gwr_predictor.pipeline.mcap_limits import MAGIC as MCAP_MAGIC
+from gwr_predictor.pipeline.mcap_limits import MAX_CHUNK_BYTES, check_mcap
+from gwr_predictor.user_files import load_yaml, open_to_read, regular_file_size
 
 JOINT_STATE = "sensor_msgs/msg/JointState"
 FLOAT64_MULTIARRAY = "std_msgs/msg/Float64MultiArray"
 DIAGNOSTIC_ARRAY = "diagnostic_msgs/msg/DiagnosticArray"
-_MCAP_MAGIC = b"\x89MCAP0\r\n"
+_MCAP_MAGIC = MCAP_MAGIC
 
 #: what rosbag2 writes as `ros_distro` into a bag's metadata on Jazzy; rosbags writes "rosbags"
 ROS_DISTRO = "jazzy"
 _ROSBAGS_DISTRO = "ros_distro: rosbags"
+#: A bag's metadata.yaml: about 1 kB per topic (with its QoS profiles) and 150 bytes per split file.
+MAX_METADATA_BYTES = 1 << 20
 #: The ROS 2 Jazzy message definitions (sensor_msgs, std_msgs, diagnostic_msgs, ...).
 TYPESTORE = get_typestore(Stores.ROS2_JAZZY)
 
@@ -345,8 +350,10 @@ class BagWriter:
 
 
 def _open_reader(path: Path) -> Reader:
-    """A rosbags Reader of a bag directory or of a bare .mcap file."""
-    if path.is_file() and path.suffix == ".mcap":
+    """A rosbags Reader of a bag directory or of a bare .mcap file, its files checked first
+    (`check_bag_files`)."""
+    if path.suffix == ".mcap" and not path.is_dir():
+        check_mcap(path, BagError)
         try:
             reader = Reader(path)
             reader.open()
@@ -355,14 +362,33 @@ def _open_reader(path: Path) -> Reader:
         return reader
     if not path.is_dir():
         raise BagError(f"{path}: neither a bag directory nor a .mcap file")
-    if not (path / "metadata.yaml").is_file():
+    if not (path / "metadata.yaml").exists():
         raise BagError(f"{path}: no metadata.yaml (writer not closed? try recover_bag({str(path)!r}))")
+    check_bag_files(path)
     try:
         reader = Reader(path)
         reader.open()
     except (ReaderError, OSError, KeyError, ValueError) as err:
         raise BagError(f"{path}: unreadable bag: {err}") from err
     return reader
+
+
+def check_bag_files(path: Path) -> None:
+    """BagError unless the bag folder's metadata.yaml is a regular file of at most `MAX_METADATA_BYTES`
+    without YAML aliases and every storage file it names is a regular file (an MCAP one within its
+    declared sizes, `mcap_limits`): what rosbags then reads cannot block or exhaust memory."""
+    metadata = load_yaml(path / "metadata.yaml", MAX_METADATA_BYTES, "bag's metadata.yaml", BagError)
+    info = metadata.get("rosbag2_bagfile_information") if isinstance(metadata, dict) else None
+    if not isinstance(info, dict) or not isinstance(info.get("relative_file_paths"), list):
+        return  # rosbags says what is missing
+    for name in info["relative_file_paths"]:
+        storage = path / PurePath(str(name)).name  # where rosbags looks for it
+        if not storage.exists():
+            continue  # rosbags names the missing files
+        if info.get("storage_identifier") == "mcap":
+            check_mcap(storage, BagError)
+        else:
+            regular_file_size(storage, None, "bag storage file", BagError)
 
 
 def read_bag(path: str | os.PathLike[str], topics: Iterable[str] | None = None, *,
@@ -463,12 +489,13 @@ def _salvage_mcap(mcap_path: Path) -> _Salvage:
         elif isinstance(record, Message) and record.channel_id in channels:
             messages.append((record.channel_id, record.log_time, bytes(record.data)))
 
-    with mcap_path.open("rb") as stream:
+    with open_to_read(mcap_path, None, "MCAP file", BagError) as stream:
         try:
-            for record in StreamReader(stream, emit_chunks=True).records:
+            for record in StreamReader(stream, emit_chunks=True, record_size_limit=MAX_CHUNK_BYTES).records:
                 if isinstance(record, Chunk):
-                    if not record.compression and len(record.data) != record.uncompressed_size:
-                        break  # a chunk cut off by the crash
+                    if record.uncompressed_size > MAX_CHUNK_BYTES or \
+                            (not record.compression and len(record.data) != record.uncompressed_size):
+                        break  # a chunk cut off by the crash (or a forged size, never allocated)
                     for inner in breakup_chunk(record):
                         take(inner)
                 elif isinstance(record, Footer):
@@ -483,13 +510,13 @@ def _salvage_mcap(mcap_path: Path) -> _Salvage:
 def _mcap_complete(mcap_path: Path) -> bool:
     """The file ends with the MCAP magic (its writer closed it), without reading it."""
     try:
-        with mcap_path.open("rb") as f:
+        with open_to_read(mcap_path, None, "MCAP file", BagError) as f:
             f.seek(0, os.SEEK_END)
             if f.tell() < 2 * len(_MCAP_MAGIC):
                 return False
             f.seek(-len(_MCAP_MAGIC), os.SEEK_END)
             return f.read() == _MCAP_MAGIC
-    except OSError:
+    except (OSError, BagError):
         return False
 
 
@@ -530,7 +557,7 @@ def _os_reason(err: BaseException) -> str:
 def _read_salvage(damaged: Path) -> _Salvage:
     """What `_salvage_mcap` finds in a damaged file; BagError when nothing is recoverable."""
     try:
-        with damaged.open("rb") as f:
+        with open_to_read(damaged, None, "MCAP file", BagError) as f:
             if f.read(8) != _MCAP_MAGIC:
                 raise BagError(f"{damaged}: no MCAP header; nothing recoverable (the writer never flushed)")
         salvage = _salvage_mcap(damaged)

@@ -14,10 +14,8 @@ from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-import yaml
-
-from gwr_predictor.file_limits import check_file_size
 from gwr_predictor.pipeline.errors import PipelineError
+from gwr_predictor.user_files import load_yaml
 
 #: A params file is settings, never data: larger than this is not one.
 MAX_PARAMS_FILE_BYTES = 1 << 20
@@ -46,19 +44,9 @@ def params_files(argv: Sequence[str]) -> list[Path]:
 
 
 def load_params_file(path: Path) -> dict[str, dict[str, Any]]:
-    """{node name pattern: {parameter: value}} of a ROS 2 params file, or ParamsFileError."""
-    if not path.is_file():
-        raise ParamsFileError(f"params file {path}: {'is a folder' if path.is_dir() else 'no such file'}")
-    check_file_size(path, MAX_PARAMS_FILE_BYTES, "params file", ParamsFileError)
-    try:
-        doc = yaml.safe_load(path.read_text())
-    except (OSError, UnicodeDecodeError) as exc:
-        raise ParamsFileError(f"params file {path}: cannot be read: {exc}") from None
-    except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark is not None else ""
-        raise ParamsFileError(f"params file {path}: not valid YAML{where}: "
-                              f"{getattr(exc, 'problem', None) or exc}") from None
+    """{node name pattern: {parameter: value}} of a ROS 2 params file, or ParamsFileError (the file
+    read and parsed by `user_files.load_yaml`: a regular file, size-limited, without YAML aliases)."""
+    doc = load_yaml(path, MAX_PARAMS_FILE_BYTES, "params file", ParamsFileError)
     if not isinstance(doc, dict) or not doc:
         raise ParamsFileError(f"params file {path}: expected '<node name>: {{ros__parameters: {{...}}}}' "
                               f"sections, got {type(doc).__name__}")

@@ -14,6 +14,7 @@ import numpy as np
 
 from gwr_predictor.pipeline.errors import PipelineError
 from gwr_predictor.robot.nao import ARM_JOINTS, JOINT_LIMITS
+from gwr_predictor.user_files import replacing
 
 #: PipelineError, for a series whose shape does not fit the joint names; the message names the series.
 PlotError = PipelineError
@@ -76,6 +77,6 @@ def plot_angle_series(path: str | Path, series: Mapping[str, tuple[np.ndarray, n
         ax.set_xlabel("time (s)")
     if title:
         fig.suptitle(title)
-    path = Path(path)
-    fig.savefig(path, dpi=100)
-    return path
+    with replacing(path, "plot", PlotError) as tmp:
+        fig.savefig(tmp, dpi=100)
+    return Path(path)

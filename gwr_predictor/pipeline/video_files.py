@@ -19,6 +19,7 @@ from typing import Any
 import numpy as np
 
 from gwr_predictor.pipeline.video import VideoError
+from gwr_predictor.user_files import PendingFile
 
 FORMATS = (".mp4", ".gif")
 MP4_CRF = 28  # H.264 quality: flat colours and few moving pixels compress far below 10 MB a minute
@@ -58,7 +59,7 @@ class VideoWriter:
             raise VideoError(f"{self.path}: no MP4 encoder: `pip install imageio-ffmpeg==0.6.0` or write a .gif")
         self.fps = float(fps)
         self.frames = 0
-        self._part = self.path.with_name(f"{self.path.stem}.part{self.path.suffix}")
+        self._pending: PendingFile | None = None
         self._mp4: Any = None
         self._gif: list[Any] = []
         self._palette: Any = None
@@ -75,15 +76,13 @@ class VideoWriter:
             self.abort()
 
     def open(self) -> None:
-        try:
-            self.path.parent.mkdir(parents=True, exist_ok=True)
-        except OSError as err:
-            raise VideoError(f"{self.path}: cannot create its folder: {err}") from err
+        """Check the path and create the temporary file the frames go to (`user_files.PendingFile`)."""
+        self._pending = PendingFile(self.path, "video", VideoError)
         if self.suffix == ".mp4":
             import imageio_ffmpeg
 
             self._mp4 = imageio_ffmpeg.write_frames(
-                str(self._part), (self.width, self.height), fps=self.fps, codec="libx264", quality=None,
+                str(self._pending.tmp), (self.width, self.height), fps=self.fps, codec="libx264", quality=None,
                 pix_fmt_out="yuv420p", macro_block_size=16, ffmpeg_log_level="error",
                 output_params=["-crf", str(MP4_CRF), "-preset", "veryfast", "-movflags", "+faststart"])
             self._mp4.send(None)  # starts ffmpeg
@@ -132,12 +131,15 @@ class VideoWriter:
                 # GIF delays are whole hundredths of a second: spread the rounding so time stays real
                 ticks = np.round(np.arange(len(self._gif) + 1) * 100.0 / self.fps)
                 delays = [max(10, int(v) * 10) for v in np.diff(ticks)]
-                first.save(self._part, format="GIF", save_all=True, append_images=rest, duration=delays, loop=0)
+                assert self._pending is not None  # set by open
+                first.save(self._pending.tmp, format="GIF", save_all=True, append_images=rest, duration=delays,
+                           loop=0)
                 self._gif = []
-            os.replace(self._part, self.path)
         except (OSError, RuntimeError) as err:
-            self._part.unlink(missing_ok=True)
+            self.abort()
             raise VideoError(f"{self.path}: cannot finish the video: {err}") from err
+        if self._pending is not None:
+            self._pending.commit()
 
     def abort(self) -> None:
         """Drop the partial file."""
@@ -149,7 +151,8 @@ class VideoWriter:
                 pass
             self._mp4 = None
         self._gif = []
-        self._part.unlink(missing_ok=True)
+        if self._pending is not None:
+            self._pending.discard()
 
 
 def open_video(path: str | os.PathLike[str], fps: float, size: tuple[int, int]) -> VideoWriter:

@@ -18,6 +18,7 @@ import numpy as np
 from gwr_predictor.robot.errors import RobotError
 from gwr_predictor.robot.nao import ARM_JOINTS, ROBOT_ARM_JOINTS, SIDES, VELOCITY_LIMITS, ArmPoints, clip_to_limits
 from gwr_predictor.robot.urdf import ELBOW_LINKS, HAND_LINKS, SHOULDER_LINKS, WRIST_LINKS, default_urdf_path
+from gwr_predictor.user_files import output_file
 
 #: RobotError, for a simulator that cannot start or is used wrongly; the message names the cause.
 SimulatorError = RobotError
@@ -226,10 +227,9 @@ def save_png(image: np.ndarray, path: str | Path) -> Path:
     """Write an HxWx3 uint8 image as PNG."""
     from PIL import Image
 
-    path = Path(path)
-    with path.open("wb") as f:
+    with output_file(path, "image", RobotError) as f:
         Image.fromarray(np.asarray(image, dtype=np.uint8)).save(f, format="PNG")
-    return path
+    return Path(path)
 
 
 def contact_sheet(images: Sequence[np.ndarray], path: str | Path, columns: int = 4,
