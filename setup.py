@@ -45,7 +45,7 @@ setup(
         (f"share/{PACKAGE}/urdf", ["gwr_predictor/robot/nao.urdf"]),
     ]
     + tree_data_files("bags", f"share/{PACKAGE}/bags"),
-    install_requires=["setuptools", "numpy"],
+    install_requires=["setuptools", "numpy", "threadpoolctl"],
     zip_safe=True,
     maintainer="gwr_predictor maintainers",
     maintainer_email="maintainers@gwr-predictor.dev",

@@ -9,6 +9,8 @@ points at t+1..t+h) and the predicted arm at t+h as a MarkerArray on `predicted_
 Missing frames inside a sequence are fed as missing samples, a gap longer than `max_gap_s` ends
 the sequence. The model is loaded from `checkpoint` at start and saved there atomically every
 `checkpoint_interval_s` and at shutdown; an unreadable checkpoint is moved aside, never overwritten.
+A periodic save copies the model between two frames and writes the copy on a thread of its own
+(`learning/saver.py`), so no frame waits for the disk; the final save at shutdown waits for it.
 The node locks its checkpoint (`.<name>.lock` beside it) while it runs: a second learner on the same
 file refuses to start instead of overwriting the first one's learning.
 
@@ -36,6 +38,7 @@ import numpy as np
 
 from gwr_predictor.default_predictor.gate import GatedPredictor, inner_model
 from gwr_predictor.default_predictor.recognition import RecognitionSwitch
+from gwr_predictor.learning.blas import blas_threads
 from gwr_predictor.learning.checkpoint import (
     CheckpointError,
     CheckpointLock,
@@ -45,6 +48,7 @@ from gwr_predictor.learning.checkpoint import (
 )
 from gwr_predictor.learning.hierarchy import Hierarchy
 from gwr_predictor.learning.params import HIERARCHY_SPECS, HierarchyParams
+from gwr_predictor.learning.saver import CheckpointSaver
 from gwr_predictor.parameter_spec import ParamSpec
 from gwr_predictor.pipeline import conventions
 from gwr_predictor.pipeline.gates import missing_frames
@@ -85,6 +89,10 @@ PARAMS = (
 )
 
 
+#: How long the final save waits for a background write still in progress (a stuck disk must not stop shutdown).
+SAVE_WAIT_S = 60.0
+
+
 def predictor_specs(name: str) -> tuple[ParamSpec, ...]:
     """The settings of product predictor `name` as this node declares them: '<name>.<setting>'."""
     return tuple(dataclasses.replace(s, name=f"{name}.{s.name}") for s in registry.entry(name).settings())
@@ -122,6 +130,8 @@ class GwrHierarchyNode(PipelineNode):
                                                 status_qos())
         self.create_subscription(messages.JointState, conventions.TOPIC_ANGLES, self.on_angles, stream_qos())
         self.create_timer(p["status_period_s"], self.publish_status)
+        self.saver = CheckpointSaver(self.checkpoint) if self.checkpoint is not None else None
+        self.save_times: dict[str, float] = {}  # the last save's snapshot and write (ms), its size (MB)
         self.checkpoint_timer = None
         self.schedule_checkpoints(p["checkpoint_interval_s"])
 
@@ -150,7 +160,7 @@ class GwrHierarchyNode(PipelineNode):
             self.destroy_timer(self.checkpoint_timer)
             self.checkpoint_timer = None
         if self.checkpoint is not None and interval_s > 0:
-            self.checkpoint_timer = self.create_timer(interval_s, self.save_checkpoint)
+            self.checkpoint_timer = self.create_timer(interval_s, self.save_in_background)
 
     def chosen_specs(self, params: dict[str, Any]) -> Sequence[ParamSpec]:
         """The chosen predictor's own settings, and only those."""
@@ -260,6 +270,8 @@ class GwrHierarchyNode(PipelineNode):
             values[key] = errors[key]
         if "recruited" in errors:  # the default's neurons recruited for surprising pairs
             values["neurons_recruited"] = errors["recruited"]
+        if "evicted" in errors:  # neurons removed at the network's bound to make room
+            values["neurons_evicted"] = errors["evicted"]
         if "recognised_frames" in errors:  # the default's frames predicted by its experts ungated
             values["frames_recognised"] = errors["recognised_frames"]
         values["pe_mean_mse"] = float(errors["pe_mean"])
@@ -272,6 +284,9 @@ class GwrHierarchyNode(PipelineNode):
         for name, held in errors.get("snippets", {}).items():  # the default's snippet memories
             values[f"snippets_{name}"] = held["stored"]
             values[f"snippets_replaced_{name}"] = held["replaced"]
+        self.collect_saves()
+        values.update(self.save_times)
+        values["blas_threads"] = blas_threads()
         times = self.step_times or [0.0]
         values["step_ms_mean"] = 1e3 * float(np.mean(times))
         values["step_ms_max"] = 1e3 * self.step_max  # both since the last status
@@ -280,13 +295,42 @@ class GwrHierarchyNode(PipelineNode):
                                             values, "learning" if self.params["learn"] else "predicting only")
         self.status_pub.publish(messages.diagnostic_array(self.now_s(), [status]))
 
+    def save_in_background(self) -> None:
+        """The periodic save: a snapshot now, written by the saver's thread (results: `collect_saves`)."""
+        assert self.saver is not None
+        self.collect_saves()
+        try:
+            snapshot_s = self.saver.submit(self.model)
+        except (CheckpointError, MemoryError) as exc:
+            self.save_failed(exc)
+            return
+        self.save_times["checkpoint_snapshot_ms"] = 1e3 * snapshot_s
+
+    def collect_saves(self) -> None:
+        """Count and log the background writes finished since the last look."""
+        for result in self.saver.results() if self.saver is not None else ():
+            if result.error is not None:
+                self.save_failed(result.error)
+                continue
+            self.counters.count("checkpoint.saved")
+            self.save_times.update(checkpoint_write_ms=1e3 * result.write_s, checkpoint_mb=result.bytes / 2**20)
+            self.error = None
+
+    def save_failed(self, exc: BaseException) -> None:
+        self.counters.count("checkpoint.save_failed")
+        self.counters.warn_throttled("checkpoint", f"could not save the checkpoint: {exc}")
+        self.error = f"checkpoint save failed: {exc}"
+
     def save_checkpoint(self) -> bool:
+        """A save on this thread, after any background write has finished (the final one)."""
+        if self.saver is not None:
+            if not self.saver.close(timeout=SAVE_WAIT_S):
+                self.get_logger().warning(f"a background save did not finish within {SAVE_WAIT_S:.0f} s; saving again")
+            self.collect_saves()
         try:
             self.model.save(self.checkpoint)
         except (CheckpointError, OSError, MemoryError) as exc:
-            self.counters.count("checkpoint.save_failed")
-            self.counters.warn_throttled("checkpoint", f"could not save the checkpoint: {exc}")
-            self.error = f"checkpoint save failed: {exc}"
+            self.save_failed(exc)
             return False
         self.counters.count("checkpoint.saved")
         self.error = None

@@ -46,6 +46,7 @@ from rclpy.signals import SignalHandlerOptions
 from rclpy.task import Future
 
 from gwr_predictor.errors import GwrPredictorError
+from gwr_predictor.learning.blas import single_threaded_blas
 from gwr_predictor.parameter_spec import ParameterError, ParamSpec
 from gwr_predictor.pipeline import conventions, params_file, stamps
 from gwr_predictor.pipeline.gates import ArmAnglesGate, RejectionCounter, check_stamp
@@ -486,6 +487,7 @@ def _drain(executor: SingleThreadedExecutor, node: PipelineNode) -> None:
 def run_node(node_cls: type[PipelineNode], args: list[str] | None = None) -> int:
     """init, build, spin until done / Ctrl-C / SIGTERM, final hook, destroy, shutdown; returns the exit code."""
     logger = rclpy.logging.get_logger(getattr(node_cls, "NODE_NAME", node_cls.__name__))
+    single_threaded_blas()  # whatever the environment says: threads per core fight on a robot's computer
     try:
         params_file.check_params_files(sys.argv if args is None else args)
         rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)

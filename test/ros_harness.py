@@ -301,12 +301,14 @@ class RosSession:
 
     def start(self, name: str, params: dict[str, Any] | None = None, params_file: Path | None = None,
               remaps: dict[str, str] | None = None, namespace: str | None = None, label: str | None = None,
-              executable: str | None = None, extra_args: Sequence[str] = ()) -> NodeProcess:
-        """Start console script `name` with the given ROS arguments; its log is tmp_path/<label>.log."""
+              executable: str | None = None, extra_args: Sequence[str] = (),
+              env: dict[str, str] | None = None) -> NodeProcess:
+        """Start console script `name` with the given ROS arguments (and environment variables `env` on top
+        of the session's); its log is tmp_path/<label>.log."""
         label = label or name
         argv = [executable or self.executable(name), *extra_args,
                 *node_args(params, params_file, remaps, namespace)]
-        proc = NodeProcess(label, argv, self.env, self.tmp_path / f"{label}.log")
+        proc = NodeProcess(label, argv, {**self.env, **(env or {})}, self.tmp_path / f"{label}.log")
         self.processes.append(proc)
         return proc
 

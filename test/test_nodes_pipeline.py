@@ -53,7 +53,9 @@ def test_pipeline_flows_learns_moves_the_robot_and_records(ros, tmp_path):
     procs = [recorder,
              ros.start("nao_sim", params=FAST),
              ros.start("delay_compensator", params=FAST),
-             ros.start("gwr_hierarchy", params={**FAST, "checkpoint": str(checkpoint), "status_period_s": 0.5}),
+             # BLAS as a 2-core machine's default would run it: the learner pins it to one thread
+             ros.start("gwr_hierarchy", params={**FAST, "checkpoint": str(checkpoint), "status_period_s": 0.5,
+                                                "checkpoint_interval_s": 2.0}, env={"OPENBLAS_NUM_THREADS": "2"}),
              ros.start("angle_extractor", params=FAST)]
     for name in ("/nao_sim", "/delay_compensator", "/gwr_hierarchy", "/angle_extractor"):
         ros.wait_for_node(diagnostics, name, timeout=60)
@@ -101,6 +103,12 @@ def test_pipeline_flows_learns_moves_the_robot_and_records(ros, tmp_path):
     assert 0 < int(last["snippets_memory"]) <= int(last["frames"])  # its snippet memories fill as it learns
     assert 0 < int(last["snippets_long_memory"]) <= int(last["frames"])
     assert int(last["snippets_replaced_memory"]) == 0
+    assert int(last["neurons_evicted"]) == 0  # far below the network's bound
+    assert int(last["blas_threads"]) == 1
+    # the periodic saves: a snapshot between two frames, written by the saver's thread
+    assert float(last["checkpoint_snapshot_ms"]) > 0 and float(last["checkpoint_write_ms"]) > 0
+    assert float(last["checkpoint_mb"]) > 0
+    assert int(diagnostics["/gwr_hierarchy"]["checkpoint.saved"]) >= 3
 
     # SIGTERM: clean exit, checkpoint written and loadable, with every learned frame
     learner = procs[3]

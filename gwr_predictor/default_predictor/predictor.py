@@ -201,10 +201,10 @@ class LocalLinearPredictor(OnlineLoop, Checkpointed):
         return None if self.linear is None else self._mix.copy()
 
     def errors(self) -> dict[str, Any]:
-        """Counts, neurons (and how many of them were recruited), the motion scale, the read-outs'
+        """Counts, neurons (how many were recruited, how many evicted at the bound), the motion scale, the read-outs'
         mixing weights, and C.P.E. (= P.E.) per step as the hierarchy reports it."""
         out = {**self._counts(), "neurons": {"pgwr": self.pgwr.n_neurons}, "recruited": self.pgwr.recruited,
-               "motion_rms_rad": self.motion_rms}
+               "evicted": self.pgwr.evicted, "motion_rms_rad": self.motion_rms}
         if self.linear is not None:
             out["mix_weights"] = {"local": self._mix[:, 0].tolist(), "global": self._mix[:, 1].tolist()}
         return {**out, **self._errors.summary()}

@@ -268,10 +268,11 @@ class _OnlinePredictor(OnlineLoop, Checkpointed):
         return tuple(getattr(self, n).n_neurons for n in self.layer_names)
 
     def errors(self) -> dict[str, Any]:
-        """Bookkeeping: counts, neurons, quantization errors (rad, Euclidean over a layer's input,
-        last and mean), P.E./C.P.E. (MSE rad^2 per horizon step, their means, how many scored)."""
+        """Bookkeeping: counts, neurons (and how many were evicted at the layers' bounds), quantization errors
+        (rad, Euclidean over a layer's input, last and mean), P.E./C.P.E. (MSE rad^2 per horizon step, their
+        means, how many scored)."""
         return {**self._counts(), "neurons": dict(zip(self.layer_names, self.neuron_counts, strict=True)),
-                **self._errors.summary()}
+                "evicted": sum(getattr(self, n).evicted for n in self.layer_names), **self._errors.summary()}
 
     # --- persistence ----------------------------------------------------------------------------
     PARAMS = HierarchyParams
