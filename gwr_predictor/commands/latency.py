@@ -12,22 +12,23 @@ import argparse
 import sys
 from pathlib import Path
 
+from gwr_predictor.commands.run_folder import add_run_arguments, bag_and_folder
 from gwr_predictor.pipeline.bags import BagError
 from gwr_predictor.pipeline.message_latency import latency_report
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("run", type=Path, help="run folder holding bag/ (or a bag directory itself)")
+    add_run_arguments(parser)
     parser.add_argument("--out", type=Path, default=None, help="where latency.json goes (default: the run folder)")
     parser.add_argument("--max-lost", type=int, default=None,
                         help="fail (exit code 3) if more messages than this were lost")
 
 
 def run(args: argparse.Namespace) -> int:
-    bag = args.run / "bag" if (args.run / "bag").is_dir() else args.run
-    out = args.out or (args.run if bag != args.run else args.run.parent)
+    bag, folder = bag_and_folder(args.run)
+    out = args.out or folder
     try:
-        report = latency_report(bag)
+        report = latency_report(bag, args.namespace)
     except BagError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 1
