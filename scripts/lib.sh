@@ -180,3 +180,27 @@ gwr_namespace() {
         || gwr_die "--namespace $1 is not a ROS namespace (tokens of letters, digits and _, separated by /)"
     printf '/%s' "$ns"
 }
+
+# gwr_wait_matched NAME TIMEOUT_S TOPIC...: wait until the recorder NAME has logged `matched TOPIC` for each
+# topic (its subscription hears the topic's publisher), so that nothing they publish from now on is lost
+# to it (discovery can take seconds under load); after TIMEOUT_S a warning, and on (0 all the same).
+gwr_wait_matched() {
+    local name="$1" timeout="$2" i topic
+    shift 2
+    for i in "${!GWR_NAMES[@]}"; do
+        [ "${GWR_NAMES[$i]}" = "$name" ] || continue
+        local deadline=$((SECONDS + timeout))
+        for topic in "$@"; do
+            while ! grep -q "\]: matched $topic\$" "${GWR_LOGS[$i]}" 2>/dev/null; do
+                if [ "$SECONDS" -ge "$deadline" ]; then
+                    gwr_log "warning: $name has not matched a publisher of $topic after ${timeout} s: its first messages may be missing from the bag"
+                    return 0
+                fi
+                sleep 0.1
+            done
+        done
+        return 0
+    done
+    gwr_log "gwr_wait_matched: no process named $name"
+    return 1
+}

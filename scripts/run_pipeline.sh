@@ -98,7 +98,12 @@ if [ "$baseline" = 1 ]; then
     gwr_wait_ready nao_sim_uncompensated 60
     gwr_wait_ready delay_compensator_uncompensated 60
 fi
-# the first frame goes out once angle_extractor and the recorder are matched
+# the recorder hears every publisher of the pipeline's streams, then the first frame goes out once
+# angle_extractor and the recorder are matched on the skeleton
+baseline_commands="$namespace/uncompensated/joint_commands"
+[ "$baseline" = 1 ] || baseline_commands=""
+gwr_wait_matched bag_recorder 30 "$namespace/arm_angles" "$namespace/predictions" "$namespace/joint_commands" \
+    $baseline_commands
 start_node skeleton_source skeleton_source "${here[@]}" -p wait_for_subscribers:=2
 gwr_wait_ready skeleton_source 60
 gwr_log "pipeline running for $seconds s"
