@@ -17,6 +17,7 @@ from gwr_predictor.commands.cli import main as cli_main
 from gwr_predictor.pipeline import bags, namespaces
 from gwr_predictor.pipeline.errors import PipelineError
 from gwr_predictor.pipeline.message_latency import latency_report
+from gwr_predictor.pipeline.replay_plan import hri_input, replay_plan
 from gwr_predictor.pipeline.run_report import compute_report, read_run
 from gwr_predictor.pipeline.video import read_video_run
 
@@ -150,3 +151,35 @@ def test_the_report_of_a_bare_bag_directory_stays_in_it(tmp_path, capsys):
     bag = namespaced_bag(parent / "session1", "")  # a root-namespace bag, not in a run folder
     assert cli_main(["report", str(bag)]) == 0
     assert (bag / "report.json").is_file() and not (parent / "report.json").exists()
+
+
+def test_replay_plan_renames_the_recorded_input_into_the_replays_namespace(tmp_path):
+    bag = namespaced_bag(tmp_path / "bag", "/robot1", seconds=8)
+    plan = replay_plan(str(bag), namespace="robot2")  # the default: the bag's skeleton topic
+    assert (plan.input, plan.topics, plan.remaps) == ("skeleton", ("/robot1/skeleton",),
+                                                      ("/robot1/skeleton:=/robot2/skeleton",))
+    plan = replay_plan(str(bag), "/robot1/arm_angles", namespace="/robot1")
+    assert (plan.input, plan.topics, plan.remaps) == ("arm_angles", ("/robot1/arm_angles",), ())
+    with pytest.raises(PipelineError, match="topic named skeleton or arm_angles"):
+        replay_plan(str(bag), "/robot1/joint_states")
+    with pytest.raises(PipelineError, match="no messages on /robot2/skeleton"):
+        replay_plan(str(bag), "/robot2/skeleton")
+    with pytest.raises(PipelineError, match=r"record them with scripts/record\.sh --hri"):
+        replay_plan(str(bag), hri=True)
+    two = namespaced_bag(tmp_path / "two", "/robot1", "/robot2", seconds=8)
+    with pytest.raises(PipelineError, match="2 skeleton topics"):
+        replay_plan(str(two))
+
+
+def test_replay_plan_of_the_hri_input_plays_what_this_machine_can_publish(tmp_path):
+    js, point, ids = bags.JOINT_STATE, "geometry_msgs/msg/PointStamped", "hri_msgs/msg/IdsList"
+    recorded = {"/humans/bodies/b1/joint_states": (js, 5), "/humans/bodies/b1/position": (point, 5),
+                "/humans/bodies/b2/joint_states": (js, 5), "/humans/bodies/tracked": (ids, 5),
+                "/humans/bodies/b3/joint_states": (js, 0), "/arm_angles": (js, 5)}
+    info = bags.BagInfo(tmp_path, "mcap", 30, 0, 1, recorded)
+    plan = hri_input(info, available=lambda msgtype: msgtype != ids)
+    assert plan.topics == ("/humans/bodies/b1/joint_states", "/humans/bodies/b1/position",
+                           "/humans/bodies/b2/joint_states") and plan.body == ""
+    one = bags.BagInfo(tmp_path, "mcap", 10, 0, 1, {k: v for k, v in recorded.items() if "b2" not in k})
+    plan = hri_input(one, available=lambda msgtype: True)
+    assert plan.topics == ("/humans/bodies/b1/joint_states",) and plan.body == "b1"  # followed at once
