@@ -175,14 +175,14 @@ class ArmAnglesGate:
 PREDICTION_MARGIN_RAD = np.pi
 
 
-def absurd_predictions(predictions: np.ndarray, names: Sequence[str] = ARM_JOINTS,
+def absurd_predictions(predictions: np.ndarray, names: tuple[str, ...] = ARM_JOINTS,
                        margin: float = PREDICTION_MARGIN_RAD) -> str | None:
     """Why finite predictions (horizon x joints, in `names` order) cannot be poses, or None if they can."""
     lo, hi = limits_array(names)
     beyond = np.maximum(lo - margin - predictions, predictions - hi - margin)
     if not np.any(beyond > 0.0):
         return None
-    step, joint = np.unravel_index(int(np.argmax(beyond)), beyond.shape)
+    step, joint = (int(i) for i in np.unravel_index(int(np.argmax(beyond)), beyond.shape))
     return (f"{names[joint]} at step {step + 1} predicted {predictions[step, joint]:.3g} rad, beyond its limits "
             f"[{lo[joint]:.3f}, {hi[joint]:.3f}] by more than {margin:.3g} rad")
 
