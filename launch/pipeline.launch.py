@@ -4,6 +4,7 @@
         [scenario:=/path/to/scenario.yaml] [checkpoint:=model.npz] [predictor:=NAME] [params_dir:=/path/to/config]
         [use_sim_time:=true] [namespace:=robot1] [tf:=false] [camera_pose:="x y z roll pitch yaw"]
         [uncompensated_pose:="x y z roll pitch yaw"] [rviz:=true]
+        [output:=naoqi|joint_trajectory|both] [robot_namespace:=/] [controller:=joint_trajectory_controller]
 
 Same nodes, the same <node>.yaml files (from share/gwr_predictor/config unless params_dir is
 given), the same remaps and overrides as the script: bag_recorder (out/bag), nao_sim,
@@ -17,6 +18,12 @@ uncompensated one with frame_prefix `uncompensated/`), static transforms torso -
 (`camera_pose`) and torso -> uncompensated/torso (`uncompensated_pose`), all on <ns>/tf and
 <ns>/tf_static, so pipelines in different namespaces keep separate TF trees; rviz:=true opens
 share/gwr_predictor/rviz/pipeline.rviz in <ns>.
+A real robot (output:=naoqi: a Nao through naoqi_driver2; output:=joint_trajectory: a robot under
+ros2_control): the compensated nao_sim and its robot_state_publisher are left out, since the robot's driver
+publishes `joint_states` and the robot's TF; the compensator reads `<robot_namespace>/joint_states` and
+commands `<robot_namespace>/joint_angles` (naoqi) or `<robot_namespace>/<controller>/joint_trajectory`,
+and the TF nodes that remain (the camera, the uncompensated simulated Nao with its `uncompensated/` frames)
+join the robot's tree on `<robot_namespace>/tf`. output:=both keeps nao_sim and also sends the trajectory.
 Launch has no PyPI wheel, so test/test_launch_file.py checks this file statically against the
 script; the shell scripts remain the main way to run the pipeline.
 """
@@ -30,6 +37,7 @@ from launch.actions import DeclareLaunchArgument, OpaqueFunction
 from launch_ros.actions import Node
 
 from gwr_predictor.errors import GwrPredictorError
+from gwr_predictor.pipeline.conventions import TOPIC_TRAJECTORY_COMMAND as TRAJECTORY_TOPIC
 from gwr_predictor.pipeline.markers import ROBOT_FRAME
 from gwr_predictor.pipeline.markers import SKELETON_FRAME as CAMERA_FRAME
 
@@ -61,7 +69,18 @@ ARGUMENTS = {
     "uncompensated_pose": (UNCOMPENSATED_POSE, f"'x y z roll pitch yaw' (m, rad) of {BASELINE_FRAME_PREFIX}"
                            f"{ROBOT_FRAME} in {ROBOT_FRAME}"),
     "rviz": ("false", "open rviz2 with share/gwr_predictor/rviz/pipeline.rviz in the pipeline's namespace"),
+    "output": ("joint_state", "the compensated robot: joint_state (nao_sim), naoqi (a real Nao through "
+               "naoqi_driver2), joint_trajectory (a robot under ros2_control), both (nao_sim and ros2_control); "
+               "a real robot's driver publishes joint_states and TF, so no nao_sim or robot_state_publisher for it"),
+    "robot_namespace": ("/", "where the real robot's driver runs: its joint_states, joint_angles, controllers "
+                        "and TF (naoqi_driver2: the root)"),
+    "controller": ("joint_trajectory_controller", "output joint_trajectory/both: the joint_trajectory_controller "
+                   "in robot_namespace that takes the commands"),
 }
+#: output -> (the simulated Nao runs, the compensator's topics that go to the real robot)
+OUTPUTS = {"joint_state": (True, ()), "both": (True, ("trajectory",)),
+           "naoqi": (False, ("joint_states", "joint_angles")),
+           "joint_trajectory": (False, ("joint_states", "trajectory"))}
 
 
 class LaunchArgumentError(GwrPredictorError, ValueError):
@@ -96,9 +115,30 @@ def pose_arguments(name: str, text: str) -> list[str]:
     return [item for key, value in zip(POSE_KEYS, values, strict=True) for item in (key, value)]
 
 
-def tf_nodes(arg: dict, share: str, namespace: str, sim: dict, baseline: bool) -> list:
-    """robot_state_publisher per robot and the static transforms; every TF topic in the pipeline's namespace."""
-    tf_remaps = [("/tf", in_namespace(namespace, "tf")), ("/tf_static", in_namespace(namespace, "tf_static"))]
+def robot_output(arg: dict, namespace: str) -> tuple[bool, dict, list[tuple[str, str]], str]:
+    """(nao_sim drives the compensated robot, the compensator's overrides, its remaps to the real robot, the
+    namespace of the TF tree: the pipeline's with nao_sim, else the robot driver's)."""
+    output = arg["output"].strip()
+    if output not in OUTPUTS:
+        raise LaunchArgumentError(f"launch argument output:={output!r}: expected one of {sorted(OUTPUTS)}")
+    simulated, real = OUTPUTS[output]
+    robot = pipeline_namespace(None, "/" + arg["robot_namespace"].strip("/"))
+    topics = {"joint_states": "joint_states", "joint_angles": "joint_angles",
+              "trajectory": f"{arg['controller'].strip('/')}/joint_trajectory"}
+    relative = {"joint_states": "joint_states", "joint_angles": "joint_angles",
+                "trajectory": TRAJECTORY_TOPIC}
+    remaps = [(relative[key], in_namespace(robot, topics[key])) for key in real]
+    overrides = {} if output == "joint_state" else {"output": output}  # joint_state: delay_compensator.yaml's
+    return simulated, overrides, remaps, namespace if simulated else robot
+
+
+def tf_nodes(arg: dict, share: str, namespace: str, sim: dict, baseline: bool, simulated: bool = True,
+             tree: str | None = None) -> list:
+    """robot_state_publisher per simulated robot and the static transforms; every TF topic in the namespace
+    `tree` (the pipeline's by default; a real robot's driver's, so the camera and the uncompensated robot hang
+    off the real robot's frames)."""
+    tree = namespace if tree is None else tree
+    tf_remaps = [("/tf", in_namespace(tree, "tf")), ("/tf_static", in_namespace(tree, "tf_static"))]
     with open(os.path.join(share, "urdf", "nao.urdf"), encoding="utf-8") as f:
         urdf = f.read()
 
@@ -112,7 +152,7 @@ def tf_nodes(arg: dict, share: str, namespace: str, sim: dict, baseline: bool) -
                     arguments=[*pose_arguments(name, pose), "--frame-id", parent, "--child-frame-id", child],
                     remappings=tf_remaps, parameters=[sim], output="screen")
 
-    nodes = [state_publisher(namespace, "")]
+    nodes = [state_publisher(namespace, "")] if simulated else []
     if arg["camera_pose"].strip():
         nodes.append(static_transform("camera_pose", arg["camera_pose"], ROBOT_FRAME, CAMERA_FRAME))
     if baseline:
@@ -136,6 +176,7 @@ def pipeline_nodes(context, *_args, **_kwargs) -> list:
     sim = {"use_sim_time": _true(arg["use_sim_time"])}
     namespace = pipeline_namespace(arg.get("ros_namespace"), arg["namespace"])
     baseline = _true(arg["baseline"])
+    simulated, output, robot_remaps, tree = robot_output(arg, namespace)
     os.makedirs(out, exist_ok=True)
     if os.path.exists(os.path.join(out, "bag")):
         raise RuntimeError(f"{out}/bag exists already: choose another out:=")
@@ -150,7 +191,8 @@ def pipeline_nodes(context, *_args, **_kwargs) -> list:
 
     nodes = [node("bag_recorder", path=os.path.join(out, "bag"))]
     frames = {"render_dir": os.path.join(out, "frames")} if _true(arg["render"]) else {}
-    nodes += [node("nao_sim", **frames), node("delay_compensator")]
+    nodes += [node("nao_sim", **frames)] if simulated else []
+    nodes += [node("delay_compensator", remappings=robot_remaps, **output)]
     if baseline:
         # the uncompensated pair reads the pipeline's shared topics, not its own namespace's
         uncompensated = in_namespace(namespace, BASELINE_NAMESPACE)
@@ -164,7 +206,7 @@ def pipeline_nodes(context, *_args, **_kwargs) -> list:
               node("angle_extractor"),
               node("skeleton_source", wait_for_subscribers=2)]
     if _true(arg["tf"]):
-        nodes += tf_nodes(arg, share, namespace, sim, baseline)
+        nodes += tf_nodes(arg, share, namespace, sim, baseline, simulated, tree)
     return nodes
 
 

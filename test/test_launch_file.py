@@ -356,3 +356,67 @@ def test_rviz_config_shows_the_person_the_prediction_and_both_robots():
     for key in ("RobotModel:robot_description", "RobotModel:uncompensated/robot_description"):
         assert displays[key]["Description Topic"]["Durability Policy"] == "Transient Local"  # latched URDF
     assert manager["Global Options"]["Fixed Frame"] == "torso"
+
+
+# --- a real robot: output naoqi (naoqi_driver2) or joint_trajectory (ros2_control) ---------------------
+
+
+def nao_links() -> set[str]:
+    """The Nao's frames: the links of the URDF, named as naoqi_driver2 names the robot's TF frames."""
+    root = ET.parse(ROOT / "gwr_predictor" / "robot" / "nao.urdf").getroot()
+    return {link.get("name") for link in root.findall("link")}
+
+
+def resolved(namespace: str, name: str) -> str:
+    return name if name.startswith("/") else f"{namespace.rstrip('/')}/{name}"
+
+
+@pytest.mark.parametrize("argument,ns", [("", "/"), ("robot1", "/robot1")])
+def test_launch_file_drives_a_real_nao_without_clashing_with_naoqi_driver2(launch_module, share_dir, tmp_path,
+                                                                          argument, ns):
+    """naoqi_driver2 runs in the root namespace and publishes /joint_states and the Nao's TF frames itself."""
+    launched = launched_nodes(launch_module, out=str(tmp_path / "run"), output="naoqi", params_dir=str(CONFIG),
+                              **({"namespace": argument} if argument else {}))
+    baseline = resolved(ns, "uncompensated")
+    # the compensated robot is the real one: no simulator, no state publisher of its own frames
+    assert [n["namespace"] for n in launched if n["executable"] == "nao_sim"] == [baseline]
+    publishers = {resolved(n["namespace"], topic) for n in launched
+                  if n["executable"] in ("nao_sim", "robot_state_publisher") for topic in ("joint_states",
+                                                                                          "robot_description")}
+    assert not publishers & {"/joint_states", "/robot_description"}
+    links = nao_links()
+    frames = {n["overrides"]["frame_prefix"] + link for n in launched if n["executable"] == "robot_state_publisher"
+              for link in links}
+    frames |= set(static_transforms(launched))
+    assert frames and not frames & links  # every frame of ours is prefixed or the camera's
+    (comp,) = [n for n in launched if n["executable"] == "delay_compensator" and n["namespace"] == ns]
+    assert comp["overrides"] == {"output": "naoqi"}
+    assert comp["remaps"] == [("joint_angles", "/joint_angles"), ("joint_states", "/joint_states")]
+    # what TF remains joins the driver's tree (the camera on the real torso), whatever the pipeline's namespace
+    assert static_transforms(launched)["skeleton_camera"][0] == "torso"
+    for node in (n for n in launched if n["package"] in ("robot_state_publisher", "tf2_ros")):
+        assert node["remaps"] == [("/tf", "/tf"), ("/tf_static", "/tf_static")]
+    # the rest of the pipeline is the script's, less the compensated nao_sim
+    scripted = [n for n in script_nodes(str(tmp_path / "run"), str(CONFIG), True, False, "",
+                                        namespace="" if ns == "/" else ns)
+                if n["label"] not in ("nao_sim", "delay_compensator")]
+    same_graph([n for n in pipeline_only(launched) if n is not comp], scripted)
+
+
+def test_launch_file_drives_ros2_control_and_both(launch_module, tmp_path):
+    launched = launched_nodes(launch_module, out=str(tmp_path / "a"), output="joint_trajectory",
+                              controller="arm_controller", robot_namespace="nao", baseline="false")
+    assert not [n for n in launched if n["executable"] == "nao_sim"]
+    (comp,) = [n for n in launched if n["executable"] == "delay_compensator"]
+    assert comp["overrides"] == {"output": "joint_trajectory"}
+    assert comp["remaps"] == [("joint_states", "/nao/joint_states"),
+                              ("joint_trajectory_controller/joint_trajectory", "/nao/arm_controller/joint_trajectory")]
+    assert {n["executable"] for n in launched if n["package"] != "gwr_predictor"} == {"static_transform_publisher"}
+    both = launched_nodes(launch_module, out=str(tmp_path / "b"), output="both")
+    (comp,) = [n for n in both if n["executable"] == "delay_compensator" and n["namespace"] == "/"]
+    assert comp["remaps"] == [("joint_trajectory_controller/joint_trajectory",
+                               "/joint_trajectory_controller/joint_trajectory")]
+    assert {n["namespace"] for n in both if n["executable"] in ("nao_sim", "robot_state_publisher")} == \
+        {"/", "/uncompensated"}  # the simulated robot stays
+    with pytest.raises(ValueError, match="output"):
+        launched_nodes(launch_module, out=str(tmp_path / "c"), output="naoqi2")
