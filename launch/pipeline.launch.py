@@ -37,21 +37,19 @@ from launch.actions import DeclareLaunchArgument, OpaqueFunction
 from launch_ros.actions import Node
 
 from gwr_predictor.errors import GwrPredictorError
+from gwr_predictor.pipeline import tf_plan
 from gwr_predictor.pipeline.conventions import TOPIC_TRAJECTORY_COMMAND as TRAJECTORY_TOPIC
 from gwr_predictor.pipeline.markers import ROBOT_FRAME
 from gwr_predictor.pipeline.markers import SKELETON_FRAME as CAMERA_FRAME
+from gwr_predictor.pipeline.tf_plan import (
+    BASELINE_FRAME_PREFIX,
+    BASELINE_NAMESPACE,
+    CAMERA_POSE,
+    UNCOMPENSATED_POSE,
+    in_namespace,
+)
 
 PACKAGE = "gwr_predictor"
-#: the uncompensated pair's namespace, inside the pipeline's; its TF frames carry this prefix
-BASELINE_NAMESPACE = "uncompensated"
-BASELINE_FRAME_PREFIX = f"{BASELINE_NAMESPACE}/"
-#: the skeleton camera above the robot looking forward: camera z (into the scene) along the robot's x, camera
-#: y (up) along its z, 1 m above the floor (the demonstrator's sensor height; the Nao's torso is 0.333 m
-#: above its soles), so the person stands on the robot's floor, 2-2.4 m in front of it, facing it
-CAMERA_POSE = "0 0 0.667 1.5708 0 1.5708"
-#: the uncompensated robot stands 0.5 m to the compensated robot's right
-UNCOMPENSATED_POSE = "0 -0.5 0 0 0 0"
-POSE_KEYS = ("--x", "--y", "--z", "--roll", "--pitch", "--yaw")
 
 ARGUMENTS = {
     "out": ("results/launch_run", "run folder: bag/ (recording) and model.npz (learner) go here"),
@@ -98,23 +96,6 @@ def pipeline_namespace(pushed: str | None, argument: str) -> str:
     return "/" + "/".join(parts)
 
 
-def in_namespace(namespace: str, name: str) -> str:
-    """`name` resolved in the absolute `namespace` (the root included)."""
-    return f"{namespace.rstrip('/')}/{name}"
-
-
-def pose_arguments(name: str, text: str) -> list[str]:
-    """'x y z roll pitch yaw' -> static_transform_publisher's --x ... --yaw arguments."""
-    values = text.split()
-    try:
-        numbers = [float(v) for v in values]
-    except ValueError:
-        numbers = []
-    if len(numbers) != len(POSE_KEYS):
-        raise LaunchArgumentError(f"launch argument {name}:={text!r}: expected 6 numbers 'x y z roll pitch yaw'")
-    return [item for key, value in zip(POSE_KEYS, values, strict=True) for item in (key, value)]
-
-
 def robot_output(arg: dict, namespace: str) -> tuple[bool, dict, list[tuple[str, str]], str]:
     """(nao_sim drives the compensated robot, the compensator's overrides, its remaps to the real robot, the
     namespace of the TF tree: the pipeline's with nao_sim, else the robot driver's)."""
@@ -134,35 +115,24 @@ def robot_output(arg: dict, namespace: str) -> tuple[bool, dict, list[tuple[str,
 
 def tf_nodes(arg: dict, share: str, namespace: str, sim: dict, baseline: bool, simulated: bool = True,
              tree: str | None = None) -> list:
-    """robot_state_publisher per simulated robot and the static transforms; every TF topic in the namespace
-    `tree` (the pipeline's by default; a real robot's driver's, so the camera and the uncompensated robot hang
-    off the real robot's frames)."""
+    """The tf2 nodes of `tf_plan` (a robot_state_publisher per simulated robot, the static transforms) and RViz;
+    every TF topic in the namespace `tree` (the pipeline's by default; a real robot's driver's, so the camera
+    and the uncompensated robot hang off the real robot's frames)."""
     tree = namespace if tree is None else tree
-    tf_remaps = [("/tf", in_namespace(tree, "tf")), ("/tf_static", in_namespace(tree, "tf_static"))]
     with open(os.path.join(share, "urdf", "nao.urdf"), encoding="utf-8") as f:
         urdf = f.read()
-
-    def state_publisher(robot_namespace: str, prefix: str) -> Node:
-        return Node(package="robot_state_publisher", executable="robot_state_publisher", name="robot_state_publisher",
-                    namespace=robot_namespace, remappings=tf_remaps, output="screen",
-                    parameters=[{**sim, "robot_description": urdf, "frame_prefix": prefix}])
-
-    def static_transform(name: str, pose: str, parent: str, child: str) -> Node:
-        return Node(package="tf2_ros", executable="static_transform_publisher", name=name, namespace=namespace,
-                    arguments=[*pose_arguments(name, pose), "--frame-id", parent, "--child-frame-id", child],
-                    remappings=tf_remaps, parameters=[sim], output="screen")
-
-    nodes = [state_publisher(namespace, "")] if simulated else []
-    if arg["camera_pose"].strip():
-        nodes.append(static_transform("camera_pose", arg["camera_pose"], ROBOT_FRAME, CAMERA_FRAME))
-    if baseline:
-        nodes += [state_publisher(in_namespace(namespace, BASELINE_NAMESPACE), BASELINE_FRAME_PREFIX),
-                  static_transform("uncompensated_pose", arg["uncompensated_pose"], ROBOT_FRAME,
-                                   BASELINE_FRAME_PREFIX + ROBOT_FRAME)]
+    try:
+        plan = tf_plan.tf_nodes(urdf, namespace, baseline=baseline, simulated=simulated, tree=tree,
+                                camera_pose=arg["camera_pose"], uncompensated_pose=arg["uncompensated_pose"])
+    except GwrPredictorError as exc:
+        raise LaunchArgumentError(f"launch argument {exc}") from None
+    nodes = [Node(package=n.package, executable=n.executable, name=n.name, namespace=n.namespace,
+                  remappings=list(n.remaps), parameters=[{**sim, **n.parameters}], arguments=list(n.arguments),
+                  output="screen") for n in plan]
     if _true(arg["rviz"]):
         nodes.append(Node(package="rviz2", executable="rviz2", name="rviz2", namespace=namespace,
                           arguments=["-d", os.path.join(share, "rviz", "pipeline.rviz")],
-                          remappings=tf_remaps, parameters=[sim], output="screen"))
+                          remappings=list(tf_plan.tf_remaps(tree)), parameters=[sim], output="screen"))
     return nodes
 
 

@@ -204,3 +204,27 @@ gwr_wait_matched() {
     gwr_log "gwr_wait_matched: no process named $name"
     return 1
 }
+
+# gwr_tf_check: the tf2 nodes of --tf come from a ROS 2 install (tf2_msgs has no PyPI wheel, so the package's
+# own nodes publish no TF); stop with a clear error at start when they are missing.
+gwr_tf_check() {
+    command -v ros2 >/dev/null 2>&1 \
+        || gwr_die "--tf needs robot_state_publisher and tf2_ros from a ROS 2 Jazzy install, and there is no ros2 command (source /opt/ros/jazzy/setup.bash first); the PyPI wheels have no tf2_msgs, so the package's nodes cannot publish TF themselves"
+    local pkg
+    for pkg in robot_state_publisher tf2_ros; do
+        ros2 pkg prefix "$pkg" >/dev/null 2>&1 || gwr_die "--tf needs the ROS 2 package $pkg (apt: ros-jazzy-${pkg//_/-})"
+    done
+}
+
+# gwr_start_tf OUT NAMESPACE BASELINE: start the pipeline's tf2 nodes (gwr_predictor.pipeline.tf_plan: a
+# robot_state_publisher per simulated Nao, the camera and baseline transforms, on NAMESPACE/tf) with ros2 run.
+gwr_start_tf() {
+    local out="$1" namespace="$2" baseline="$3" plan label command
+    local options=(--namespace "${namespace:-/}" --out "$out/tf")
+    [ "$baseline" = 1 ] || options+=(--no-baseline)
+    plan="$(python -m gwr_predictor.pipeline.tf_plan "${options[@]}")" || gwr_die "cannot plan the TF nodes"
+    while read -r label command; do
+        eval "local argv=($command)"
+        gwr_start "$label" "$out" "${argv[@]}"
+    done <<< "$plan"
+}

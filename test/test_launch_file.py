@@ -420,3 +420,57 @@ def test_launch_file_drives_ros2_control_and_both(launch_module, tmp_path):
         {"/", "/uncompensated"}  # the simulated robot stays
     with pytest.raises(ValueError, match="output"):
         launched_nodes(launch_module, out=str(tmp_path / "c"), output="naoqi2")
+
+
+# --- the scripts' TF (run_pipeline.sh --tf): the launch file's TF nodes, started with ros2 run ------------
+
+FAKE_ROS2 = """#!/bin/bash
+# a stand-in for the ros2 command of a ROS 2 install: packages are there; `run` logs its arguments and waits
+[ "$1" = pkg ] && exit 0
+printf '%s\\0' "$@" >> "$FAKE_ROS2_LOG"; printf '\\n' >> "$FAKE_ROS2_LOG"
+exec python3 -c "import signal, time; signal.signal(signal.SIGINT, signal.SIG_DFL); time.sleep(600)"
+"""  # (a node resets SIGINT, which bash ignores in background jobs)
+
+
+def test_run_pipeline_tf_starts_the_launch_files_tf_nodes_with_ros2_run(launch_module, tmp_path):
+    bin_dir, log = tmp_path / "bin", tmp_path / "ros2.log"
+    bin_dir.mkdir()
+    (bin_dir / "ros2").write_text(FAKE_ROS2)
+    (bin_dir / "ros2").chmod(0o755)
+    env = {**os.environ, "PATH": f"{bin_dir}:{os.environ['PATH']}", "FAKE_ROS2_LOG": str(log)}
+    env.pop("_ROS_WHEELS_BOOTSTRAP_COMPLETE", None)
+    steps = (f'source "{ROOT}/scripts/env.sh"; source "{ROOT}/scripts/lib.sh"; gwr_tf_check; '
+             'gwr_start_tf "$1" /robot1 1; sleep 1; gwr_stop_all')
+    result = subprocess.run(["bash", "-c", steps, "_", str(tmp_path / "run")], env=env, capture_output=True,
+                            text=True, timeout=120)
+    assert result.returncode == 0, result.stderr
+    started = set()
+    for line in log.read_text().splitlines():
+        argv = line.split("\0")[:-1]
+        assert argv[0] == "run", argv
+        package, executable, *rest = argv[1:]
+        cut = rest.index("--ros-args")
+        ros = dict(zip(rest[cut + 1::2], rest[cut + 2::2], strict=True)) if "--params-file" in rest else {}
+        remaps = [a for flag, a in zip(rest[cut + 1::2], rest[cut + 2::2], strict=True) if flag == "-r"]
+        rules = dict(r.split(":=") for r in remaps)
+        params = (yaml.safe_load(Path(ros["--params-file"]).read_text())["/**"]["ros__parameters"]
+                  if "--params-file" in ros else {})
+        started.add((package, executable, rules.pop("__node"), rules.pop("__ns"), tuple(sorted(rules.items())),
+                     tuple(rest[:cut]), params.get("frame_prefix"), params.get("robot_description")))
+    launched = launched_nodes(launch_module, out=str(tmp_path / "launch"), namespace="robot1")
+    expected = {(n["package"], n["executable"], n["name"], n["namespace"], tuple(n["remaps"]), tuple(n["arguments"]),
+                 n["overrides"].get("frame_prefix"), n["overrides"].get("robot_description"))
+                for n in launched if n["package"] in ("robot_state_publisher", "tf2_ros")}
+    assert len(expected) == 4 and started == expected
+
+
+def test_run_pipeline_tf_without_a_ros_install_stops_at_start_saying_what_is_needed(tmp_path):
+    env = {**os.environ, "PATH": "/usr/bin:/bin"}  # no ros2 command
+    env.pop("_ROS_WHEELS_BOOTSTRAP_COMPLETE", None)
+    result = subprocess.run(["bash", str(SCRIPT), "--tf", "--out", str(tmp_path / "run")], env=env,
+                            capture_output=True, text=True, timeout=120)
+    assert result.returncode == 1
+    assert "--tf needs robot_state_publisher and tf2_ros" in result.stderr and "tf2_msgs" in result.stderr
+    assert not (tmp_path / "run").exists()  # nothing started
+    assert "Without it nothing publishes TF" in subprocess.run(["bash", str(SCRIPT), "--help"], capture_output=True,
+                                                               text=True, timeout=60).stdout
