@@ -28,6 +28,7 @@ from pathlib import Path
 from typing import Any
 
 from rclpy.clock import Clock, ClockType
+from rclpy.event_handler import SubscriptionEventCallbacks
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 
 from gwr_predictor.parameter_spec import ParamSpec
@@ -111,7 +112,6 @@ class BagRecorderNode(PipelineNode):
         # the wall clock: what a crash may lose is wall time, and under sim time /clock may stop
         self.create_timer(p["flush_period_s"], self.flush, clock=Clock(clock_type=ClockType.STEADY_TIME))
         self.get_logger().info(f"recording {len(topics)} topics into {path}: {', '.join(topics)}")
-        self.create_timer(0.1, self.log_matches, clock=Clock(clock_type=ClockType.STEADY_TIME))
         self.below = [self.resolve_topic_name(ns) for ns in p["record_below"]]
         if self.below:
             self.get_logger().info(f"and every topic that appears below {', '.join(self.below)}")
@@ -122,16 +122,16 @@ class BagRecorderNode(PipelineNode):
         """Record `topic` (raw) from now on: latched topics transient-local, the others keep-last queue_depth."""
         latched = topic.rsplit("/", 1)[-1] in conventions.LATCHED_TOPICS
         qos = standard_messages.latched_qos() if latched else stream_qos(self.params["queue_depth"], reliable=reliable)
+        events = SubscriptionEventCallbacks(matched=lambda info, topic=topic: self.on_matched(topic, info))
         self.recorded[topic] = self.create_subscription(messages.message_class(msgtype), topic,
                                                         lambda raw, topic=topic: self.on_message(topic, raw), qos,
-                                                        raw=True)
+                                                        event_callbacks=events, raw=True)
 
-    def log_matches(self) -> None:
+    def on_matched(self, topic: str, info: Any) -> None:
         """`matched <topic>` once a topic's first publisher is matched (scripts wait for these lines)."""
-        for topic, subscription in self.recorded.items():
-            if topic not in self.matched and subscription.get_publisher_count() > 0:
-                self.matched.add(topic)
-                self.get_logger().info(f"matched {topic}")
+        if topic not in self.matched and info.current_count > 0:
+            self.matched.add(topic)
+            self.get_logger().info(f"matched {topic}")
 
     def discover(self) -> None:
         """Record the topics below `record_below` that appeared since the last look (best effort if every

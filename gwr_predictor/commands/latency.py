@@ -2,7 +2,7 @@
 
 Reads the bag only (see gwr_predictor.pipeline.message_latency for the definitions): the recorder's receive time
 against the frame's source stamp, and each node's final /diagnostics counters against the messages
-recorded. Prints a table, writes latency.json next to the bag; exit code 1 if the bag is unreadable,
+recorded. Prints a table, writes latency.json into the run folder; exit code 1 if the bag is unreadable,
 3 if `--max-lost` is exceeded (for benchmark scripts).
 """
 

@@ -2,7 +2,7 @@
 
 Prints the prediction error at the horizon, how far each simulated robot lags the person (with and
 without compensation), neurons per layer and message counts; writes report.json and report.png
-(person, prediction and robots over the last seconds) next to the bag.
+(person, prediction and robots over the last seconds) into the run folder (`run_folder.bag_and_folder`).
 """
 
 from __future__ import annotations
