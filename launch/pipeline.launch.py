@@ -5,6 +5,7 @@
         [use_sim_time:=true] [namespace:=robot1] [tf:=false] [camera_pose:="x y z roll pitch yaw"]
         [uncompensated_pose:="x y z roll pitch yaw"] [rviz:=true]
         [output:=naoqi|joint_trajectory|both] [robot_namespace:=/] [controller:=joint_trajectory_controller]
+        [input:=demonstrator|skeleton|hri]
 
 Same nodes, the same <node>.yaml files (from share/gwr_predictor/config unless params_dir is
 given), the same remaps and overrides as the script: bag_recorder (out/bag), nao_sim,
@@ -74,7 +75,12 @@ ARGUMENTS = {
                         "and TF (naoqi_driver2: the root)"),
     "controller": ("joint_trajectory_controller", "output joint_trajectory/both: the joint_trajectory_controller "
                    "in robot_namespace that takes the commands"),
+    "input": ("demonstrator", "the person: demonstrator (skeleton_source + angle_extractor), skeleton (angle_extractor "
+              "only: your tracker publishes <namespace>/skeleton), hri (hri_bodies: a ROS4HRI body tracker)"),
 }
+#: input -> the person's nodes (executable, overrides)
+INPUTS = {"demonstrator": (("angle_extractor", {}), ("skeleton_source", {"wait_for_subscribers": 2})),
+          "skeleton": (("angle_extractor", {}),), "hri": (("hri_bodies", {}),)}
 #: output -> (the simulated Nao runs, the compensator's topics that go to the real robot)
 OUTPUTS = {"joint_state": (True, ()), "both": (True, ("trajectory",)),
            "naoqi": (False, ("joint_states", "joint_angles")),
@@ -172,9 +178,10 @@ def pipeline_nodes(context, *_args, **_kwargs) -> list:
     learner = {"checkpoint": os.path.join(out, "model.npz")}
     if arg["predictor"]:
         learner["predictor"] = arg["predictor"]
-    nodes += [node("gwr_hierarchy", **learner),
-              node("angle_extractor"),
-              node("skeleton_source", wait_for_subscribers=2)]
+    person = arg["input"].strip()
+    if person not in INPUTS:
+        raise LaunchArgumentError(f"launch argument input:={person!r}: expected one of {sorted(INPUTS)}")
+    nodes += [node("gwr_hierarchy", **learner)] + [node(executable, **extra) for executable, extra in INPUTS[person]]
     if _true(arg["tf"]):
         nodes += tf_nodes(arg, share, namespace, sim, baseline, simulated, tree)
     return nodes

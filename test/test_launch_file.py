@@ -422,6 +422,20 @@ def test_launch_file_drives_ros2_control_and_both(launch_module, tmp_path):
         launched_nodes(launch_module, out=str(tmp_path / "c"), output="naoqi2")
 
 
+def test_launch_file_takes_the_person_from_a_tracker(launch_module, tmp_path):
+    """A real robot imitates a real person: the demonstrator's nodes give way to a tracker's."""
+    people = {}
+    for person in ("demonstrator", "skeleton", "hri"):
+        launched = launched_nodes(launch_module, out=str(tmp_path / person), input=person, output="naoqi",
+                                  params_dir=str(CONFIG))
+        people[person] = {n["executable"] for n in launched} & {"skeleton_source", "angle_extractor", "hri_bodies"}
+        assert {n["executable"] for n in launched} >= {"bag_recorder", "gwr_hierarchy", "delay_compensator"}
+    assert people == {"demonstrator": {"skeleton_source", "angle_extractor"}, "skeleton": {"angle_extractor"},
+                      "hri": {"hri_bodies"}}
+    with pytest.raises(ValueError, match="input"):
+        launched_nodes(launch_module, out=str(tmp_path / "x"), input="kinect")
+
+
 # --- the scripts' TF (run_pipeline.sh --tf): the launch file's TF nodes, started with ros2 run ------------
 
 FAKE_ROS2 = """#!/bin/bash
