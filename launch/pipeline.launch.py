@@ -4,6 +4,8 @@
         [scenario:=/path/to/scenario.yaml] [checkpoint:=model.npz] [predictor:=NAME] [params_dir:=/path/to/config]
         [use_sim_time:=true] [namespace:=robot1] [tf:=false] [camera_pose:="x y z roll pitch yaw"]
         [uncompensated_pose:="x y z roll pitch yaw"] [rviz:=true]
+        [output:=naoqi|joint_trajectory|both] [robot_namespace:=/] [controller:=joint_trajectory_controller]
+        [input:=demonstrator|skeleton|hri]
 
 Same nodes, the same <node>.yaml files (from share/gwr_predictor/config unless params_dir is
 given), the same remaps and overrides as the script: bag_recorder (out/bag), nao_sim,
@@ -17,6 +19,12 @@ uncompensated one with frame_prefix `uncompensated/`), static transforms torso -
 (`camera_pose`) and torso -> uncompensated/torso (`uncompensated_pose`), all on <ns>/tf and
 <ns>/tf_static, so pipelines in different namespaces keep separate TF trees; rviz:=true opens
 share/gwr_predictor/rviz/pipeline.rviz in <ns>.
+A real robot (output:=naoqi: a Nao through naoqi_driver2; output:=joint_trajectory: a robot under
+ros2_control): the compensated nao_sim and its robot_state_publisher are left out, since the robot's driver
+publishes `joint_states` and the robot's TF; the compensator reads `<robot_namespace>/joint_states` and
+commands `<robot_namespace>/joint_angles` (naoqi) or `<robot_namespace>/<controller>/joint_trajectory`,
+and the TF nodes that remain (the camera, the uncompensated simulated Nao with its `uncompensated/` frames)
+join the robot's tree on `<robot_namespace>/tf`. output:=both keeps nao_sim and also sends the trajectory.
 Launch has no PyPI wheel, so test/test_launch_file.py checks this file statically against the
 script; the shell scripts remain the main way to run the pipeline.
 """
@@ -30,20 +38,19 @@ from launch.actions import DeclareLaunchArgument, OpaqueFunction
 from launch_ros.actions import Node
 
 from gwr_predictor.errors import GwrPredictorError
+from gwr_predictor.pipeline import tf_plan
+from gwr_predictor.pipeline.conventions import TOPIC_TRAJECTORY_COMMAND as TRAJECTORY_TOPIC
 from gwr_predictor.pipeline.markers import ROBOT_FRAME
 from gwr_predictor.pipeline.markers import SKELETON_FRAME as CAMERA_FRAME
+from gwr_predictor.pipeline.tf_plan import (
+    BASELINE_FRAME_PREFIX,
+    BASELINE_NAMESPACE,
+    CAMERA_POSE,
+    UNCOMPENSATED_POSE,
+    in_namespace,
+)
 
 PACKAGE = "gwr_predictor"
-#: the uncompensated pair's namespace, inside the pipeline's; its TF frames carry this prefix
-BASELINE_NAMESPACE = "uncompensated"
-BASELINE_FRAME_PREFIX = f"{BASELINE_NAMESPACE}/"
-#: the skeleton camera above the robot looking forward: camera z (into the scene) along the robot's x, camera
-#: y (up) along its z, 1 m above the floor (the demonstrator's sensor height; the Nao's torso is 0.333 m
-#: above its soles), so the person stands on the robot's floor, 2-2.4 m in front of it, facing it
-CAMERA_POSE = "0 0 0.667 1.5708 0 1.5708"
-#: the uncompensated robot stands 0.5 m to the compensated robot's right
-UNCOMPENSATED_POSE = "0 -0.5 0 0 0 0"
-POSE_KEYS = ("--x", "--y", "--z", "--roll", "--pitch", "--yaw")
 
 ARGUMENTS = {
     "out": ("results/launch_run", "run folder: bag/ (recording) and model.npz (learner) go here"),
@@ -61,7 +68,23 @@ ARGUMENTS = {
     "uncompensated_pose": (UNCOMPENSATED_POSE, f"'x y z roll pitch yaw' (m, rad) of {BASELINE_FRAME_PREFIX}"
                            f"{ROBOT_FRAME} in {ROBOT_FRAME}"),
     "rviz": ("false", "open rviz2 with share/gwr_predictor/rviz/pipeline.rviz in the pipeline's namespace"),
+    "output": ("joint_state", "the compensated robot: joint_state (nao_sim), naoqi (a real Nao through "
+               "naoqi_driver2), joint_trajectory (a robot under ros2_control), both (nao_sim and ros2_control); "
+               "a real robot's driver publishes joint_states and TF, so no nao_sim or robot_state_publisher for it"),
+    "robot_namespace": ("/", "where the real robot's driver runs: its joint_states, joint_angles, controllers "
+                        "and TF (naoqi_driver2: the root)"),
+    "controller": ("joint_trajectory_controller", "output joint_trajectory/both: the joint_trajectory_controller "
+                   "in robot_namespace that takes the commands"),
+    "input": ("demonstrator", "the person: demonstrator (skeleton_source + angle_extractor), skeleton (angle_extractor "
+              "only: your tracker publishes <namespace>/skeleton), hri (hri_bodies: a ROS4HRI body tracker)"),
 }
+#: input -> the person's nodes (executable, overrides)
+INPUTS = {"demonstrator": (("angle_extractor", {}), ("skeleton_source", {"wait_for_subscribers": 2})),
+          "skeleton": (("angle_extractor", {}),), "hri": (("hri_bodies", {}),)}
+#: output -> (the simulated Nao runs, the compensator's topics that go to the real robot)
+OUTPUTS = {"joint_state": (True, ()), "both": (True, ("trajectory",)),
+           "naoqi": (False, ("joint_states", "joint_angles")),
+           "joint_trajectory": (False, ("joint_states", "trajectory"))}
 
 
 class LaunchArgumentError(GwrPredictorError, ValueError):
@@ -79,50 +102,43 @@ def pipeline_namespace(pushed: str | None, argument: str) -> str:
     return "/" + "/".join(parts)
 
 
-def in_namespace(namespace: str, name: str) -> str:
-    """`name` resolved in the absolute `namespace` (the root included)."""
-    return f"{namespace.rstrip('/')}/{name}"
+def robot_output(arg: dict, namespace: str) -> tuple[bool, dict, list[tuple[str, str]], str]:
+    """(nao_sim drives the compensated robot, the compensator's overrides, its remaps to the real robot, the
+    namespace of the TF tree: the pipeline's with nao_sim, else the robot driver's)."""
+    output = arg["output"].strip()
+    if output not in OUTPUTS:
+        raise LaunchArgumentError(f"launch argument output:={output!r}: expected one of {sorted(OUTPUTS)}")
+    simulated, real = OUTPUTS[output]
+    robot = pipeline_namespace(None, "/" + arg["robot_namespace"].strip("/"))
+    topics = {"joint_states": "joint_states", "joint_angles": "joint_angles",
+              "trajectory": f"{arg['controller'].strip('/')}/joint_trajectory"}
+    relative = {"joint_states": "joint_states", "joint_angles": "joint_angles",
+                "trajectory": TRAJECTORY_TOPIC}
+    remaps = [(relative[key], in_namespace(robot, topics[key])) for key in real]
+    overrides = {} if output == "joint_state" else {"output": output}  # joint_state: delay_compensator.yaml's
+    return simulated, overrides, remaps, namespace if simulated else robot
 
 
-def pose_arguments(name: str, text: str) -> list[str]:
-    """'x y z roll pitch yaw' -> static_transform_publisher's --x ... --yaw arguments."""
-    values = text.split()
-    try:
-        numbers = [float(v) for v in values]
-    except ValueError:
-        numbers = []
-    if len(numbers) != len(POSE_KEYS):
-        raise LaunchArgumentError(f"launch argument {name}:={text!r}: expected 6 numbers 'x y z roll pitch yaw'")
-    return [item for key, value in zip(POSE_KEYS, values, strict=True) for item in (key, value)]
-
-
-def tf_nodes(arg: dict, share: str, namespace: str, sim: dict, baseline: bool) -> list:
-    """robot_state_publisher per robot and the static transforms; every TF topic in the pipeline's namespace."""
-    tf_remaps = [("/tf", in_namespace(namespace, "tf")), ("/tf_static", in_namespace(namespace, "tf_static"))]
+def tf_nodes(arg: dict, share: str, namespace: str, sim: dict, baseline: bool, simulated: bool = True,
+             tree: str | None = None) -> list:
+    """The tf2 nodes of `tf_plan` (a robot_state_publisher per simulated robot, the static transforms) and RViz;
+    every TF topic in the namespace `tree` (the pipeline's by default; a real robot's driver's, so the camera
+    and the uncompensated robot hang off the real robot's frames)."""
+    tree = namespace if tree is None else tree
     with open(os.path.join(share, "urdf", "nao.urdf"), encoding="utf-8") as f:
         urdf = f.read()
-
-    def state_publisher(robot_namespace: str, prefix: str) -> Node:
-        return Node(package="robot_state_publisher", executable="robot_state_publisher", name="robot_state_publisher",
-                    namespace=robot_namespace, remappings=tf_remaps, output="screen",
-                    parameters=[{**sim, "robot_description": urdf, "frame_prefix": prefix}])
-
-    def static_transform(name: str, pose: str, parent: str, child: str) -> Node:
-        return Node(package="tf2_ros", executable="static_transform_publisher", name=name, namespace=namespace,
-                    arguments=[*pose_arguments(name, pose), "--frame-id", parent, "--child-frame-id", child],
-                    remappings=tf_remaps, parameters=[sim], output="screen")
-
-    nodes = [state_publisher(namespace, "")]
-    if arg["camera_pose"].strip():
-        nodes.append(static_transform("camera_pose", arg["camera_pose"], ROBOT_FRAME, CAMERA_FRAME))
-    if baseline:
-        nodes += [state_publisher(in_namespace(namespace, BASELINE_NAMESPACE), BASELINE_FRAME_PREFIX),
-                  static_transform("uncompensated_pose", arg["uncompensated_pose"], ROBOT_FRAME,
-                                   BASELINE_FRAME_PREFIX + ROBOT_FRAME)]
+    try:
+        plan = tf_plan.tf_nodes(urdf, namespace, baseline=baseline, simulated=simulated, tree=tree,
+                                camera_pose=arg["camera_pose"], uncompensated_pose=arg["uncompensated_pose"])
+    except GwrPredictorError as exc:
+        raise LaunchArgumentError(f"launch argument {exc}") from None
+    nodes = [Node(package=n.package, executable=n.executable, name=n.name, namespace=n.namespace,
+                  remappings=list(n.remaps), parameters=[{**sim, **n.parameters}], arguments=list(n.arguments),
+                  output="screen") for n in plan]
     if _true(arg["rviz"]):
         nodes.append(Node(package="rviz2", executable="rviz2", name="rviz2", namespace=namespace,
                           arguments=["-d", os.path.join(share, "rviz", "pipeline.rviz")],
-                          remappings=tf_remaps, parameters=[sim], output="screen"))
+                          remappings=list(tf_plan.tf_remaps(tree)), parameters=[sim], output="screen"))
     return nodes
 
 
@@ -136,6 +152,7 @@ def pipeline_nodes(context, *_args, **_kwargs) -> list:
     sim = {"use_sim_time": _true(arg["use_sim_time"])}
     namespace = pipeline_namespace(arg.get("ros_namespace"), arg["namespace"])
     baseline = _true(arg["baseline"])
+    simulated, output, robot_remaps, tree = robot_output(arg, namespace)
     os.makedirs(out, exist_ok=True)
     if os.path.exists(os.path.join(out, "bag")):
         raise RuntimeError(f"{out}/bag exists already: choose another out:=")
@@ -150,7 +167,8 @@ def pipeline_nodes(context, *_args, **_kwargs) -> list:
 
     nodes = [node("bag_recorder", path=os.path.join(out, "bag"))]
     frames = {"render_dir": os.path.join(out, "frames")} if _true(arg["render"]) else {}
-    nodes += [node("nao_sim", **frames), node("delay_compensator")]
+    nodes += [node("nao_sim", **frames)] if simulated else []
+    nodes += [node("delay_compensator", remappings=robot_remaps, **output)]
     if baseline:
         # the uncompensated pair reads the pipeline's shared topics, not its own namespace's
         uncompensated = in_namespace(namespace, BASELINE_NAMESPACE)
@@ -160,11 +178,12 @@ def pipeline_nodes(context, *_args, **_kwargs) -> list:
     learner = {"checkpoint": os.path.join(out, "model.npz")}
     if arg["predictor"]:
         learner["predictor"] = arg["predictor"]
-    nodes += [node("gwr_hierarchy", **learner),
-              node("angle_extractor"),
-              node("skeleton_source", wait_for_subscribers=2)]
+    person = arg["input"].strip()
+    if person not in INPUTS:
+        raise LaunchArgumentError(f"launch argument input:={person!r}: expected one of {sorted(INPUTS)}")
+    nodes += [node("gwr_hierarchy", **learner)] + [node(executable, **extra) for executable, extra in INPUTS[person]]
     if _true(arg["tf"]):
-        nodes += tf_nodes(arg, share, namespace, sim, baseline)
+        nodes += tf_nodes(arg, share, namespace, sim, baseline, simulated, tree)
     return nodes
 
 

@@ -8,6 +8,16 @@ properly on Ctrl-C and SIGTERM. An unwritable path or a full disk stops the node
 Each topic's entry in the bag carries the QoS profiles its publishers offer, read from the ROS
 graph when the topic's first message arrives (as rosbag2 records them), so that `ros2 bag play`
 and `bag_player` publish with them again.
+
+Discovery is not instant (under load a participant may be found seconds after it started, and a
+volatile stream published before that is lost to the recorder): the node logs `matched <topic>` when a
+recorded topic's first publisher is matched, so that scripts start the data flow only once the
+recorder hears every publisher (`gwr_wait_matched` in scripts/lib.sh).
+
+`record_below` adds topics that appear while recording: every topic below those namespaces (a ROS4HRI
+tracker's `/humans/bodies/<id>/...`, one per tracked person) is looked for in the graph every
+`discovery_period_s` and recorded from then on with the type its publishers give (a type this machine
+or the bag cannot hold is skipped once, with a warning: `topics.not_recordable`).
 """
 
 from __future__ import annotations
@@ -15,9 +25,11 @@ from __future__ import annotations
 import time
 from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 from rclpy.clock import Clock, ClockType
-from rclpy.qos import QoSProfile
+from rclpy.event_handler import SubscriptionEventCallbacks
+from rclpy.qos import QoSProfile, ReliabilityPolicy
 
 from gwr_predictor.parameter_spec import ParamSpec
 from gwr_predictor.pipeline import bags, conventions
@@ -32,7 +44,16 @@ PARAMS = (
           "segment (conventions.TOPIC_TYPES) or an explicit 'name@pkg/msg/Type'"),
     ParamSpec("flush_period_s", 1.0, "put everything received on disk this often (s)", 0.05, 3600.0),
     ParamSpec("queue_depth", conventions.QOS_DEPTH_RECORDER, "reliable keep-last depth per subscription", 1, 100000),
+    ParamSpec("record_below", [], "also record every topic below these namespaces as it appears in the graph, with "
+              "the type its publishers give (e.g. [/humans/bodies]: a ROS4HRI tracker's bodies)"),
+    ParamSpec("discovery_period_s", 0.5, "how often the graph is searched for new topics below record_below (s)",
+              0.05, 60.0),
 )
+
+
+def below(topic: str, namespaces: list[str]) -> bool:
+    """`topic` lies below one of the absolute `namespaces`."""
+    return any(topic.startswith(ns.rstrip("/") + "/") for ns in namespaces)
 
 
 def topic_types(resolve: Callable[[str], str], names: list[str]) -> dict[str, str]:
@@ -82,16 +103,56 @@ class BagRecorderNode(PipelineNode):
             self.writer.open()
         except bags.BagError as exc:
             raise NodeFatalError(str(exc)) from None
-        qos = stream_qos(p["queue_depth"])
+        self.recorded: dict[str, Any] = {}  # topic -> its subscription
+        self.matched: set[str] = set()
+        self.not_recordable: set[str] = set()
         for topic, msgtype in topics.items():
-            latched = topic.rsplit("/", 1)[-1] in conventions.LATCHED_TOPICS
-            self.create_subscription(messages.message_class(msgtype), topic,
-                                     lambda raw, topic=topic: self.on_message(topic, raw),
-                                     standard_messages.latched_qos() if latched else qos, raw=True)
+            self.subscribe(topic, msgtype)
         self.before_clock: list[tuple[str, bytes]] = []  # use_sim_time: received before the first /clock
         # the wall clock: what a crash may lose is wall time, and under sim time /clock may stop
         self.create_timer(p["flush_period_s"], self.flush, clock=Clock(clock_type=ClockType.STEADY_TIME))
         self.get_logger().info(f"recording {len(topics)} topics into {path}: {', '.join(topics)}")
+        self.below = [self.resolve_topic_name(ns) for ns in p["record_below"]]
+        if self.below:
+            self.get_logger().info(f"and every topic that appears below {', '.join(self.below)}")
+            self.discover()
+            self.create_timer(p["discovery_period_s"], self.discover, clock=Clock(clock_type=ClockType.STEADY_TIME))
+
+    def subscribe(self, topic: str, msgtype: str, reliable: bool = True) -> None:
+        """Record `topic` (raw) from now on: latched topics transient-local, the others keep-last queue_depth."""
+        latched = topic.rsplit("/", 1)[-1] in conventions.LATCHED_TOPICS
+        qos = standard_messages.latched_qos() if latched else stream_qos(self.params["queue_depth"], reliable=reliable)
+        events = SubscriptionEventCallbacks(matched=lambda info, topic=topic: self.on_matched(topic, info))
+        self.recorded[topic] = self.create_subscription(messages.message_class(msgtype), topic,
+                                                        lambda raw, topic=topic: self.on_message(topic, raw), qos,
+                                                        event_callbacks=events, raw=True)
+
+    def on_matched(self, topic: str, info: Any) -> None:
+        """`matched <topic>` once a topic's first publisher is matched (scripts wait for these lines)."""
+        if topic not in self.matched and info.current_count > 0:
+            self.matched.add(topic)
+            self.get_logger().info(f"matched {topic}")
+
+    def discover(self) -> None:
+        """Record the topics below `record_below` that appeared since the last look (best effort if every
+        publisher is: a reliable subscription would not match them)."""
+        for topic, types in self.get_topic_names_and_types():
+            if topic in self.recorded or topic in self.not_recordable or not below(topic, self.below):
+                continue
+            try:
+                if len(types) != 1:
+                    raise ValueError(f"published with {len(types)} types {types}")
+                messages.message_class(types[0])
+                self.writer.add_topic(topic, types[0])
+            except (ValueError, bags.BagError) as exc:
+                self.not_recordable.add(topic)
+                self.counters.count("topics.not_recordable")
+                self.get_logger().warning(f"not recording {topic}: {exc}")
+                continue
+            offered = [info.qos_profile.reliability for info in self.get_publishers_info_by_topic(topic)]
+            self.subscribe(topic, types[0], reliable=not offered or ReliabilityPolicy.BEST_EFFORT not in offered)
+            self.counters.count("topics.discovered")
+            self.get_logger().info(f"recording {topic} ({types[0]}) from now on")
 
     def offered_qos(self, topic: str) -> list[bags.Qos]:
         """The QoS profiles the topic's publishers offer now (one per publisher, as the graph reports them)."""

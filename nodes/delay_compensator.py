@@ -35,6 +35,7 @@ from gwr_predictor.parameter_spec import ParamSpec
 from gwr_predictor.pipeline import conventions
 from gwr_predictor.pipeline.clock_jumps import CLOCK_JUMP_SPEC, ClockJumpWatch, CommandStamps
 from gwr_predictor.pipeline.conventions import LayoutError
+from gwr_predictor.pipeline.gates import absurd_predictions
 from gwr_predictor.pipeline.trajectory import command_trajectory
 from gwr_predictor.robot import compensator, naoqi_output
 from gwr_predictor.robot.nao import ARM_JOINTS
@@ -208,6 +209,10 @@ class DelayCompensatorNode(PipelineNode):
             return None
         if not np.all(np.isfinite(preds)):
             self.counters.reject("predictions.non_finite", "NaN or inf in the predictions")
+            return None
+        absurd = absurd_predictions(preds)
+        if absurd is not None:
+            self.counters.reject("predictions.out_of_range", absurd)
             return None
         if not self.check_stamp(self.pred_stamps, "predictions", stamp):
             return None

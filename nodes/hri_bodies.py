@@ -45,6 +45,8 @@ PARAMS = (
               "a stamp gap larger than this starts a new sequence (the smoothing group restarts)", 0.0, 3600.0),
     ParamSpec("input_reliability", "reliable", "QoS of the joint_states subscription; best_effort also matches "
               "trackers that publish best-effort", choices=("reliable", "best_effort")),
+    ParamSpec("camera_frame", "", "nearest: the frame of the bodies' positions (the camera's); positions in another "
+              "frame are rejected; empty: the frame of the first position received"),
 )
 
 
@@ -64,6 +66,7 @@ class HriBodiesNode(PipelineNode):
         self.joint_states_sub: Any = None
         self.position_subs: dict[str, Any] = {}
         self.distances: dict[str, float] = {}
+        self.position_frame: str = p["camera_frame"]
         self.angles_pub = self.create_publisher(messages.JointState, conventions.TOPIC_ANGLES, stream_qos())
         if p["body_id"]:
             self.follow(p["body_id"])
@@ -114,6 +117,14 @@ class HriBodiesNode(PipelineNode):
                 PointStamped, topic, lambda msg, body=body: self.on_position(body, msg), self.qos)
 
     def on_position(self, body: str, msg: PointStamped) -> None:
+        """A body's distance from its position, if in the frame the others are in (distances in different
+        frames cannot be compared)."""
+        frame = msg.header.frame_id
+        if not frame or (self.position_frame and frame != self.position_frame):
+            self.counters.reject("position.frame_id", f"body {body}: position in frame {frame[:80]!r}, not in "
+                                 f"{self.position_frame or 'a named frame'!r} (parameter camera_frame)")
+            return
+        self.position_frame = frame
         distance = float(np.linalg.norm([msg.point.x, msg.point.y, msg.point.z]))
         if np.isfinite(distance):
             self.distances[body] = distance
@@ -143,6 +154,7 @@ class HriBodiesNode(PipelineNode):
             return  # queued before a switch
         stamp, names, positions = messages.joint_state_fields(msg)
         try:
+            hri_bodies.check_frame(msg.header.frame_id, body)
             human = hri_bodies.body_arm_joints(names, positions, body)
         except hri_bodies.HriBodiesError as exc:
             self.counters.reject(f"joint_states.{exc.reason}", str(exc))

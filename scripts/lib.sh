@@ -180,3 +180,51 @@ gwr_namespace() {
         || gwr_die "--namespace $1 is not a ROS namespace (tokens of letters, digits and _, separated by /)"
     printf '/%s' "$ns"
 }
+
+# gwr_wait_matched NAME TIMEOUT_S TOPIC...: wait until the recorder NAME has logged `matched TOPIC` for each
+# topic (its subscription hears the topic's publisher), so that nothing they publish from now on is lost
+# to it (discovery can take seconds under load); after TIMEOUT_S a warning, and on (0 all the same).
+gwr_wait_matched() {
+    local name="$1" timeout="$2" i topic
+    shift 2
+    for i in "${!GWR_NAMES[@]}"; do
+        [ "${GWR_NAMES[$i]}" = "$name" ] || continue
+        local deadline=$((SECONDS + timeout))
+        for topic in "$@"; do
+            while ! grep -q "\]: matched $topic\$" "${GWR_LOGS[$i]}" 2>/dev/null; do
+                if [ "$SECONDS" -ge "$deadline" ]; then
+                    gwr_log "warning: $name has not matched a publisher of $topic after ${timeout} s: its first messages may be missing from the bag"
+                    return 0
+                fi
+                sleep 0.1
+            done
+        done
+        return 0
+    done
+    gwr_log "gwr_wait_matched: no process named $name"
+    return 1
+}
+
+# gwr_tf_check: the tf2 nodes of --tf come from a ROS 2 install (tf2_msgs has no PyPI wheel, so the package's
+# own nodes publish no TF); stop with a clear error at start when they are missing.
+gwr_tf_check() {
+    command -v ros2 >/dev/null 2>&1 \
+        || gwr_die "--tf needs robot_state_publisher and tf2_ros from a ROS 2 Jazzy install, and there is no ros2 command (source /opt/ros/jazzy/setup.bash first); the PyPI wheels have no tf2_msgs, so the package's nodes cannot publish TF themselves"
+    local pkg
+    for pkg in robot_state_publisher tf2_ros; do
+        ros2 pkg prefix "$pkg" >/dev/null 2>&1 || gwr_die "--tf needs the ROS 2 package $pkg (apt: ros-jazzy-${pkg//_/-})"
+    done
+}
+
+# gwr_start_tf OUT NAMESPACE BASELINE: start the pipeline's tf2 nodes (gwr_predictor.pipeline.tf_plan: a
+# robot_state_publisher per simulated Nao, the camera and baseline transforms, on NAMESPACE/tf) with ros2 run.
+gwr_start_tf() {
+    local out="$1" namespace="$2" baseline="$3" plan label command
+    local options=(--namespace "${namespace:-/}" --out "$out/tf")
+    [ "$baseline" = 1 ] || options+=(--no-baseline)
+    plan="$(python -m gwr_predictor.pipeline.tf_plan "${options[@]}")" || gwr_die "cannot plan the TF nodes"
+    while read -r label command; do
+        eval "local argv=($command)"
+        gwr_start "$label" "$out" "${argv[@]}"
+    done <<< "$plan"
+}

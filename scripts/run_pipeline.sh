@@ -7,7 +7,7 @@
 #
 # usage: scripts/run_pipeline.sh [--seconds N] [--out DIR] [--params-dir DIR] [--scenario YAML]
 #                                [--checkpoint FILE] [--predictor NAME] [--no-baseline] [--render]
-#                                [--namespace NS]
+#                                [--namespace NS] [--tf]
 #   --seconds N        how long the source runs (default 60)
 #   --out DIR          run folder: bag/, model.npz, one log per node, ros_log/ (default results/run_<time>)
 #   --params-dir DIR   folder with <node>.yaml (default config/)
@@ -18,6 +18,10 @@
 #   --render           the compensated robot writes PNG pictures to DIR/frames/
 #   --namespace NS     run every node in namespace NS (e.g. robot1: /robot1/arm_angles, /robot1/uncompensated/...);
 #                      pipelines in different namespaces share one ROS domain without crossing
+#   --tf               also start the TF that RViz needs to draw the robots (a robot_state_publisher per robot,
+#                      the camera and baseline transforms, on NS/tf): needs robot_state_publisher and tf2_ros
+#                      from a ROS 2 install (checked at start). Without it nothing publishes TF: the PyPI
+#                      wheels have no tf2_msgs. Foxglove needs no TF (robot_description + joint_states).
 set -euo pipefail
 HERE="$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)"
 # shellcheck source=env.sh
@@ -34,6 +38,7 @@ predictor=""
 baseline=1
 render=0
 namespace=""
+tf=0
 while [ $# -gt 0 ]; do
     case "$1" in
         --seconds) seconds="$(gwr_value "$@")"; shift 2 ;;
@@ -45,6 +50,7 @@ while [ $# -gt 0 ]; do
         --no-baseline) baseline=0; shift ;;
         --render) render=1; shift ;;
         --namespace) namespace="$(gwr_value "$@")"; shift 2 ;;
+        --tf) tf=1; shift ;;
         -h|--help) gwr_usage "$0"; exit 0 ;;
         *) gwr_die "unknown argument $1 (see --help)" ;;
     esac
@@ -54,6 +60,7 @@ done
 [ -z "$scenario" ] || [ -f "$scenario" ] || gwr_die "--scenario $scenario not found"
 [ -z "$checkpoint" ] || [ -f "$checkpoint" ] || gwr_die "--checkpoint $checkpoint not found"
 namespace="$(gwr_namespace "$namespace")" || exit 1
+if [ "$tf" = 1 ]; then gwr_tf_check; fi
 out="$(gwr_run_folder "$out" run)"
 [ ! -e "$out/bag" ] || gwr_die "$out/bag exists already: choose another --out"
 export ROS_LOG_DIR="$out/ros_log"
@@ -89,6 +96,11 @@ if [ "$baseline" = 1 ]; then
     start_node nao_sim_uncompensated nao_sim "${ns[@]}"
     start_node delay_compensator_uncompensated delay_compensator "${ns[@]}" -p mode:=none
 fi
+if [ "$tf" = 1 ]; then
+    gwr_start_tf "$out" "$namespace" "$baseline"
+else
+    gwr_log "no TF: RViz cannot draw the robots without it (--tf starts it on a ROS 2 install; Foxglove needs none)"
+fi
 learner=(-p "checkpoint:=$out/model.npz")
 [ -z "$predictor" ] || learner+=(-p "predictor:=$predictor")
 start_node gwr_hierarchy gwr_hierarchy "${here[@]}" "${learner[@]}"
@@ -98,7 +110,12 @@ if [ "$baseline" = 1 ]; then
     gwr_wait_ready nao_sim_uncompensated 60
     gwr_wait_ready delay_compensator_uncompensated 60
 fi
-# the first frame goes out once angle_extractor and the recorder are matched
+# the recorder hears every publisher of the pipeline's streams, then the first frame goes out once
+# angle_extractor and the recorder are matched on the skeleton
+baseline_commands="$namespace/uncompensated/joint_commands"
+[ "$baseline" = 1 ] || baseline_commands=""
+gwr_wait_matched bag_recorder 30 "$namespace/arm_angles" "$namespace/predictions" "$namespace/joint_commands" \
+    $baseline_commands
 start_node skeleton_source skeleton_source "${here[@]}" -p wait_for_subscribers:=2
 gwr_wait_ready skeleton_source 60
 gwr_log "pipeline running for $seconds s"

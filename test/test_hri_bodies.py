@@ -226,3 +226,62 @@ def test_node_follows_a_discovered_body_and_publishes_its_nao_angles(ros):
     np.testing.assert_allclose(second[2], body_to_nao(down)[0], atol=1e-9)
     assert diagnostics["/hri_bodies"]["angles.clipped_to_limits"] == "2"  # straight elbows clip
     assert proc.running
+
+
+# --- input rules, on the node in process -------------------------------------------------------------
+
+
+@pytest.fixture
+def hri_node():
+    import rclpy
+    from ros_harness import allocate_domain_id, release_domain_id
+
+    from gwr_predictor.nodes.hri_bodies import HriBodiesNode
+
+    domain = allocate_domain_id()
+    rclpy.init(args=["--ros-args", "-p", "body_id:=b1", "-p", "selection:=nearest", "-p", "median_of_3:=false",
+                     "-p", "stop_if_duplicate:=false"], domain_id=domain)
+    node = HriBodiesNode()
+    try:
+        yield node
+    finally:
+        node.destroy_node()
+        rclpy.try_shutdown()
+        release_domain_id(domain)
+
+
+def test_oversized_joint_states_and_another_bodys_frame_are_rejected_and_counted(hri_node):
+    node, down = hri_node, both([0, 0, 0, 0])
+    huge = messages.JointState()
+    huge.name = [f"j{i}_b1" for i in range(200_008)]  # about 4 MB on the wire
+    huge.position = np.zeros(200_008)
+    huge.header.stamp = messages.to_time(1000.0)
+    node.on_joint_states("b1", huge)
+    crossed = hri_joint_state(1000.1, "b1", down)
+    crossed.header.frame_id = "body_b2"  # the other body's joint states on this body's topic
+    node.on_joint_states("b1", crossed)
+    values = node.diagnostic_values()
+    assert values["rejected.joint_states.too_large"] == 1 and values["rejected.joint_states.frame_id"] == 1
+    assert node.counters.get("joint_states.accepted") == 0
+    for i, frame in enumerate(("", "body_b1", "torso_b1")):  # no frame, or one of the body's own
+        own = hri_joint_state(1000.2 + i / 30, "b1", down)
+        own.header.frame_id = frame
+        node.on_joint_states("b1", own)
+    assert node.counters.get("joint_states.accepted") == 3 and node.counters.get("angles.published") == 3
+
+
+def test_positions_in_another_frame_are_rejected_and_counted(hri_node):
+    from geometry_msgs.msg import PointStamped
+
+    def position(frame, x):
+        msg = PointStamped()
+        msg.header.frame_id = frame
+        msg.point.x = x
+        return msg
+
+    node = hri_node
+    node.on_position("b1", position("camera_color_optical_frame", 2.0))
+    node.on_position("b2", position("map", 1.0))  # nearer, but measured from elsewhere
+    node.on_position("b3", position("", 0.5))
+    assert node.distances == {"b1": 2.0}
+    assert node.diagnostic_values()["rejected.position.frame_id"] == 2

@@ -356,3 +356,135 @@ def test_rviz_config_shows_the_person_the_prediction_and_both_robots():
     for key in ("RobotModel:robot_description", "RobotModel:uncompensated/robot_description"):
         assert displays[key]["Description Topic"]["Durability Policy"] == "Transient Local"  # latched URDF
     assert manager["Global Options"]["Fixed Frame"] == "torso"
+
+
+# --- a real robot: output naoqi (naoqi_driver2) or joint_trajectory (ros2_control) ---------------------
+
+
+def nao_links() -> set[str]:
+    """The Nao's frames: the links of the URDF, named as naoqi_driver2 names the robot's TF frames."""
+    root = ET.parse(ROOT / "gwr_predictor" / "robot" / "nao.urdf").getroot()
+    return {link.get("name") for link in root.findall("link")}
+
+
+def resolved(namespace: str, name: str) -> str:
+    return name if name.startswith("/") else f"{namespace.rstrip('/')}/{name}"
+
+
+@pytest.mark.parametrize("argument,ns", [("", "/"), ("robot1", "/robot1")])
+def test_launch_file_drives_a_real_nao_without_clashing_with_naoqi_driver2(launch_module, share_dir, tmp_path,
+                                                                          argument, ns):
+    """naoqi_driver2 runs in the root namespace and publishes /joint_states and the Nao's TF frames itself."""
+    launched = launched_nodes(launch_module, out=str(tmp_path / "run"), output="naoqi", params_dir=str(CONFIG),
+                              **({"namespace": argument} if argument else {}))
+    baseline = resolved(ns, "uncompensated")
+    # the compensated robot is the real one: no simulator, no state publisher of its own frames
+    assert [n["namespace"] for n in launched if n["executable"] == "nao_sim"] == [baseline]
+    publishers = {resolved(n["namespace"], topic) for n in launched
+                  if n["executable"] in ("nao_sim", "robot_state_publisher") for topic in ("joint_states",
+                                                                                          "robot_description")}
+    assert not publishers & {"/joint_states", "/robot_description"}
+    links = nao_links()
+    frames = {n["overrides"]["frame_prefix"] + link for n in launched if n["executable"] == "robot_state_publisher"
+              for link in links}
+    frames |= set(static_transforms(launched))
+    assert frames and not frames & links  # every frame of ours is prefixed or the camera's
+    (comp,) = [n for n in launched if n["executable"] == "delay_compensator" and n["namespace"] == ns]
+    assert comp["overrides"] == {"output": "naoqi"}
+    assert comp["remaps"] == [("joint_angles", "/joint_angles"), ("joint_states", "/joint_states")]
+    # what TF remains joins the driver's tree (the camera on the real torso), whatever the pipeline's namespace
+    assert static_transforms(launched)["skeleton_camera"][0] == "torso"
+    for node in (n for n in launched if n["package"] in ("robot_state_publisher", "tf2_ros")):
+        assert node["remaps"] == [("/tf", "/tf"), ("/tf_static", "/tf_static")]
+    # the rest of the pipeline is the script's, less the compensated nao_sim
+    scripted = [n for n in script_nodes(str(tmp_path / "run"), str(CONFIG), True, False, "",
+                                        namespace="" if ns == "/" else ns)
+                if n["label"] not in ("nao_sim", "delay_compensator")]
+    same_graph([n for n in pipeline_only(launched) if n is not comp], scripted)
+
+
+def test_launch_file_drives_ros2_control_and_both(launch_module, tmp_path):
+    launched = launched_nodes(launch_module, out=str(tmp_path / "a"), output="joint_trajectory",
+                              controller="arm_controller", robot_namespace="nao", baseline="false")
+    assert not [n for n in launched if n["executable"] == "nao_sim"]
+    (comp,) = [n for n in launched if n["executable"] == "delay_compensator"]
+    assert comp["overrides"] == {"output": "joint_trajectory"}
+    assert comp["remaps"] == [("joint_states", "/nao/joint_states"),
+                              ("joint_trajectory_controller/joint_trajectory", "/nao/arm_controller/joint_trajectory")]
+    assert {n["executable"] for n in launched if n["package"] != "gwr_predictor"} == {"static_transform_publisher"}
+    both = launched_nodes(launch_module, out=str(tmp_path / "b"), output="both")
+    (comp,) = [n for n in both if n["executable"] == "delay_compensator" and n["namespace"] == "/"]
+    assert comp["remaps"] == [("joint_trajectory_controller/joint_trajectory",
+                               "/joint_trajectory_controller/joint_trajectory")]
+    assert {n["namespace"] for n in both if n["executable"] in ("nao_sim", "robot_state_publisher")} == \
+        {"/", "/uncompensated"}  # the simulated robot stays
+    with pytest.raises(ValueError, match="output"):
+        launched_nodes(launch_module, out=str(tmp_path / "c"), output="naoqi2")
+
+
+def test_launch_file_takes_the_person_from_a_tracker(launch_module, tmp_path):
+    """A real robot imitates a real person: the demonstrator's nodes give way to a tracker's."""
+    people = {}
+    for person in ("demonstrator", "skeleton", "hri"):
+        launched = launched_nodes(launch_module, out=str(tmp_path / person), input=person, output="naoqi",
+                                  params_dir=str(CONFIG))
+        people[person] = {n["executable"] for n in launched} & {"skeleton_source", "angle_extractor", "hri_bodies"}
+        assert {n["executable"] for n in launched} >= {"bag_recorder", "gwr_hierarchy", "delay_compensator"}
+    assert people == {"demonstrator": {"skeleton_source", "angle_extractor"}, "skeleton": {"angle_extractor"},
+                      "hri": {"hri_bodies"}}
+    with pytest.raises(ValueError, match="input"):
+        launched_nodes(launch_module, out=str(tmp_path / "x"), input="kinect")
+
+
+# --- the scripts' TF (run_pipeline.sh --tf): the launch file's TF nodes, started with ros2 run ------------
+
+FAKE_ROS2 = """#!/bin/bash
+# a stand-in for the ros2 command of a ROS 2 install: packages are there; `run` logs its arguments and waits
+[ "$1" = pkg ] && exit 0
+printf '%s\\0' "$@" >> "$FAKE_ROS2_LOG"; printf '\\n' >> "$FAKE_ROS2_LOG"
+exec python3 -c "import signal, time; signal.signal(signal.SIGINT, signal.SIG_DFL); time.sleep(600)"
+"""  # (a node resets SIGINT, which bash ignores in background jobs)
+
+
+def test_run_pipeline_tf_starts_the_launch_files_tf_nodes_with_ros2_run(launch_module, tmp_path):
+    bin_dir, log = tmp_path / "bin", tmp_path / "ros2.log"
+    bin_dir.mkdir()
+    (bin_dir / "ros2").write_text(FAKE_ROS2)
+    (bin_dir / "ros2").chmod(0o755)
+    env = {**os.environ, "PATH": f"{bin_dir}:{os.environ['PATH']}", "FAKE_ROS2_LOG": str(log)}
+    env.pop("_ROS_WHEELS_BOOTSTRAP_COMPLETE", None)
+    steps = (f'source "{ROOT}/scripts/env.sh"; source "{ROOT}/scripts/lib.sh"; gwr_tf_check; '
+             'gwr_start_tf "$1" /robot1 1; sleep 1; gwr_stop_all')
+    result = subprocess.run(["bash", "-c", steps, "_", str(tmp_path / "run")], env=env, capture_output=True,
+                            text=True, timeout=120)
+    assert result.returncode == 0, result.stderr
+    started = set()
+    for line in log.read_text().splitlines():
+        argv = line.split("\0")[:-1]
+        assert argv[0] == "run", argv
+        package, executable, *rest = argv[1:]
+        cut = rest.index("--ros-args")
+        ros = dict(zip(rest[cut + 1::2], rest[cut + 2::2], strict=True)) if "--params-file" in rest else {}
+        remaps = [a for flag, a in zip(rest[cut + 1::2], rest[cut + 2::2], strict=True) if flag == "-r"]
+        rules = dict(r.split(":=") for r in remaps)
+        params = (yaml.safe_load(Path(ros["--params-file"]).read_text())["/**"]["ros__parameters"]
+                  if "--params-file" in ros else {})
+        started.add((package, executable, rules.pop("__node"), rules.pop("__ns"), tuple(sorted(rules.items())),
+                     tuple(rest[:cut]), params.get("frame_prefix"), params.get("robot_description")))
+    launched = launched_nodes(launch_module, out=str(tmp_path / "launch"), namespace="robot1")
+    expected = {(n["package"], n["executable"], n["name"], n["namespace"], tuple(n["remaps"]), tuple(n["arguments"]),
+                 n["overrides"].get("frame_prefix"), n["overrides"].get("robot_description"))
+                for n in launched if n["package"] in ("robot_state_publisher", "tf2_ros")}
+    assert len(expected) == 4 and started == expected
+
+
+def test_run_pipeline_tf_without_a_ros_install_stops_at_start_saying_what_is_needed(tmp_path):
+    env = {**os.environ, "PATH": "/usr/bin:/bin"}  # no ros2 command
+    env.pop("_ROS_WHEELS_BOOTSTRAP_COMPLETE", None)
+    result = subprocess.run(["bash", str(SCRIPT), "--tf", "--out", str(tmp_path / "run")], env=env,
+                            capture_output=True, text=True, timeout=120)
+    assert result.returncode == 1
+    assert "--tf needs robot_state_publisher and tf2_ros" in result.stderr and "tf2_msgs" in result.stderr
+    assert not (tmp_path / "run").exists()  # nothing started
+    assert "Without it nothing publishes TF" in subprocess.run(["bash", str(SCRIPT), "--help"], capture_output=True,
+                                                               text=True, timeout=60).stdout

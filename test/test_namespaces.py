@@ -26,6 +26,9 @@ from ros_harness import ROOT, Probe, allocate_domain_id, release_domain_id, ros_
 
 from gwr_predictor.nodes import messages
 from gwr_predictor.nodes.messages import JointState
+from gwr_predictor.pipeline import bags
+from gwr_predictor.pipeline.message_latency import latency_report
+from gwr_predictor.pipeline.run_report import compute_report, read_run
 from gwr_predictor.robot.nao import ARM_JOINTS
 
 SCRIPT = ROOT / "scripts" / "run_pipeline.sh"
@@ -158,6 +161,34 @@ def test_two_namespaced_pipelines_share_a_domain_without_crossing(tmp_path):
         release_domain_id(domain)
     for ns, proc in pipelines.items():
         assert proc.returncode in (0, 130), f"{ns}: run_pipeline.sh exit code {proc.returncode}"
+        check_recording(tmp_path / ns.strip("/") / "bag", ns)
+
+
+def first_stamps(bag: Path, topic: str, n: int) -> list[float]:
+    """Source stamps of the first `n` messages recorded on a skeleton or angles topic."""
+    out = []
+    for m in bags.read_bag(bag, [topic]):
+        out.append(bags.joint_state_arrays(m.msg)[0] if m.msgtype == bags.JOINT_STATE else float(m.msg.data[0]))
+        if len(out) == n:
+            break
+    return out
+
+
+def check_recording(bag: Path, ns: str) -> None:
+    """Each pipeline's bag is read as that pipeline's by report and latency (its robots, its nodes only),
+    and it starts with the pipeline's first angle frame (the recorder heard the extractor before the first
+    skeleton went out): the median of the first 3 skeletons, stamped with the middle one."""
+    report = compute_report(read_run(bag))
+    assert report.namespace == ns and list(report.robots) == [ns, f"{ns}/uncompensated"]
+    assert report.robots[f"{ns}/uncompensated"]["mode"] == "none" and report.robots[ns]["mode"] != "none"
+    assert report.scored_predictions > 0
+    assert all(key.startswith(ns + "/") for key in report.rejected), report.rejected
+    latency = latency_report(bag)
+    assert latency.namespace == ns and "hop gwr_hierarchy" in latency.latencies
+    hop = next(c for c in latency.counts if c.topic == f"{ns}/arm_angles")
+    assert hop.publisher == f"{ns}/angle_extractor" and hop.published and not hop.concurrent
+    skeletons = first_stamps(bag, f"{ns}/skeleton", 3)
+    assert first_stamps(bag, f"{ns}/arm_angles", 1) == [skeletons[1]]
 
 
 # --- the content check itself, on made-up streams ---------------------------------------------------

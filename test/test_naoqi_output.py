@@ -189,3 +189,17 @@ def test_output_naoqi_without_the_message_package_stops_with_one_clear_line(ros)
     lines = [line for line in out.splitlines() if "naoqi_bridge_msgs" in line]
     assert len(lines) == 1 and "stopping: output 'naoqi' needs" in lines[0], out
     assert "Traceback" not in out
+
+
+def test_absurd_but_finite_predictions_are_rejected_with_a_warning_not_clipped(naoqi_compensator):
+    node, created = naoqi_compensator
+    now = node.now_s()
+    predictions = np.tile(DOWN, (6, 1))
+    predictions[3, 1] = 1e300  # finite, and no angle of a shoulder
+    node.on_predictions(messages.predictions_msg(now - 0.1, predictions))
+    assert node.counters.get("predictions.received") == 0
+    assert node.diagnostic_values()["rejected.predictions.out_of_range"] == 1
+    overshoot = np.tile(DOWN, (6, 1))
+    overshoot[5, 0] += 1.0  # past a limit by 1 rad: an extrapolation the robot's input clips
+    node.on_predictions(messages.predictions_msg(now - 0.05, overshoot))
+    assert node.counters.get("predictions.received") == 1 and not created["sent"]  # mode none commands no prediction

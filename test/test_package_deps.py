@@ -44,8 +44,11 @@ def runtime_imports() -> set[str]:
 
 
 def launched_packages() -> set[str]:
-    """Packages whose nodes a launch file starts (`package="..."` of its calls), other than this one."""
-    found: set[str] = set()
+    """Packages whose nodes a launch file starts (`package="..."` of its calls, and the TF nodes of
+    `pipeline/tf_plan.py` it and run_pipeline.sh --tf start), other than this one."""
+    from gwr_predictor.pipeline import tf_plan
+
+    found = {node.package for node in tf_plan.tf_nodes("<robot/>", "/")}
     for path in (ROOT / "launch").glob("*.py"):
         for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
             if isinstance(node, ast.Call):

@@ -2,7 +2,7 @@
 
 Reads the bag only (see gwr_predictor.pipeline.message_latency for the definitions): the recorder's receive time
 against the frame's source stamp, and each node's final /diagnostics counters against the messages
-recorded. Prints a table, writes latency.json next to the bag; exit code 1 if the bag is unreadable,
+recorded. Prints a table, writes latency.json into the run folder; exit code 1 if the bag is unreadable,
 3 if `--max-lost` is exceeded (for benchmark scripts).
 """
 
@@ -12,23 +12,24 @@ import argparse
 import sys
 from pathlib import Path
 
+from gwr_predictor.commands.run_folder import add_run_arguments, bag_and_folder
 from gwr_predictor.pipeline.bags import BagError
 from gwr_predictor.pipeline.message_latency import latency_report
 from gwr_predictor.user_files import write_output
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("run", type=Path, help="run folder holding bag/ (or a bag directory itself)")
+    add_run_arguments(parser)
     parser.add_argument("--out", type=Path, default=None, help="where latency.json goes (default: the run folder)")
     parser.add_argument("--max-lost", type=int, default=None,
                         help="fail (exit code 3) if more messages than this were lost")
 
 
 def run(args: argparse.Namespace) -> int:
-    bag = args.run / "bag" if (args.run / "bag").is_dir() else args.run
-    out = args.out or (args.run if bag != args.run else args.run.parent)
+    bag, folder = bag_and_folder(args.run)
+    out = args.out or folder
     try:
-        report = latency_report(bag)
+        report = latency_report(bag, args.namespace)
         path = write_output(out / "latency.json", report.to_json() + "\n", "latency report", BagError)
     except BagError as exc:
         print(f"error: {exc}", file=sys.stderr)

@@ -14,13 +14,14 @@ from pathlib import Path
 
 from tqdm import tqdm
 
+from gwr_predictor.commands.run_folder import add_run_arguments, bag_and_folder
 from gwr_predictor.errors import GwrPredictorError
 from gwr_predictor.pipeline.video import read_video_run, render_video
 from gwr_predictor.pipeline.video_files import default_suffix
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("run", type=Path, help="run folder holding bag/ (or a bag directory itself)")
+    add_run_arguments(parser)
     parser.add_argument("-o", "--out", type=Path, default=None,
                         help="video file, .mp4 or .gif (default: video.mp4 in the run folder; .gif without an encoder)")
     parser.add_argument("--seconds", default=None, metavar="A:B",
@@ -31,14 +32,13 @@ def configure(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    bag = args.run / "bag" if (args.run / "bag").is_dir() else args.run
-    folder = args.run if bag != args.run else args.run.parent
+    bag, folder = bag_and_folder(args.run)
     out = args.out or folder / f"video{default_suffix()}"
     fps = args.fps if args.fps is not None else (15.0 if out.suffix.lower() == ".gif" else 30.0)
     bar = tqdm(unit="frame", desc=f"rendering {out.name}", file=sys.stderr, disable=args.no_progress,
                mininterval=0.5, leave=False)
     try:
-        data = read_video_run(bag)
+        data = read_video_run(bag, args.namespace)
         for warning in data.warnings:
             bar.write(f"warning: {warning}", file=sys.stderr)
         stats = render_video(data, out, span=args.seconds, fps=fps, scale=args.scale,

@@ -31,6 +31,7 @@ import numpy as np
 
 from gwr_predictor.data.angles import arm_angles
 from gwr_predictor.data.errors import DataError
+from gwr_predictor.pipeline.conventions import MAX_JOINTS, MAX_NAME_CHARS
 from gwr_predictor.robot.nao import SIDES, clip_to_limits, rot_x, rot_y, rot_z
 
 #: REP-155's namespace of the bodies and its topics below it.
@@ -76,9 +77,23 @@ def ids_from_topics(topic_names: Iterable[str], namespace: str = BODIES_NAMESPAC
     return sorted({m.group(1) for t in topic_names if (m := pattern.fullmatch(t))})
 
 
+def check_frame(frame_id: str, body_id: str) -> None:
+    """A body's joint states name no frame, or one of that body's (REP-155 suffixes a body's frames with its id:
+    `body_<id>`, `torso_<id>`, ...): another body's frame means crossed topics (reason `frame_id`)."""
+    if frame_id and not frame_id.endswith(f"_{body_id}"):
+        raise HriBodiesError(f"frame {frame_id[:80]!r} is not a frame of body {body_id} (expected '' or "
+                             f"'<link>_{body_id}', e.g. 'body_{body_id}')", "frame_id")
+
+
 def body_arm_joints(names: Sequence[str], positions: np.ndarray, body_id: str) -> np.ndarray:
     """One body's JointState names and positions -> its 8 arm joint angles (rad) in `HUMAN_ARM_JOINTS`
-    order. Names are `<joint>_<id>` (hri_fullbody) or bare `<joint>`; the other joints are ignored."""
+    order. Names are `<joint>_<id>` (hri_fullbody) or bare `<joint>`; the other joints are ignored.
+    More than `MAX_JOINTS` names, or a name longer than `MAX_NAME_CHARS`, is refused before anything is
+    sized by them (reason `too_large`)."""
+    if len(names) > MAX_JOINTS:
+        raise HriBodiesError(f"{len(names)} joint names exceed the limit of {MAX_JOINTS}", "too_large")
+    if max(map(len, names), default=0) > MAX_NAME_CHARS:
+        raise HriBodiesError(f"a joint name longer than {MAX_NAME_CHARS} characters", "too_large")
     positions = np.asarray(positions, dtype=np.float64).ravel()
     if positions.size != len(names):
         raise HriBodiesError(f"{len(names)} joint names but {positions.size} positions", "layout")

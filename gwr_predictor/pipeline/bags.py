@@ -235,8 +235,7 @@ class BagWriter:
         if not topics:
             raise BagError(f"{self.path}: BagWriter needs at least one topic")
         for topic, msgtype in topics.items():
-            if msgtype not in TYPESTORE.types:
-                raise BagError(f"{self.path}: topic {topic!r} has type {msgtype!r}, unknown to the ROS 2 Jazzy store")
+            self._check_type(topic, msgtype)
         if isinstance(flush_every, bool) or not isinstance(flush_every, int) or flush_every < 0:
             raise BagError(f"{self.path}: flush_every must be an int >= 0, got {flush_every!r}")
         self.topics = dict(topics)
@@ -250,6 +249,16 @@ class BagWriter:
     @property
     def total_written(self) -> int:
         return sum(self.messages_written.values())
+
+    def _check_type(self, topic: str, msgtype: str) -> None:
+        if msgtype not in TYPESTORE.types:
+            raise BagError(f"{self.path}: topic {topic!r} has type {msgtype!r}, unknown to the ROS 2 Jazzy store")
+
+    def add_topic(self, topic: str, msgtype: str) -> None:
+        """Declare one more topic while writing: one that appeared after the start (a tracked body's)."""
+        self._check_type(topic, msgtype)
+        self.topics.setdefault(topic, msgtype)
+        self.messages_written.setdefault(topic, 0)
 
     def __enter__(self) -> BagWriter:
         self.open()

@@ -167,6 +167,26 @@ class ArmAnglesGate:
         return self._stamps.last
 
 
+# --- predictions ----------------------------------------------------------------------------------
+
+#: A predicted angle beyond its joint's limit by more than this (rad, half a turn) is no pose of that arm: a
+#: predictor gone wrong. Closer overshoots are normal (a linear extrapolation past a limit) and are clipped
+#: by the robot's input.
+PREDICTION_MARGIN_RAD = np.pi
+
+
+def absurd_predictions(predictions: np.ndarray, names: tuple[str, ...] = ARM_JOINTS,
+                       margin: float = PREDICTION_MARGIN_RAD) -> str | None:
+    """Why finite predictions (horizon x joints, in `names` order) cannot be poses, or None if they can."""
+    lo, hi = limits_array(names)
+    beyond = np.maximum(lo - margin - predictions, predictions - hi - margin)
+    if not np.any(beyond > 0.0):
+        return None
+    step, joint = (int(i) for i in np.unravel_index(int(np.argmax(beyond)), beyond.shape))
+    return (f"{names[joint]} at step {step + 1} predicted {predictions[step, joint]:.3g} rad, beyond its limits "
+            f"[{lo[joint]:.3f}, {hi[joint]:.3f}] by more than {margin:.3g} rad")
+
+
 # --- gaps and order -------------------------------------------------------------------------------
 
 

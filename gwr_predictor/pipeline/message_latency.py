@@ -37,7 +37,7 @@ from typing import Any
 import numpy as np
 
 from gwr_predictor.json_safe import to_jsonable
-from gwr_predictor.pipeline import bags, conventions
+from gwr_predictor.pipeline import bags, conventions, namespaces
 
 #: Percentiles reported for every latency.
 PERCENTILES = (50, 90, 99)
@@ -117,6 +117,7 @@ class LatencyReport:
     latencies: dict[str, LatencyStats] = field(default_factory=dict)
     counts: list[HopCount] = field(default_factory=list)
     undecodable: dict[str, int] = field(default_factory=dict)  # {topic: messages skipped}
+    namespace: str = ""  # the pipeline's ("" = root)
 
     @property
     def total_lost(self) -> int:
@@ -129,6 +130,7 @@ class LatencyReport:
     def to_dict(self) -> dict[str, Any]:
         return {
             "bag": str(self.bag),
+            "namespace": self.namespace,
             "duration_s": round(self.duration_s, 3),
             "latency_ms": {k: v.as_ms() for k, v in self.latencies.items()},
             "counts": [{"topic": c.topic, "publisher": c.publisher, "published": c.published,
@@ -144,7 +146,8 @@ class LatencyReport:
         return json.dumps(to_jsonable(self.to_dict()), indent=2)
 
     def summary_lines(self) -> list[str]:
-        lines = [f"bag {self.bag}: {self.duration_s:.1f} s",
+        lines = [f"bag {self.bag}" + (f" (pipeline {self.namespace})" if self.namespace else "")
+                 + f": {self.duration_s:.1f} s",
                  f"{'latency (ms)':<46}{'n':>7}{'p50':>9}{'p90':>9}{'p99':>9}{'max':>9}"]
         for name, s in self.latencies.items():
             lines.append(f"{name:<46}{s.n:>7}{1e3 * s.p50:>9.2f}{1e3 * s.p90:>9.2f}{1e3 * s.p99:>9.2f}"
@@ -271,10 +274,14 @@ def command_hop(predictions: TopicSeries, commands: TopicSeries, frame_period_s:
     return c_stamp[nearest[ok]] - p_recv[ok], c_recv[nearest[ok]] - p_stamp[ok]
 
 
-def compute_latencies(series: Mapping[str, TopicSeries], namespace: str = "") -> dict[str, LatencyStats]:
-    """Every latency of the module docstring that the bag has the topics for."""
-    def topic(name: str, ns: str = "") -> TopicSeries | None:
+def compute_latencies(series: Mapping[str, TopicSeries], namespace: str | None = None,
+                      pipeline: str = "") -> dict[str, LatencyStats]:
+    """Every latency of the module docstring that the bag has the topics for, in the pipeline of namespace
+    `pipeline`; the robot's topics in `namespace` (default: the pipeline's)."""
+    def topic(name: str, ns: str = pipeline) -> TopicSeries | None:
         return series.get(f"{ns}/{name}")
+
+    namespace = pipeline if namespace is None else namespace
 
     empty = TopicSeries(np.zeros(0), np.zeros(0))
     skel = topic(conventions.TOPIC_SKELETON) or empty
@@ -358,16 +365,23 @@ def _sum_final(insts: list[list[Snapshot]], *keys: str, prefix: str | None = Non
     return sum(_count(g[-1][1], *keys, prefix=prefix) or 0 for g in insts) if insts else None
 
 
-def hop_counts(series: Mapping[str, TopicSeries], history: DiagnosticsHistory, namespace: str = "") -> list[HopCount]:
+def hop_counts(series: Mapping[str, TopicSeries], history: DiagnosticsHistory, namespace: str | None = None,
+               pipeline: str = "") -> list[HopCount]:
     """Published (publishers' final counters) vs recorded (bag) vs consumed (consumers' final counters).
 
     A node restarted during the run counts with every instance (each one's final counters; the
     recorder's count over the time each one ran, from its first /diagnostics on). Two instances of
     one node at the same time (two pipelines sharing a domain) mix their streams: nothing tells
     which message came from which, so the consumer's loss is not computed (None) and the hop is
-    marked `concurrent`.
+    marked `concurrent`. The hops are those of the pipeline in namespace `pipeline`; with a robot
+    `namespace` other than the pipeline's, only that robot's hops (commands and states).
     """
     split = {name: instances(snaps) for name, snaps in history.items()}
+    robot_only = namespace is not None and namespace != pipeline
+    namespace = pipeline if namespace is None else namespace
+
+    def own(name: str) -> str:  # the root pipeline's node names stay as they were printed (relative)
+        return namespaces.in_pipeline(pipeline, name) if pipeline else name
 
     def consumed(consumer: str, *keys: str, prefix: str) -> tuple[int | None, int, bool]:
         insts = split.get(_fq(consumer), [])
@@ -392,20 +406,20 @@ def hop_counts(series: Mapping[str, TopicSeries], history: DiagnosticsHistory, n
 
     comp, sim = f"{namespace}/delay_compensator", f"{namespace}/nao_sim"
     counts = [
-        hop("/skeleton", "skeleton_source", "frames.published", "angle_extractor",
-            consumed("angle_extractor", "skeleton.accepted", prefix="rejected.skeleton.")),
-        hop("/arm_angles", "angle_extractor", "angles.published", "gwr_hierarchy",
-            consumed("gwr_hierarchy", "frames.learned", "frames.seen", prefix="rejected.arm_angles.")),
-        hop("/arm_angles", "angle_extractor", "angles.published", comp,
+        hop(f"{pipeline}/skeleton", own("skeleton_source"), "frames.published", own("angle_extractor"),
+            consumed(own("angle_extractor"), "skeleton.accepted", prefix="rejected.skeleton.")),
+        hop(f"{pipeline}/arm_angles", own("angle_extractor"), "angles.published", own("gwr_hierarchy"),
+            consumed(own("gwr_hierarchy"), "frames.learned", "frames.seen", prefix="rejected.arm_angles.")),
+        hop(f"{pipeline}/arm_angles", own("angle_extractor"), "angles.published", comp,
             consumed(comp, "arm_angles.received", prefix="rejected.arm_angles.")),
-        hop("/predictions", "gwr_hierarchy", "predictions.published", comp,
+        hop(f"{pipeline}/predictions", own("gwr_hierarchy"), "predictions.published", comp,
             consumed(comp, "predictions.received", prefix="rejected.predictions.")),
-        hop("/predicted_angles", "gwr_hierarchy", "predictions.published"),
+        hop(f"{pipeline}/predicted_angles", own("gwr_hierarchy"), "predictions.published"),
         hop(f"{namespace}/joint_commands", comp, "commands.published", sim,
             consumed(sim, "commands.accepted", prefix="rejected.joint_commands.")),
         hop(f"{namespace}/joint_states", sim, "states.published"),
     ]
-    if namespace:  # the angles and predictions hops belong to the main pipeline
+    if robot_only:  # the angles and predictions hops belong to the pipeline's own robot
         counts = [c for c in counts if c.topic.startswith(namespace + "/")]
     return [c for c in counts if c.published is not None or c.recorded]
 
@@ -414,11 +428,15 @@ def _fq(name: str) -> str:
     return name if name.startswith("/") else "/" + name
 
 
-def latency_report(bag: str | os.PathLike[str]) -> LatencyReport:
-    """Read a pipeline bag and compute latencies and message counts. Raises bags.BagError."""
+def latency_report(bag: str | os.PathLike[str], namespace: str | None = None) -> LatencyReport:
+    """Read a pipeline bag and compute latencies and message counts of the pipeline in `namespace` (by
+    default the bag's only one). Raises bags.BagError."""
     series, diagnostics, duration, undecodable = read_series(bag)
-    report = LatencyReport(Path(bag), duration, compute_latencies(series), hop_counts(series, diagnostics),
-                           undecodable=undecodable)
-    if "/uncompensated/joint_commands" in series:
-        report.counts += hop_counts(series, diagnostics, "/uncompensated")
+    pipeline = namespaces.choose_pipeline(series, namespace, bag)
+    report = LatencyReport(Path(bag), duration, compute_latencies(series, pipeline=pipeline),
+                           hop_counts(series, diagnostics, pipeline=pipeline), undecodable=undecodable,
+                           namespace=pipeline)
+    baseline = namespaces.in_pipeline(pipeline, "uncompensated")
+    if f"{baseline}/{conventions.TOPIC_COMMAND}" in series:
+        report.counts += hop_counts(series, diagnostics, baseline, pipeline)
     return report

@@ -11,8 +11,10 @@ Definitions (all times are the stamps inside the messages, one clock):
 - robot lag: the time shift that best aligns a robot's /joint_states (resampled on a `dt` grid)
   with the person's /arm_angles (linear between frames, NaN across gaps > max_gap_s);
   `lag.estimate_lag`. Tracking MAE is the unshifted mean |robot - person| on the same grid.
-- robots: every recorded `<namespace>/joint_states`; the compensator mode of each namespace is
-  read from its delay_compensator's /diagnostics ("mode").
+- robots: every recorded `<namespace>/joint_states` in the pipeline's namespace or below it; the
+  compensator mode of each namespace is read from its delay_compensator's /diagnostics ("mode").
+- pipeline: a bag of `run_pipeline.sh --namespace NS` holds `/NS/arm_angles`, ...; the bag's only
+  pipeline is read, or the one named (`namespaces.choose_pipeline`), and only its nodes' /diagnostics.
 """
 
 from __future__ import annotations
@@ -26,7 +28,7 @@ from typing import Any
 import numpy as np
 
 from gwr_predictor.json_safe import to_jsonable
-from gwr_predictor.pipeline import bags, conventions
+from gwr_predictor.pipeline import bags, conventions, namespaces
 from gwr_predictor.pipeline.conventions import LayoutError
 from gwr_predictor.pipeline.errors import PipelineError
 from gwr_predictor.robot.nao import ARM_JOINTS
@@ -62,6 +64,8 @@ class RunData:
     wrong_types: dict[str, tuple[str, str]] = field(default_factory=dict)
     #: one line each: what was skipped and why (the commands print them as warnings)
     warnings: list[str] = field(default_factory=list)
+    #: the pipeline's namespace ("" = root): its topics are `<namespace>/arm_angles`, ...
+    namespace: str = ""
 
 
 @dataclass
@@ -81,6 +85,7 @@ class PipelineReport:
     neurons: dict[str, int] = field(default_factory=dict)
     learner: dict[str, str] = field(default_factory=dict)
     rejected: dict[str, int] = field(default_factory=dict)
+    namespace: str = ""
 
     def to_json(self) -> str:
         return json.dumps(to_jsonable(asdict(self)), indent=2, sort_keys=False)
@@ -88,7 +93,8 @@ class PipelineReport:
     def summary_lines(self) -> list[str]:
         h_ms = round(self.horizon * self.frame_period_s * 1000)
         lines = [
-            f"bag {self.bag}: {self.duration_s:.1f} s, "
+            f"bag {self.bag}" + (f" (pipeline {self.namespace})" if self.namespace else "")
+            + f": {self.duration_s:.1f} s, "
             + ", ".join(f"{t} {n}" for t, n in sorted(self.message_counts.items()) if n),
             f"prediction error at {h_ms} ms ({self.horizon} frames): MAE {self.prediction_mae_rad:.4f} rad over "
             f"{self.scored_predictions} predictions (holding the last frame instead: {self.hold_mae_rad:.4f} rad)",
@@ -124,19 +130,14 @@ def _series(rows: list[tuple[float, np.ndarray]]) -> Series:
     return Series(np.array([r[0] for r in rows]), np.vstack([r[1] for r in rows]))
 
 
-def _namespace(topic: str, base: str) -> str | None:
-    """'/uncompensated/joint_states' -> '/uncompensated'; '/joint_states' -> ''; other topics None."""
-    if topic == "/" + base:
-        return ""
-    if topic.endswith("/" + base):
-        return topic[: -len(base) - 1]
-    return None
+_namespace = namespaces.split_topic  # '/uncompensated/joint_states' -> '/uncompensated'; '/joint_states' -> ''
 
 
-def expected_type(topic: str) -> str | None:
-    """The message type the report and the video read `topic` as, None for a topic they do not read."""
+def expected_type(topic: str, pipeline: str = "") -> str | None:
+    """The message type the report and the video read `topic` as (in the pipeline of namespace `pipeline`),
+    None for a topic they do not read."""
     for base in (conventions.TOPIC_ANGLES, conventions.TOPIC_PREDICTIONS, conventions.TOPIC_SKELETON):
-        if topic == "/" + base:
+        if topic == namespaces.in_pipeline(pipeline, base):
             return conventions.TOPIC_TYPES[base]
     for base in (conventions.TOPIC_ROBOT_STATE, conventions.TOPIC_LEARNER_STATUS, conventions.TOPIC_DIAGNOSTICS):
         if _namespace(topic, base) is not None:
@@ -157,10 +158,12 @@ def _counter(value: str) -> int | None:
     return int(number) if math.isfinite(number) else None
 
 
-def read_run(bag: str | Path) -> RunData:
-    """Read the topics a report needs from a pipeline bag. Raises bags.BagError / BagSummaryError."""
+def read_run(bag: str | Path, namespace: str | None = None) -> RunData:
+    """Read the topics a report needs from a pipeline bag: the pipeline in `namespace` (e.g. "/robot1"), by
+    default the bag's only one. Raises bags.BagError / BagSummaryError."""
     bag = Path(bag)
     info = bags.bag_info(bag)
+    pipeline = namespaces.choose_pipeline([t for t, (_, n) in info.topics.items() if n], namespace, bag)
     person: list[tuple[float, np.ndarray]] = []
     pred_t: list[float] = []
     preds: list[np.ndarray] = []
@@ -168,14 +171,15 @@ def read_run(bag: str | Path) -> RunData:
     modes: dict[str, str] = {}
     learner: dict[str, str] = {}
     diagnostics: dict[str, dict[str, str]] = {}
-    angles_topic = "/" + conventions.TOPIC_ANGLES
-    preds_topic = "/" + conventions.TOPIC_PREDICTIONS
+    angles_topic = namespaces.in_pipeline(pipeline, conventions.TOPIC_ANGLES)
+    preds_topic = namespaces.in_pipeline(pipeline, conventions.TOPIC_PREDICTIONS)
+    learner_topic = namespaces.in_pipeline(pipeline, conventions.TOPIC_LEARNER_STATUS)
     undecodable: dict[str, int] = {}
     read: dict[str, int] = {}
     wrong: dict[str, tuple[str, str]] = {}
     for m in bags.read_bag(bag, undecodable=undecodable):
         read[m.topic] = read.get(m.topic, 0) + 1
-        expected = expected_type(m.topic)
+        expected = expected_type(m.topic, pipeline)
         if expected is not None and m.msgtype != expected:
             wrong.setdefault(m.topic, (expected, m.msgtype))
             continue
@@ -195,14 +199,15 @@ def read_run(bag: str | Path) -> RunData:
                 preds.append(p)
         elif (ns := _namespace(m.topic, conventions.TOPIC_ROBOT_STATE)) is not None:
             row = _arm_vector(m.msg)
-            if row is not None:
+            if row is not None and namespaces.within(ns, pipeline):
                 robots.setdefault(ns, []).append(row)
-        elif m.topic.endswith("/" + conventions.TOPIC_LEARNER_STATUS):
+        elif m.topic == learner_topic or (not pipeline and m.topic.endswith("/" + conventions.TOPIC_LEARNER_STATUS)):
             for status in m.msg.status:
                 learner = {kv.key: kv.value for kv in status.values}
         elif m.topic.endswith("/" + conventions.TOPIC_DIAGNOSTICS):
-            for status in m.msg.status:
-                diagnostics[status.name] = {kv.key: kv.value for kv in status.values}
+            for status in m.msg.status:  # /diagnostics is global: only this pipeline's nodes
+                if namespaces.within(status.name.rsplit("/", 1)[0], pipeline):
+                    diagnostics[status.name] = {kv.key: kv.value for kv in status.values}
     for name, values in diagnostics.items():
         if name.endswith("/delay_compensator") and "mode" in values:
             modes[name[: -len("/delay_compensator")]] = values["mode"]
@@ -211,7 +216,7 @@ def read_run(bag: str | Path) -> RunData:
         raise BagSummaryError(f"{bag}: {wrong_type_text(angles_topic, *wrong[angles_topic])}; "
                               "the report cannot read the person's angles")
     warnings = [f"{bag}: {wrong_type_text(topic, *types)}; skipped" for topic, types in sorted(wrong.items())
-                if topic not in (preds_topic, "/" + conventions.TOPIC_SKELETON)]
+                if topic not in (preds_topic, namespaces.in_pipeline(pipeline, conventions.TOPIC_SKELETON))]
     rejected: dict[str, int] = {f"bag:undecodable.{t}": n for t, n in sorted(undecodable.items())}
     for name, values in diagnostics.items():
         for key, value in values.items():
@@ -235,6 +240,7 @@ def read_run(bag: str | Path) -> RunData:
         rejected=rejected,
         wrong_types=wrong,
         warnings=warnings,
+        namespace=pipeline,
     )
 
 
@@ -256,12 +262,12 @@ def match_frames(person: Series, targets: np.ndarray, tolerance: float) -> np.nd
 def prediction_errors(run: RunData, period: float) -> tuple[np.ndarray, float, int]:
     """(MAE per step (h,), hold-baseline MAE at h, predictions scored at h)."""
     n, h = run.predictions.shape[:2]
-    topic = "/" + conventions.TOPIC_PREDICTIONS
+    topic = namespaces.in_pipeline(run.namespace, conventions.TOPIC_PREDICTIONS)
     if n == 0 and topic in run.wrong_types:
         raise BagSummaryError(f"{run.bag}: {wrong_type_text(topic, *run.wrong_types[topic])}; "
                               "the report cannot read the predictions")
     if n == 0:
-        raise BagSummaryError(f"{run.bag}: no /predictions recorded")
+        raise BagSummaryError(f"{run.bag}: no {topic} recorded")
     mae = np.full(h, np.nan)
     for k in range(1, h + 1):
         idx = match_frames(run.person, run.predictions_t + k * period, 0.5 * period)
@@ -313,7 +319,8 @@ def compute_report(run: RunData, period: float = 1.0 / conventions.ANGLE_FPS, dt
                    max_lag_s: float = 1.5, max_gap_s: float = conventions.MAX_GAP_S) -> PipelineReport:
     """The report of a run (see the module docstring for the definitions)."""
     if run.person.t.size == 0:
-        raise BagSummaryError(f"{run.bag}: no /{conventions.TOPIC_ANGLES} recorded")
+        raise BagSummaryError(f"{run.bag}: no {namespaces.in_pipeline(run.namespace, conventions.TOPIC_ANGLES)} "
+                              "recorded")
     mae, hold, scored = prediction_errors(run, period)
     neurons = {layer: count for layer, key in conventions.NEURON_KEYS.items()
                if (count := _counter(run.learner.get(key, ""))) is not None}
@@ -322,7 +329,7 @@ def compute_report(run: RunData, period: float = 1.0 / conventions.ANGLE_FPS, dt
         frame_period_s=period, scored_predictions=scored, prediction_mae_rad=float(mae[-1]),
         prediction_mae_per_step_rad=[float(v) for v in mae], hold_mae_rad=hold,
         robots={ns: robot_summary(run, ns, dt, max_lag_s, max_gap_s) for ns in run.robots},
-        neurons=neurons, learner=run.learner, rejected=run.rejected)
+        neurons=neurons, learner=run.learner, rejected=run.rejected, namespace=run.namespace)
 
 
 def plot_run(run: RunData, path: str | Path, seconds: float = 20.0, period: float = 1.0 / conventions.ANGLE_FPS

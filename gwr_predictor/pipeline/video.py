@@ -28,7 +28,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from gwr_predictor.pipeline import bags, conventions
+from gwr_predictor.pipeline import bags, conventions, namespaces
 from gwr_predictor.pipeline.conventions import LayoutError
 from gwr_predictor.pipeline.errors import PipelineError
 from gwr_predictor.pipeline.run_report import RunData, Series, read_run, resample, wrong_type_text
@@ -92,12 +92,12 @@ def robot_title(ns: str, mode: str) -> str:
     return f"{kind}{where}, mode {mode}"
 
 
-def _read_skeleton(bag: Path) -> tuple[np.ndarray, np.ndarray, tuple[str, ...]]:
+def _read_skeleton(bag: Path, pipeline: str = "") -> tuple[np.ndarray, np.ndarray, tuple[str, ...]]:
     stamps: list[float] = []
     frames: list[np.ndarray] = []
     names: tuple[str, ...] = ()
     expected = conventions.TOPIC_TYPES[conventions.TOPIC_SKELETON]
-    for m in bags.read_bag(bag, topics=["/" + conventions.TOPIC_SKELETON]):
+    for m in bags.read_bag(bag, topics=[namespaces.in_pipeline(pipeline, conventions.TOPIC_SKELETON)]):
         if m.msg is None or m.msgtype != expected:
             continue  # another type: read_run reported it
         try:
@@ -122,21 +122,24 @@ def video_run(run: RunData, skeleton: tuple[np.ndarray, np.ndarray, tuple[str, .
         raise VideoError(f"{run.bag}: no robot in the bag (no <namespace>/{conventions.TOPIC_ROBOT_STATE} with the "
                          f"8 arm joints); it holds: {topics}")
     if run.person.t.size < 2:
-        raise VideoError(f"{run.bag}: fewer than 2 /{conventions.TOPIC_ANGLES} frames (the person's angles); "
+        raise VideoError(f"{run.bag}: fewer than 2 {namespaces.in_pipeline(run.namespace, conventions.TOPIC_ANGLES)} "
+                         "frames (the person's angles); "
                          f"it holds: {topics}")
     modes = {ns: run.modes.get(ns, "unknown") for ns in run.robots}
     order = sorted((ns for ns, r in run.robots.items() if r.t.size), key=lambda ns: (modes[ns] == "none", ns))
     st, sk, names = skeleton if skeleton is not None else (np.zeros(0), np.zeros((0, 0, 3)), ())
     skipped = [f"{run.bag}: {wrong_type_text(topic, *types)}; skipped" for topic, types in run.wrong_types.items()
-               if topic == "/" + conventions.TOPIC_SKELETON]
+               if topic == namespaces.in_pipeline(run.namespace, conventions.TOPIC_SKELETON)]
     return VideoRun(run.bag, run.person, {ns: run.robots[ns] for ns in order}, modes, st, sk, names,
                     [*run.warnings, *skipped])
 
 
-def read_video_run(bag: str | Path) -> VideoRun:
-    """Read what a video needs from a pipeline bag. Raises bags.BagError / VideoError."""
+def read_video_run(bag: str | Path, namespace: str | None = None) -> VideoRun:
+    """Read what a video needs from a pipeline bag (the pipeline in `namespace`, by default the bag's only
+    one). Raises bags.BagError / VideoError."""
     bag = Path(bag)
-    return video_run(read_run(bag), _read_skeleton(bag))
+    run = read_run(bag, namespace)
+    return video_run(run, _read_skeleton(bag, run.namespace))
 
 
 def parse_span(text: str | None, duration_s: float) -> tuple[float, float]:
