@@ -26,7 +26,7 @@ def stream() -> list[np.ndarray]:
     phase = np.linspace(0.0, 1.0, 8)
 
     def performance(speed: float, size: float, pause: int, shape: float) -> np.ndarray:
-        t = np.linspace(0.0, 1.0, int(round(30 / speed)))[:, None]
+        t = np.linspace(0.0, 1.0, round(30 / speed))[:, None]
         move = size * (0.6 * np.sin(np.pi * t) ** 2 * np.cos(shape * phase) + 0.2 * np.sin(2 * np.pi * (t + phase)))
         rest = np.repeat(move[:1], pause, axis=0)
         return np.concatenate([rest, move])
