@@ -239,7 +239,7 @@ class DelayCompensatorNode(PipelineNode):
 
     def stated_interval(self) -> tuple[np.ndarray, np.ndarray] | None:
         """The interval stated with the current predictions (same stamp), if it arrived."""
-        if self.params["spread_shrink"] <= 0 or self.pred_stamp is None:
+        if self.params["spread_shrink"] <= 0 or self.pred_stamp is None or self.params["mode"] == "none":
             return None
         if self.interval is None or abs(self.interval[0] - self.pred_stamp) > 1e-6:
             self.counters.count("interval.missing")

@@ -217,16 +217,24 @@ def unpack_predictions(packed: PackedArray) -> tuple[float, tuple[str, ...], np.
     dims = packed.dims
     if len(dims) != 2 or dims[0].label != HORIZON_LABEL:
         raise LayoutError(f"prediction layout must be [horizon, joint:...], got {[d.label[:20] for d in dims]}")
-    names = parse_joint_label(dims[1].label)
-    if dims[1].size != len(names):
-        raise LayoutError(f"joint dim size {dims[1].size} != {len(names)} names in its label")
-    h = dims[0].size
-    check_size("prediction rows (horizon)", h, MAX_HORIZON)
+    stamp, names, rows = _horizon_rows(packed, dims[0], dims[1], 1, "prediction")
+    return stamp, names, rows[0]
+
+
+def _horizon_rows(packed: PackedArray, horizon: ArrayDim, joints: ArrayDim, planes: int, what: str
+                  ) -> tuple[float, tuple[str, ...], np.ndarray]:
+    """(stamp, joint names, the values as (planes, horizon, joints)) of an array whose last two dims are a
+    horizon and labelled joints, after checking both against the data. Raises LayoutError."""
+    names = parse_joint_label(joints.label)
+    if joints.size != len(names):
+        raise LayoutError(f"joint dim size {joints.size} != {len(names)} names in its label")
+    h = horizon.size
+    check_size(f"{what} rows (horizon)", h, MAX_HORIZON)
     data = np.asarray(packed.data, dtype=np.float64)
-    if packed.data_offset != 1 or data.size != 1 + h * len(names) or h < 1:
-        raise LayoutError(f"expected data_offset 1 and {1 + h * len(names)} values, got "
-                          f"{packed.data_offset} and {data.size}")
-    return float(data[0]), names, data[1:].reshape(h, len(names))
+    expected = 1 + planes * h * len(names)
+    if packed.data_offset != 1 or data.size != expected or h < 1:
+        raise LayoutError(f"expected data_offset 1 and {expected} values, got {packed.data_offset} and {data.size}")
+    return float(data[0]), names, data[1:].reshape(planes, h, len(names))
 
 
 def pack_interval(stamp: float, lower: np.ndarray, upper: np.ndarray, nominal: float,
@@ -258,17 +266,8 @@ def unpack_interval(packed: PackedArray) -> tuple[float, tuple[str, ...], float,
         raise LayoutError(f"interval label {dims[0].label[:40]!r} does not state a share") from None
     if not 0.0 < nominal < 1.0 or dims[0].size != 2:
         raise LayoutError(f"an interval has 2 bounds and a share in (0, 1), got {dims[0].size} and {nominal}")
-    names = parse_joint_label(dims[2].label)
-    if dims[2].size != len(names):
-        raise LayoutError(f"joint dim size {dims[2].size} != {len(names)} names in its label")
-    h = dims[1].size
-    check_size("interval rows (horizon)", h, MAX_HORIZON)
-    data = np.asarray(packed.data, dtype=np.float64)
-    if packed.data_offset != 1 or data.size != 1 + 2 * h * len(names) or h < 1:
-        raise LayoutError(f"expected data_offset 1 and {1 + 2 * h * len(names)} values, got "
-                          f"{packed.data_offset} and {data.size}")
-    bounds = data[1:].reshape(2, h, len(names))
-    return float(data[0]), names, nominal, bounds[0], bounds[1]
+    stamp, names, bounds = _horizon_rows(packed, dims[1], dims[2], 2, "interval")
+    return stamp, names, nominal, bounds[0], bounds[1]
 
 
 # --- pipeline timing and QoS (used by the nodes in gwr_predictor.nodes) --------------------------
