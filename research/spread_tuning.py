@@ -280,6 +280,51 @@ def passes(s: Scores, nominal: float) -> bool:
     return bool(pooled and first and demo)
 
 
+class Replayed:
+    """The default's recorded predictions of one sequence, in order, each with the interval the default's
+    spread (`params`) states for it: what the closed loop's compensator receives, without running the model."""
+
+    def __init__(self, seq: Recorded, params: SpreadParams) -> None:
+        self.seq, self.spread, self.t = seq, Spread(params), 0
+
+    @property
+    def interval_nominal(self) -> float:
+        return self.spread.nominal
+
+    def interval(self) -> tuple[np.ndarray, np.ndarray] | None:
+        return self.spread.interval()
+
+    def step(self, x: np.ndarray | None, learn: bool = True) -> np.ndarray | None:
+        pred = self.seq.preds["gwr_experts"][self.t]
+        pred = None if np.isnan(pred).all() else pred
+        self.spread.step(x, pred, int(self.seq.groups[self.t]))
+        self.t += 1
+        return pred
+
+    def reset_sequence(self) -> None:
+        self.t = 0
+        self.spread.reset_sequence()
+
+
+def closed_loop(shrinks: Sequence[float], delays: Sequence[float] = (0.3, 0.6), skip_s: float = 2.0
+                ) -> dict[str, Any]:
+    """The compensator's `spread_shrink` on the tuning streams: the offline closed loop (guarded at the true
+    delay) on the default's recorded predictions with its spread's intervals; tracking MAE and lag per
+    stream, delay and setting (0: the option off)."""
+    from gwr_predictor.robot.closed_loop import run_closed_loop
+
+    rows = []
+    for run in recordings():
+        for seq in run.branches.get("stream", []):
+            for delay in delays:
+                for c in shrinks:
+                    res = run_closed_loop(seq.x, Replayed(seq, SpreadParams()), delay_s=delay, compensation="guarded",
+                                          spread_shrink=c)
+                    rows.append({"stream": run.name, "delay_s": delay, "spread_shrink": c,
+                                 "mae": res.errors(skip_s=skip_s)["mae"], "lag_s": res.lag_s(skip_s=skip_s)})
+    return {"rows": rows}
+
+
 def _job(job: tuple[str, str]) -> tuple[str, str, dict[str, Any]]:
     variant, method = job
     return variant, method, summary(score(recordings(), maker(VARIANTS[variant]), method))
