@@ -232,6 +232,7 @@ class ACISpread(Spread):
         q = np.where((n >= 10) & np.isfinite(q), q, self.params.initial)
         self._q_due = self._q_pending.take(self._t)[0].copy()
         self.log_q[...] = 0.0  # the base files the scale alone
+        self._q[...] = 1.0
         super().step(x, prediction, group)
         if prediction is not None:
             self._q_pending.file(self._t - 1, q[group])

@@ -124,7 +124,10 @@ class Spread(Checkpointed):
         self._pending = PendingPredictions(p.horizon, p.joints, lead=(3,))
         self._filed = np.empty((3, *shape))  # scratch of `step`
         self._t = 0
-        self._miss = 1.0 - p.nominal  # the share of misses the tracker aims at
+        miss = 1.0 - p.nominal  # the share of misses the tracker aims at
+        # a miss moves log q up by rate (1 - share of misses), a hit down by rate x that share
+        self._up, self._down = (1.0 - miss) * p.rate, (0.0 - miss) * p.rate
+        self._q = np.exp(self.log_q)  # the multipliers themselves, refreshed when log q moves
         self._group_ids = np.arange(p.groups, dtype=float)[:, None]
         self._motion = (p.motion_weight * np.arange(1, p.horizon + 1, dtype=float) ** 2)[:, None]  # w k^2
 
@@ -162,15 +165,16 @@ class Spread(Checkpointed):
         half = filed[_HALF]  # the scale s, then q s
         np.add(self.err_sum, p.error_prior, out=half)
         half /= self.err_weight + 1.0
-        half *= p.error_weight
+        if p.error_weight != 1.0:
+            half *= p.error_weight
         if p.motion_weight:
             half += self._motion * self.speed ** 2
         half += p.floor ** 2
         np.sqrt(half, out=half)
-        half *= np.exp(self.log_q[group])
+        half *= self._q[group]
         filed[_PRED] = prediction[:p.horizon]
         filed[_GROUP] = group
-        finite = np.isfinite(filed[_PRED].sum())  # a row of NaN: a step the predictor has nothing for
+        finite = math.isfinite(filed[_PRED].sum())  # a row of NaN: a step the predictor has nothing for
         self._pending.file(self._t - 1, filed, True if finite else np.isfinite(filed[_PRED]).all(axis=1))
         np.subtract(filed[_PRED], half, out=self._bounds[0])
         np.add(filed[_PRED], half, out=self._bounds[1])
@@ -180,8 +184,7 @@ class Spread(Checkpointed):
         of each one's group, and the recent errors."""
         p = self.params
         resid = np.abs(obs - due[_PRED])  # (horizon, joints)
-        step = (resid > due[_HALF]) - self._miss  # a miss moves log q up by rate (1 - share), a hit down by rate share
-        step *= p.rate
+        step = np.where(resid > due[_HALF], self._up, self._down)
         resid *= resid
         member = self._group_ids == due[_GROUP, :, 0]  # (groups, horizon): which group each row was stated in
         if valid.all():  # the common case
@@ -194,9 +197,13 @@ class Spread(Checkpointed):
             self.err_sum *= decay
             self.err_weight *= decay
         self.log_q += member[:, :, None] * step
+        np.exp(self.log_q, out=self._q)
         self.err_sum += resid
         self.err_weight += valid[:, None]
         self.scored += member
+
+    def _load_extra(self, header: Mapping[str, Any], arrays: Mapping[str, np.ndarray]) -> None:
+        np.exp(self.log_q, out=self._q)
 
     def interval(self) -> tuple[np.ndarray, np.ndarray] | None:
         """(lower, upper), each (horizon, joints) rad, of the last prediction shown; None if it was none. Copies."""
@@ -204,7 +211,7 @@ class Spread(Checkpointed):
 
     def multipliers(self) -> np.ndarray:
         """(groups, horizon) the multiplier q of the scale, mean over joints, per group and step."""
-        return np.exp(self.log_q).mean(axis=2)
+        return self._q.mean(axis=2)
 
     def errors(self) -> dict[str, Any]:
         """The stated share, the multipliers per group and step and the residuals scored."""
