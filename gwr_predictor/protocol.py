@@ -2,7 +2,8 @@
 predictors among them that can be saved.
 
 The hierarchy, the flat P-GWR, the baselines and the blends all take one sample per frame and
-return their predictions for the next `horizon` frames, so the evaluation loop, the closed loop
+return their predictions for the next `horizon` frames (`Spreading`: those that also state an interval
+around each, the default and the baselines `hold` and `rls_ar`), so the evaluation loop, the closed loop
 with the simulated robot, the blend and the learner node can use any of them (the registry,
 `predictors/registry.py`, builds them by name).
 """
@@ -47,3 +48,18 @@ class Learner(Predictor, Protocol):
     def neuron_counts(self) -> tuple[int, ...] | None: ...
 
     def save(self, path: str | os.PathLike[str]) -> None: ...
+
+
+@runtime_checkable
+class Spreading(Predictor, Protocol):
+    """A predictor that states with every prediction how far off it may be: a central interval per horizon
+    step and joint that should hold the true angle on a share `interval_nominal` of its predictions.
+
+    `interval()`: (lower, upper), each (horizon, joints) rad, of the prediction the last `step` returned;
+    None where it returned none.
+    """
+
+    @property
+    def interval_nominal(self) -> float: ...
+
+    def interval(self) -> tuple[np.ndarray, np.ndarray] | None: ...

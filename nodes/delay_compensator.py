@@ -19,6 +19,11 @@ the robot is not sent through every stale pose. A node clock that jumps back bey
 (a looping replay) restarts the time line: command stamps follow the clock again, predictions, robot
 states and stamp rules of the old line are dropped (`clock_jumps.back`, with a warning).
 
+With `spread_shrink` > 0 it also reads `prediction_interval`, the interval the learner states with its
+predictions (published just before them, same stamp), and pulls each command towards the observation where
+that interval is wide (`compensator.py`); a prediction whose interval has not arrived is commanded as it is
+(`interval.missing`).
+
 `mode` and `delay_s` can change while it runs (`ros2 param set /delay_compensator delay_s 0.4`):
 the new compensator starts from the next command (the variable mode's history starts over).
 """
@@ -51,6 +56,7 @@ PARAMS = (
     compensator.PARAM_SPECS["guard_decay"],
     compensator.PARAM_SPECS["guard_margin"],
     compensator.PARAM_SPECS["guard_min_frames"],
+    compensator.PARAM_SPECS["spread_shrink"],
     ParamSpec("robot_state_timeout_s", 0.5, "a robot state older than this is ignored (variable mode)", 0.0, 3600.0),
     CLOCK_JUMP_SPEC,
     ParamSpec("output", "joint_state", "joint_state: JointState on joint_commands (nao_sim); joint_trajectory: "
@@ -80,6 +86,7 @@ class DelayCompensatorNode(PipelineNode):
         self.pred_stamps = self.stamp_check()
         self.robot_state: np.ndarray | None = None
         self.robot_state_time = -np.inf
+        self.interval: tuple[float, tuple[np.ndarray, np.ndarray]] | None = None  # (stamp, (lower, upper))
         self.obs_stamp: float | None = None
         self.fallback_sent_for: float | None = None  # the observation last commanded as a fallback
         self.command_stamps = CommandStamps(p["max_clock_jump_s"])
@@ -94,6 +101,9 @@ class DelayCompensatorNode(PipelineNode):
                                                               else (None, None, None))
         self.observation_sub = self.create_subscription(messages.JointState, conventions.TOPIC_ANGLES,
                                                         self.on_observation, stream_qos())
+        if p["spread_shrink"] > 0:  # subscribed before the predictions: a wait set ready for both serves it first
+            self.create_subscription(messages.Float64MultiArray, conventions.TOPIC_PREDICTION_INTERVAL,
+                                     self.on_interval, stream_qos())
         self.prediction_sub = self.create_subscription(messages.Float64MultiArray, conventions.TOPIC_PREDICTIONS,
                                                        self.on_predictions, stream_qos())
         self.create_subscription(messages.JointState, conventions.TOPIC_ROBOT_STATE, self.on_robot_state,
@@ -120,7 +130,7 @@ class DelayCompensatorNode(PipelineNode):
         p = self.params
         return compensator.DelayCompensator(params=compensator.CompensatorParams(
             mode, delay_s, p["frame_period_s"], p["stale_after_s"], guard_decay=p["guard_decay"],
-            guard_margin=p["guard_margin"], guard_min_frames=p["guard_min_frames"]))
+            guard_margin=p["guard_margin"], guard_min_frames=p["guard_min_frames"], spread_shrink=p["spread_shrink"]))
 
     def check_live(self, name: str, value: Any) -> None:
         if name in ("mode", "delay_s"):
@@ -152,7 +162,7 @@ class DelayCompensatorNode(PipelineNode):
             "command stamps, predictions and stamp rules start over on the new time line")
         self.compensator = self.make_compensator(self.params["mode"], self.params["delay_s"])
         self.observations = self.arm_gate("arm_angles")
-        self.predictions, self.pred_stamp = None, None
+        self.predictions, self.pred_stamp, self.interval = None, None, None
         self.pred_stamps.reset()
         self.robot_state, self.robot_state_time = None, -np.inf
 
@@ -218,6 +228,29 @@ class DelayCompensatorNode(PipelineNode):
             return None
         return stamp, preds
 
+    def on_interval(self, msg: messages.Float64MultiArray) -> None:
+        """The interval stated with the predictions of one frame: kept for the command those predictions make."""
+        try:
+            stamp, names, _, lower, upper = messages.read_interval(msg)
+            order = [names.index(n) for n in ARM_JOINTS]
+        except ValueError as exc:  # a LayoutError or an arm joint missing
+            self.counters.reject("prediction_interval.layout", str(exc))
+            return
+        if not (np.isfinite(lower).all() and np.isfinite(upper).all()):
+            self.counters.reject("prediction_interval.non_finite", "NaN or inf in the interval")
+            return
+        self.counters.count("prediction_interval.received")
+        self.interval = stamp, (lower[:, order], upper[:, order])
+
+    def stated_interval(self) -> tuple[np.ndarray, np.ndarray] | None:
+        """The interval stated with the current predictions (same stamp), if it arrived."""
+        if self.params["spread_shrink"] <= 0 or self.pred_stamp is None or self.params["mode"] == "none":
+            return None
+        if self.interval is None or abs(self.interval[0] - self.pred_stamp) > 1e-6:
+            self.counters.count("interval.missing")
+            return None
+        return self.interval[1]
+
     def fallback_if_stale(self) -> None:
         """Without a usable prediction (none yet, or the sequence ended), command the newest observation,
         once per observation, so that the robot does not hold a pose that was only predicted."""
@@ -246,7 +279,8 @@ class DelayCompensatorNode(PipelineNode):
         now = self.now_s()
         state = compensator.recent_state(self.robot_state, self.robot_state_time, now,
                                          self.params["robot_state_timeout_s"])
-        out = self.compensator.command(now, self.observation, self.predictions, self.pred_stamp, state)
+        out = self.compensator.command(now, self.observation, self.predictions, self.pred_stamp, state,
+                                       interval=self.stated_interval())
         if out.fallback_reason is not None:
             self.counters.count(f"fallback.{out.fallback_reason}")
             # normal at every sequence start (the learner needs a few frames), hence info, not warning

@@ -5,7 +5,11 @@ the paper: training never stops). Each step publishes P(t+1..t+h) on `prediction
 and the h-step prediction as a JointState on `predicted_angles` (stamped t + h * frame period);
 for standard tools also as a `trajectory_msgs/JointTrajectory` on `predicted_trajectory` (stamped t,
 points at t+1..t+h) and the predicted arm at t+h as a MarkerArray on `predicted_arm_markers`
-(frame `torso`, over the robot model, stamped with the node clock when published).
+(frame `torso`, over the robot model, stamped with the node clock when published). A predictor that
+states an interval with every prediction (the default) publishes it first, on `prediction_interval`
+(stamped t like the predictions it belongs to, its share in the layout), and with the standard outputs
+its bounds as two more JointTrajectory messages beside `predicted_trajectory`:
+`predicted_trajectory_lower` and `predicted_trajectory_upper` (same stamp, same point times).
 Missing frames inside a sequence are fed as missing samples, a gap longer than `max_gap_s` ends
 the sequence. The model is loaded from `checkpoint` at start and saved there atomically every
 `checkpoint_interval_s` and at shutdown; an unreadable checkpoint is moved aside, never overwritten.
@@ -56,6 +60,7 @@ from gwr_predictor.pipeline.markers import ROBOT_FRAME, arm_figure
 from gwr_predictor.pipeline.trajectory import prediction_trajectory
 from gwr_predictor.predictors import registry
 from gwr_predictor.predictors.registry import DEFAULT_PREDICTOR, learner_names, load_predictor, make_predictor
+from gwr_predictor.protocol import Spreading
 from gwr_predictor.robot.nao import ARM_JOINTS
 
 from . import messages, standard_messages
@@ -121,6 +126,7 @@ class GwrHierarchyNode(PipelineNode):
         self.pred_pub = self.create_publisher(messages.Float64MultiArray, conventions.TOPIC_PREDICTIONS, stream_qos())
         self.pred_angles_pub = self.create_publisher(messages.JointState, conventions.TOPIC_PREDICTED_ANGLES,
                                                      stream_qos())
+        self.interval_pubs = self.make_interval_publishers() if isinstance(self.model, Spreading) else None
         if p["standard_outputs"]:
             self.trajectory_pub = self.create_publisher(standard_messages.JointTrajectory,
                                                         conventions.TOPIC_PREDICTED_TRAJECTORY, stream_qos())
@@ -237,6 +243,8 @@ class GwrHierarchyNode(PipelineNode):
         self.counters.count("frames.learned" if self.params["learn"] else "frames.seen")
         if predictions is None:
             return
+        if self.interval_pubs is not None:  # first: a compensator using it then has it with the predictions
+            self.publish_interval(stamp)
         self.pred_pub.publish(messages.predictions_msg(stamp, predictions))
         self.pred_angles_pub.publish(messages.joint_state(stamp + self.horizon * self.params["frame_period_s"],
                                                           ARM_JOINTS, predictions[-1]))
@@ -249,6 +257,25 @@ class GwrHierarchyNode(PipelineNode):
                 arm_figure(predictions[-1]), (1.0, 0.5, 0.1, 0.9), lifetime_s=1.0, joint_size=0.025,
                 line_width=0.015))
         self.counters.count("predictions.published")
+
+    def make_interval_publishers(self) -> tuple[Any, ...]:
+        """The interval's custom array, and its JointTrajectory twins (lower, upper) with the standard outputs."""
+        pubs = [self.create_publisher(messages.Float64MultiArray, conventions.TOPIC_PREDICTION_INTERVAL, stream_qos())]
+        if self.params["standard_outputs"]:
+            pubs += [self.create_publisher(standard_messages.JointTrajectory, topic, stream_qos()) for topic in
+                     (conventions.TOPIC_PREDICTED_TRAJECTORY_LOWER, conventions.TOPIC_PREDICTED_TRAJECTORY_UPPER)]
+        return tuple(pubs)
+
+    def publish_interval(self, stamp: float) -> None:
+        """The interval the model stated with its last prediction (made at frame `stamp`)."""
+        assert self.interval_pubs is not None
+        stated = self.model.interval()  # type: ignore[union-attr]
+        if stated is None:
+            return
+        self.interval_pubs[0].publish(messages.interval_msg(stamp, *stated, self.model.interval_nominal))
+        for pub, bound in zip(self.interval_pubs[1:], stated, strict=False):
+            trajectory = prediction_trajectory(bound, self.params["frame_period_s"])
+            pub.publish(standard_messages.joint_trajectory(stamp, ARM_JOINTS, trajectory))
 
     def handle_gap(self, dt: float) -> None:
         """Missing frames (dt of several periods) keep the learner's step count in time; a long gap resets."""

@@ -77,6 +77,17 @@ def read_predictions(msg: Float64MultiArray) -> tuple[float, tuple[str, ...], np
     return conventions.unpack_predictions(from_multiarray(msg))
 
 
+def interval_msg(stamp: float, lower: np.ndarray, upper: np.ndarray, nominal: float,
+                 names: tuple[str, ...] = conventions.ARM_JOINTS) -> Float64MultiArray:
+    """The interval stated with the predictions made at frame `stamp` -> the labelled interval array."""
+    return to_multiarray(conventions.pack_interval(stamp, lower, upper, nominal, names))
+
+
+def read_interval(msg: Float64MultiArray) -> tuple[float, tuple[str, ...], float, np.ndarray, np.ndarray]:
+    """Interval array -> (stamp, joint names, stated share, lower, upper). Raises LayoutError."""
+    return conventions.unpack_interval(from_multiarray(msg))
+
+
 # --- JointState --------------------------------------------------------------------------------
 
 

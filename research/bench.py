@@ -13,6 +13,9 @@ Prints readable lines, then one JSON object as the last line:
   frames_per_s_default  the same for the node's default predictor (the gated experts: the network
                     grown on the stream to the size the data asks for, `neurons_default`, and the
                     snippet memory filled on it)
+  spread_us_default / spread_share_default  of the default's frames timed above, the time per frame
+                    in the interval it states with every prediction (`Spread.step`) and its share of
+                    the default's whole step
   default_vs_recursive  the default's speed over the recursive hierarchy's: median over chunks of
                     the ratio, each chunk timed on both back to back (in alternating order), so
                     that a load coming and going hits both alike (their separate runs do not)
@@ -118,17 +121,26 @@ def measure_against(reference: Any, model: Any, stream: np.ndarray, chunk: int) 
 
 
 def measure_default(reference: Hierarchy, stream: np.ndarray, frames: int,
-                    chunk: int) -> tuple[float, float, float, int]:
+                    chunk: int) -> tuple[float, float, float, int, float]:
     """(median, best) frames/s of the node's default predictor (the registry's), its speed over
-    `reference`'s (`measure_against`) and its neurons, after it learned the rest of `stream` first (it
-    grows to the size the data asks for)."""
+    `reference`'s (`measure_against`), its neurons, after it learned the rest of `stream` first (it
+    grows to the size the data asks for), and the seconds its spread took in the timed frames."""
     from gwr_predictor.predictors.registry import DEFAULT_PREDICTOR, make_predictor
 
     model = make_predictor(DEFAULT_PREDICTOR)
     for x in stream[frames:]:
         model.step(x)
+    spread, spent = model.spread, [0.0]  # type: ignore[attr-defined]
+    step = spread.step
+
+    def timed(*args: Any) -> None:
+        start = time.perf_counter()
+        step(*args)
+        spent[0] += time.perf_counter() - start
+
+    spread.step = timed
     fps, best, ratio = measure_against(reference, model, stream[:frames], chunk)
-    return fps, best, ratio, int(model.neuron_counts[0])
+    return fps, best, ratio, int(model.neuron_counts[0]), spent[0]
 
 
 def random_walk_stream(n_frames: int, seed: int = 0) -> np.ndarray:
@@ -272,12 +284,16 @@ def run(args: argparse.Namespace) -> int:
                          f"{1e6 / fps:.0f} us, of which {search:.0f} us in {sum(counts)} BMU products "
                          f"{counts}, {1e6 / fps - search:.0f} us the rest")
         if mode == "recursive":  # the default against this hierarchy, chunk by chunk
-            fps, best, ratio, neurons = measure_default(h, stream, frames, chunk)
+            fps, best, ratio, neurons, spread_s = measure_default(h, stream, frames, chunk)
+            spread_us = 1e6 * spread_s / frames
             result.update(frames_per_s_default=round(fps, 1), neurons_default=neurons,
-                          default_vs_recursive=round(ratio, 3))
+                          default_vs_recursive=round(ratio, 3), spread_us_default=round(spread_us, 1),
+                          spread_share_default=round(spread_us * fps / 1e6, 4))
             _log(args.quiet, f"default  : {fps:9.0f} frames/s learn+predict, gwr_experts (the node's default), "
                              f"{neurons} P-GWR neurons after the warm-up (best {best:.0f}); "
-                             f"{ratio:.3f}x the recursive hierarchy's speed (median of paired chunks)")
+                             f"{ratio:.3f}x the recursive hierarchy's speed (median of paired chunks); "
+                             f"its interval {spread_us:.1f} us per frame, {100 * spread_us * fps / 1e6:.1f} % of "
+                             "its step")
             reference = h  # for the full default, timed last (its memories would count in the peak RSS)
         del h
     result["frames_per_s"] = result[f"frames_per_s_{HierarchyParams().mode}"]

@@ -324,6 +324,22 @@ def test_experiment_repeats(tmp_path):
     assert r["default_method"] in r["pooled"] and len(r["learning_curve"]["hold"]) == cfg["repetitions"]
 
 
+def test_experiment_calibration(tmp_path):
+    """Demonstrator splits and repeated demonstrator stand-ins (no download): every method that states an
+    interval is scored per condition and step, near the stated share; the compensator option is measured."""
+    r, cfg = _run("calibration", tmp_path)
+    assert r["nominal"] == 0.8 and set(r["methods"]) == {*cfg["methods"], r["default_method"]}
+    for split in ("heldout_repetitions", "heldout_subjects"):
+        for learn in ("frozen", "online"):
+            per = r["demonstrator"][f"{split}/{learn}"]
+            assert set(per) == set(r["methods"])
+            assert all(abs(c - 0.8) < 0.1 for s in per.values() for c in s["coverage"])
+    per_performance = r["repeated"]["per_performance"][r["default_method"]]
+    assert len(per_performance) == cfg["performances"] and all(s["n"][-1] > 0 for s in per_performance)
+    loop = r["repeated"]["closed_loop"]
+    assert {x["spread_shrink"] for x in loop} == {0.0, *cfg["shrinks"]}
+
+
 def test_experiment_gate(tmp_path):
     """Every variant replays the same recorded model outputs: the ungated replay is the model itself,
     and the default gate stays within the band on every pattern learned from scratch."""
@@ -351,6 +367,14 @@ def test_evaluate_prints_a_json_last_line(tmp_path, capsys):
     assert all(len(v) == 4 for v in last["mae_rad"].values())
     assert last["frames"] == 2 * sum(len(s) for s in demo_angle_sequences(["wave_one"], 1, 2))
     assert len(last["neurons"]["hierarchy"]) == 3
+    # the methods that state an interval: its share, and per step how often it held the truth and how wide it was
+    assert last["interval_nominal"] == 0.8
+    assert set(last["interval_coverage"]) == set(last["interval_width_rad"]) == {"hold", "rls_ar", "gwr_experts"}
+    for m in last["interval_coverage"]:
+        assert len(last["interval_coverage"][m]) == len(last["interval_width_rad"][m]) == 4
+        assert all(0.6 < c < 0.95 for c in last["interval_coverage"][m])  # about the stated share, two short passes
+        width = last["interval_width_rad"][m]
+        assert 0.0 < width[0] and all(np.diff(width) > 0)  # wider the further ahead
 
 
 def test_evaluate_predicts_as_far_as_it_scores(tmp_path, capsys):

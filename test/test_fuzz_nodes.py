@@ -18,10 +18,9 @@ import time
 
 import numpy as np
 import pytest
-import rclpy
 from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
-from ros_harness import allocate_domain_id, release_domain_id
+from ros_harness import in_process
 
 from gwr_predictor.data.demonstrator import default_subjects, demonstrate_one
 from gwr_predictor.data.skeleton_files import SkeletonFileError, load_skeleton
@@ -48,21 +47,13 @@ def nodes():
     from gwr_predictor.nodes.gwr_hierarchy import GwrHierarchyNode
     from gwr_predictor.nodes.nao_sim import NaoSimNode
 
-    domain = allocate_domain_id()
-    rclpy.init(args=["--ros-args", "-p", "nao_sim:backend:=kinematic", "-p", "stop_if_duplicate:=false"],
-               domain_id=domain)
-    built = {"extractor": AngleExtractorNode(), "learner": GwrHierarchyNode(),
-             "compensator": DelayCompensatorNode(), "robot": NaoSimNode()}
-    sent: list = []
-    built["compensator"].command_pub.publish = sent.append  # capture the commands
-    built["compensator"].sent = sent
-    try:
+    with in_process(["-p", "nao_sim:backend:=kinematic", "-p", "stop_if_duplicate:=false"],
+                    extractor=AngleExtractorNode, learner=GwrHierarchyNode, compensator=DelayCompensatorNode,
+                    robot=NaoSimNode) as built:
+        sent: list = []
+        built["compensator"].command_pub.publish = sent.append  # capture the commands
+        built["compensator"].sent = sent
         yield built
-    finally:
-        for node in built.values():
-            node.destroy_node()
-        rclpy.try_shutdown()
-        release_domain_id(domain)
 
 
 # --- strategies --------------------------------------------------------------------------------

@@ -122,11 +122,15 @@ def test_restamping_moves_header_and_array_stamps_only():
     assert bags.deserialize(shift_stamp(preds, bags.FLOAT64_MULTIARRAY, 1.0), bags.FLOAT64_MULTIARRAY).data[0] == 11.25
 
 
-def write_synthetic_run(path, lag_s: float, mode: str = "none"):
+def write_synthetic_run(path, lag_s: float, mode: str = "none", interval_half: float = 0.0):
     """A bag as the pipeline would record it: a person moving sinusoidally (10 fps), perfect
-    predictions, and a robot (50 Hz) that follows the person `lag_s` late."""
+    predictions, and a robot (50 Hz) that follows the person `lag_s` late; with `interval_half` > 0 also
+    an 80 % interval that many rad either side of a prediction, centred on it at even frames (the truth
+    inside) and twice that above it at odd ones (the truth below it)."""
     topics = {"/arm_angles": bags.JOINT_STATE, "/predictions": bags.FLOAT64_MULTIARRAY,
               "/joint_states": bags.JOINT_STATE, "/diagnostics": "diagnostic_msgs/msg/DiagnosticArray"}
+    if interval_half:
+        topics["/prediction_interval"] = bags.FLOAT64_MULTIARRAY
 
     def person(t):
         return 0.8 + 0.5 * np.sin(2 * np.pi * 0.4 * np.asarray(t)[..., None] + np.arange(8))
@@ -139,6 +143,10 @@ def write_synthetic_run(path, lag_s: float, mode: str = "none"):
             future = person(t + 0.1 * np.arange(1, 7))
             writer.write("/predictions", int(t * 1e9),
                          bags.multiarray_msg(conventions.pack_predictions(t, future)))
+            if interval_half:
+                centre = future + (k % 2) * 2 * interval_half
+                writer.write("/prediction_interval", int(t * 1e9), bags.multiarray_msg(conventions.pack_interval(
+                    t, centre - interval_half, centre + interval_half, 0.8)))
         for k in range(1500):  # 30 s at 50 Hz
             t = t0 + 0.02 * k
             writer.write("/joint_states", int(t * 1e9), bags.joint_state_msg(ARM_JOINTS, person(t - lag_s), t))
@@ -168,6 +176,42 @@ def test_report_measures_a_known_lag_and_perfect_predictions(tmp_path):
     assert report.message_counts["/joint_states"] == 1500
     assert plot_run(run, tmp_path / "plot.png").stat().st_size > 10_000
     assert json.loads(report.to_json())["robots"][""]["lag_s"] == pytest.approx(0.5, abs=0.01)
+
+
+def test_report_scores_the_stated_interval_and_the_plot_shades_it(tmp_path, monkeypatch):
+    from gwr_predictor.pipeline import plotting
+    from gwr_predictor.pipeline.run_report import compute_report, plot_run, read_run
+
+    write_synthetic_run(tmp_path / "bag", lag_s=0.5, interval_half=0.05)
+    run = read_run(tmp_path / "bag")
+    report = compute_report(run)
+    assert report.interval_nominal == 0.8
+    np.testing.assert_allclose(report.interval_coverage_per_step, 0.5, atol=0.01)  # every other frame inside
+    np.testing.assert_allclose(report.interval_width_per_step_rad, 0.1)
+    assert any("stated 80 % interval" in line and "50.0 %" in line for line in report.summary_lines())
+    drawn = {}
+    monkeypatch.setattr(plotting, "plot_angle_series", lambda path, series, **kw: drawn.update(kw, series=series))
+    plot_run(run, tmp_path / "plot.png")
+    ((label, (of, t, lower, upper)),) = drawn["bands"].items()
+    assert "80 % interval" in label and of in drawn["series"] and of.startswith("prediction +600 ms")
+    np.testing.assert_allclose(t, drawn["series"][of][0])  # at the times the prediction is for
+    np.testing.assert_allclose(upper - lower, 0.1, atol=1e-9)
+
+
+def test_a_band_is_drawn_around_its_series(tmp_path):
+    from PIL import Image
+
+    from gwr_predictor.pipeline.plotting import plot_angle_series
+
+    t = np.linspace(0.0, 5.0, 50)
+    values = np.sin(t)[:, None] + np.arange(8)
+    series = {"prediction": (t, values)}
+    plain = plot_angle_series(tmp_path / "plain.png", series)
+    banded = plot_angle_series(tmp_path / "banded.png", series,
+                               bands={"its interval": ("prediction", t, values - 0.3, values + 0.3)})
+    with Image.open(plain) as a, Image.open(banded) as b:
+        differ = np.abs(np.asarray(a.convert("L"), float) - np.asarray(b.convert("L"), float)) > 10
+    assert differ.mean() > 0.02  # a visible shaded area, not a legend entry alone
 
 
 def test_report_command_writes_json_and_plot_next_to_the_bag(tmp_path, capsys):

@@ -107,6 +107,8 @@ def test_learner_publishes_its_predictions_as_a_joint_trajectory_and_the_predict
     preds = probe.subscribe("/predictions", Float64MultiArray)
     trajectories = probe.subscribe("/predicted_trajectory", JointTrajectory)
     arm = probe.subscribe("/predicted_arm_markers", MarkerArray)
+    intervals = probe.subscribe("/prediction_interval", Float64MultiArray)
+    bounds = [probe.subscribe(f"/predicted_trajectory_{b}", JointTrajectory) for b in ("lower", "upper")]
     learner = ros.start("gwr_hierarchy", params={**FAST, "checkpoint_interval_s": 0.0})
     ros.wait_for_node(diagnostics, "/gwr_hierarchy", timeout=60)
     pub = probe.publisher("/arm_angles", JointState)
@@ -115,8 +117,18 @@ def test_learner_publishes_its_predictions_as_a_joint_trajectory_and_the_predict
     for i in range(n):
         pub.publish(messages.joint_state(100.0 + 0.1 * i, ARM_JOINTS, POSE + 0.15 * np.sin(0.3 * i + np.arange(8))))
         probe.spin_for(0.01)
-    probe.spin_until(lambda: len(preds) >= n - 10 and len(trajectories) == len(preds) and len(arm) == len(preds),
-                     30, "predictions on every output", [learner])
+    probe.spin_until(lambda: len(preds) >= n - 10 and len(trajectories) == len(preds) and len(arm) == len(preds)
+                     and len(intervals) == len(preds) and all(len(b) == len(preds) for b in bounds),
+                     30, "predictions and their interval on every output", [learner])
+    for p_msg, i_msg, *bound_msgs in zip(preds, intervals, *bounds, strict=True):  # the default's interval
+        stamp, _, p = messages.read_predictions(p_msg)
+        i_stamp, names, share, lower, upper = messages.read_interval(i_msg)
+        assert i_stamp == stamp and names == ARM_JOINTS and share == 0.8
+        assert np.all(lower <= p) and np.all(p <= upper)
+        for msg, bound in zip(bound_msgs, (lower, upper), strict=True):
+            t_stamp, _, traj = standard_messages.read_joint_trajectory(msg)
+            assert t_stamp == pytest.approx(stamp, abs=1e-9)
+            np.testing.assert_allclose(traj.positions, bound)
     for p_msg, t_msg in zip(preds, trajectories, strict=True):
         stamp, names, p = messages.read_predictions(p_msg)
         t_stamp, t_names, traj = standard_messages.read_joint_trajectory(t_msg)

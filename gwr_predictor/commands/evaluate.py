@@ -5,7 +5,10 @@ recordings (.bvh, .amc, .npy/.npz joint positions, .pt: mapped and resampled to 
 stream, see `data.mocap`) or angle CSVs (10 fps). All methods learn online on the recordings in
 the given order (optionally several passes) and are scored on the same frames; the table goes to
 stdout and its numbers again as one JSON object on the last line (keys horizon, mae_rad, frames,
-neurons, default_method: the key of the learner node's default predictor, always evaluated).
+neurons, default_method: the key of the learner node's default predictor, always evaluated). The
+methods that state an interval with every prediction (the default, `hold`, `rls_ar`) get a second
+table, the share of true angles inside it and its mean width per step: in the JSON line
+`interval_nominal` (the stated share), `interval_coverage[method]` and `interval_width_rad[method]`.
 """
 
 from __future__ import annotations
@@ -15,6 +18,7 @@ import json
 import sys
 from collections.abc import Mapping
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -115,13 +119,29 @@ def run(args: argparse.Namespace) -> int:
     print(f"{len(recordings)} recording(s), {first.frames} frames fed ({args.passes} pass(es)), "
           f"{first.scored_frames} scored on the same frames by every method. MAE (rad) per horizon step:")
     print(markdown_table(["method", *[f"h={k}" for k in steps], "coverage"], rows))
+    spreads = {m: r for m, r in results.items() if r.interval is not None}
+    nominals = {m: r.interval_nominal for m, r in spreads.items()}
+    # one stated share (every method's, by default), else per method
+    nominal: Any = next(iter(nominals.values())) if len(set(nominals.values())) == 1 else nominals or None
+    if spreads:
+        print(f"Stated central interval ({_percent(nominal) if isinstance(nominal, float) else 'shares differ'}): "
+              "share of the true angles inside it / mean width (rad) per horizon step, on the same frames:")
+        print(markdown_table(["method", *[f"h={k}" for k in steps]], [
+            [registry.label(m), *[f"{_percent(r.interval.coverage[k - 1])} / {r.interval.width[k - 1]:.3f}"
+                                  for k in steps]] for m, r in spreads.items() if r.interval is not None]))
     summary = {"horizon": horizon, "mae_rad": {m: r.stats.mae for m, r in results.items()},
                "mse_rad2": {m: r.stats.mse for m, r in results.items()},
                "default_method": default_method(),
                "frames": first.frames, "scored_frames": first.scored_frames, "passes": args.passes,
-               "neurons": _neurons(models)}
+               "neurons": _neurons(models), "interval_nominal": nominal,
+               "interval_coverage": {m: r.interval.coverage for m, r in spreads.items() if r.interval is not None},
+               "interval_width_rad": {m: r.interval.width for m, r in spreads.items() if r.interval is not None}}
     print(json.dumps(to_jsonable(summary)))
     return 0
+
+
+def _percent(share: float | None) -> str:
+    return "–" if share is None or not np.isfinite(share) else f"{100 * share:.1f} %"
 
 
 def _neurons(models: Mapping[str, Predictor]) -> dict[str, list[int]]:

@@ -52,6 +52,9 @@ _EXPORTS = {
     "RecognitionSwitch": "recognition",
     "RecognitionParams": "recognition",
     "View": "recognition",
+    "Spread": "spread",
+    "SpreadParams": "spread",
+    "WithSpread": "spread",
 }
 __getattr__, __dir__ = lazy_exports(__name__, _EXPORTS)
 __all__ = ["make_default", "make_gated_network", *sorted(_EXPORTS)]
@@ -74,7 +77,7 @@ def make_default(horizon: int = 6, joints: int = 8, seed: int = 0,
     from gwr_predictor.predictors.baselines import TUNED_RLS, RLSAutoregressive
     from gwr_predictor.predictors.direct_linear import TUNED_LINEAR, DirectLinear
 
-    network, memory, long_memory, weighting, recognition, expert_gate, gate = from_experts_settings(
+    network, memory, long_memory, weighting, recognition, expert_gate, gate, spread = from_experts_settings(
         settings or {}, horizon, joints)
     experts = {"network": LocalLinearPredictor(network, seed=seed),
                "linear": DirectLinear(TUNED_LINEAR.replace(horizon=horizon, joints=joints)),
@@ -83,7 +86,7 @@ def make_default(horizon: int = 6, joints: int = 8, seed: int = 0,
     if long_memory is not None:
         experts["long_memory"] = TrajectoryMemory(long_memory)
     gated = {name: GatedPredictor(model, expert_gate, hold_when_silent=False) for name, model in experts.items()}
-    return RecognitionSwitch(Experts(gated, weighting), recognition, gate)
+    return RecognitionSwitch(Experts(gated, weighting), recognition, gate, spread)
 
 
 def make_gated_network(horizon: int = 6, joints: int = 8, seed: int = 0,

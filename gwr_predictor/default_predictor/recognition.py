@@ -47,6 +47,7 @@ import numpy as np
 from gwr_predictor.default_predictor.experts import Experts
 from gwr_predictor.default_predictor.gate import GatedPredictor, GateParams
 from gwr_predictor.default_predictor.params import DefaultPredictorError
+from gwr_predictor.default_predictor.spread import Spread, SpreadParams, spread_params
 from gwr_predictor.learning.checkpoint import CheckpointError
 from gwr_predictor.learning.persistence import Checkpointed, Persist, params_from_json, sub
 from gwr_predictor.parameter_spec import ParamSpec, check_fields
@@ -136,10 +137,11 @@ class RecognitionSwitch(Checkpointed):
     kind: ClassVar[str] = "RecognitionSwitch"
     PARAMS = RecognitionParams
     PERSIST = Persist(values=("recognised",), members={"experts": "experts", "ungated": "ungated", "gate": "gate",
-                                                       "ungated_gate": "ungated_gate"})
+                                                       "ungated_gate": "ungated_gate", "spread": "spread"},
+                      added=("spread",))  # a file saved before the spread existed: it starts fresh
 
     def __init__(self, experts: Experts, params: RecognitionParams | None = None,
-                 gate: GateParams | None = None) -> None:
+                 gate: GateParams | None = None, spread: SpreadParams | None = None) -> None:
         for name, member in experts.members.items():
             if not isinstance(member, GatedPredictor):
                 raise DefaultPredictorError(f"member {name!r} of the experts is not gated")
@@ -161,6 +163,8 @@ class RecognitionSwitch(Checkpointed):
         else:
             self.gate = GatedPredictor(View(self._returned_output), gate)
             self.ungated_gate = None
+        #: the interval of every prediction, beside it (its groups: the motion new, the motion recognised)
+        self.spread = Spread(spread or SpreadParams(horizon=gate.horizon, joints=gate.joints))
 
     def _gated_output(self) -> np.ndarray | None:
         return None if self._recognises else self._outputs[0]
@@ -177,6 +181,7 @@ class RecognitionSwitch(Checkpointed):
         self.onset = 0
         for gate in self.gates:
             gate.reset_sequence()
+        self.spread.reset_sequence()
 
     @property
     def gates(self) -> tuple[GatedPredictor, ...]:
@@ -196,7 +201,18 @@ class RecognitionSwitch(Checkpointed):
         if p.onset_trust and self.ungated_gate is not None:
             self._borrow(self.ungated_gate, moving)
         outs = [gate.step(x, learn) for gate in self.gates]  # every gate scores what it is owed
-        return outs[-1] if self._recognises else outs[0]
+        out = outs[-1] if self._recognises else outs[0]
+        self.spread.step(x, out, min(int(self._recognises), self.spread.params.groups - 1))
+        return out
+
+    @property
+    def interval_nominal(self) -> float:
+        """The share of true angles the interval of every prediction should hold."""
+        return self.spread.nominal
+
+    def interval(self) -> tuple[np.ndarray, np.ndarray] | None:
+        """(lower, upper) bounds, each (horizon, joints) rad, of the central interval of the last prediction."""
+        return self.spread.interval()
 
     def _travelled(self) -> bool:
         """Whether the pose has moved `onset_travel` x the motion scale over the memory's longest lag."""
@@ -237,7 +253,7 @@ class RecognitionSwitch(Checkpointed):
         """The experts' errors and weights, on how many frames the motion was recognised, and each last
         gate's mean shrinkage per step."""
         out = {**self.experts.errors(), "recognised_frames": self.recognised,
-               "gate_alpha_mean": self.gate.alpha().mean(axis=1).tolist()}
+               "gate_alpha_mean": self.gate.alpha().mean(axis=1).tolist(), **self.spread.errors()}
         if self.ungated_gate is not None:
             out["ungated_gate_alpha_mean"] = self.ungated_gate.alpha().mean(axis=1).tolist()
         return out
@@ -255,8 +271,9 @@ class RecognitionSwitch(Checkpointed):
         if not isinstance(experts, dict) or not isinstance(gate, dict):
             raise CheckpointError("a recognition switch's checkpoint must hold its experts and its last gate")
         # the views are linked to these gates and weightings, which restore their state in place
+        gate_params = params_from_json(GateParams, gate["params"])
         return cls(Experts._fresh(experts), params_from_json(RecognitionParams, header["params"], before=BEFORE),
-                   params_from_json(GateParams, gate["params"]))
+                   gate_params, spread_params(header.get("spread"), gate_params.horizon, gate_params.joints))
 
     @classmethod
     def upgraded(cls, header: Mapping[str, Any], arrays: Mapping[str, np.ndarray]) -> RecognitionSwitch:

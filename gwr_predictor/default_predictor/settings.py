@@ -8,7 +8,8 @@ dataclass validates with.
   memory's under `long_memory.` (`LONG_MEMORY` where its defaults differ from the snippet memory's;
   `long_memory.enabled` false leaves it out), the weighting's under `experts.`, where the memory's
   recognition lifts the gates under `recognition.`, the gate in front of each expert under
-  `expert_gate.` and the last gates, one on each weighting, under `gate.`. The two linear experts
+  `expert_gate.`, the last gates, one on each weighting, under `gate.` and the interval stated with every
+  prediction (`spread.py`) under `spread.`. The two linear experts
   run with the tuned settings of the `rls_ar` and `linear` baselines.
 
 The learner node declares exactly these (under `<predictor>.`) when it runs one; the horizon and the
@@ -33,6 +34,7 @@ from gwr_predictor.default_predictor.params import (
     default_gwr,
 )
 from gwr_predictor.default_predictor.recognition import RECOGNITION_SPECS, RecognitionParams
+from gwr_predictor.default_predictor.spread import SPREAD_SPECS, SpreadParams
 from gwr_predictor.learning.params import GWR_SPECS
 from gwr_predictor.parameter_spec import ParamSpec
 
@@ -92,7 +94,8 @@ def experts_parameter_specs() -> tuple[ParamSpec, ...]:
             *_prefixed("experts", EXPERTS_SPECS, "weighting"),
             *_prefixed("recognition", RECOGNITION_SPECS, "recognition"),
             *_prefixed("expert_gate", GATE_SPECS, "each expert's gate", EXPERT_GATE),
-            *_prefixed("gate", GATE_SPECS, "the last gates", OUTER_GATE))
+            *_prefixed("gate", GATE_SPECS, "the last gates", OUTER_GATE),
+            *_prefixed("spread", SPREAD_SPECS, "the interval of every prediction"))
 
 
 def _prefixed(prefix: str, specs: Mapping[str, ParamSpec], what: str,
@@ -137,9 +140,10 @@ def from_settings(settings: Mapping[str, Any], horizon: int, joints: int) -> tup
 
 def from_experts_settings(settings: Mapping[str, Any], horizon: int, joints: int
                           ) -> tuple[LocalLinearParams, MemoryParams, MemoryParams | None, ExpertsParams,
-                                     RecognitionParams, GateParams, GateParams]:
+                                     RecognitionParams, GateParams, GateParams, SpreadParams]:
     """The default's parts' parameters for flat `settings` (any subset of `experts_parameter_specs()`):
-    network, memory, long memory (None: left out), weighting, recognition, each expert's gate, the last gates."""
+    network, memory, long memory (None: left out), weighting, recognition, each expert's gate, the last gates,
+    the interval of every prediction."""
     groups = _grouped(settings, experts_parameter_specs(), "the default predictor")
     network = {**EXPERT_NETWORK, **groups.get("network", {})}
     long_memory = {**LONG_MEMORY, **groups.get("long_memory", {})}
@@ -150,5 +154,6 @@ def from_experts_settings(settings: Mapping[str, Any], horizon: int, joints: int
             ExpertsParams(horizon=horizon, n_joints=joints, **groups.get("experts", {})),
             RecognitionParams(**groups.get("recognition", {})),
             GateParams(horizon=horizon, joints=joints, **{**EXPERT_GATE, **groups.get("expert_gate", {})}),
-            GateParams(horizon=horizon, joints=joints, **{**OUTER_GATE, **groups.get("gate", {})}))
+            GateParams(horizon=horizon, joints=joints, **{**OUTER_GATE, **groups.get("gate", {})}),
+            SpreadParams(horizon=horizon, joints=joints, **groups.get("spread", {})))
 

@@ -13,8 +13,11 @@ _EXPORTS = {
     "evaluate_online": "online",
     "train_online": "online",
     "run_sequence": "online",
+    "run_with_intervals": "online",
     "HorizonStats": "metrics",
     "horizon_stats": "metrics",
+    "IntervalStats": "metrics",
+    "interval_stats": "metrics",
     "future_windows": "metrics",
     "MetricsError": "metrics",
 }

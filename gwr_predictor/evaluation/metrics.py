@@ -77,6 +77,54 @@ class HorizonStats:
                 "n": [int(v) for v in self.n]}
 
 
+@dataclass(frozen=True)
+class IntervalStats:
+    """Per (horizon step, joint): stated intervals scored, true angles inside them, and the sum of their widths
+    (rad); sums, so that runs, passes and sequences merge exactly."""
+
+    count: np.ndarray  # (h, J) int
+    inside: np.ndarray  # (h, J) int
+    sum_width: np.ndarray  # (h, J)
+
+    @classmethod
+    def empty(cls, horizon: int, joints: int = 8) -> IntervalStats:
+        if horizon < 1 or joints < 1:
+            raise MetricsError(f"horizon and joints must be >= 1, got {horizon}, {joints}")
+        zeros = np.zeros((horizon, joints), dtype=np.int64)
+        return cls(zeros, zeros.copy(), np.zeros((horizon, joints)))
+
+    def merge(self, other: IntervalStats) -> IntervalStats:
+        if other.count.shape != self.count.shape:
+            raise MetricsError(f"cannot merge interval stats of shapes {self.count.shape} and {other.count.shape}")
+        return IntervalStats(self.count + other.count, self.inside + other.inside, self.sum_width + other.sum_width)
+
+    @property
+    def coverage(self) -> np.ndarray:
+        """Share of the true angles inside their stated interval per horizon step (h,), NaN where none scored."""
+        return _ratio(self.inside.sum(axis=1), self.count.sum(axis=1))
+
+    @property
+    def width(self) -> np.ndarray:
+        """Mean width (upper - lower, rad) of the scored intervals per horizon step (h,)."""
+        return _ratio(self.sum_width.sum(axis=1), self.count.sum(axis=1))
+
+    def to_dict(self) -> dict[str, list[float | None]]:
+        return {"coverage": _floats(self.coverage), "width": _floats(self.width),
+                "n": [int(v) for v in self.count.sum(axis=1)]}
+
+
+def interval_stats(lower: np.ndarray, upper: np.ndarray, truth: np.ndarray) -> IntervalStats:
+    """Stats of stated intervals [lower, upper] (N, h, J) against the truth (N, h, J); NaN anywhere: not scored.
+    An angle on a bound is inside."""
+    lower, upper, truth = (np.asarray(a, float) for a in (lower, upper, truth))
+    if not lower.shape == upper.shape == truth.shape or truth.ndim != 3:
+        raise MetricsError(f"bounds {lower.shape}, {upper.shape} and truth {truth.shape} must all be (N, h, J)")
+    ok = np.isfinite(lower) & np.isfinite(upper) & np.isfinite(truth)
+    inside = ok & (truth >= lower) & (truth <= upper)
+    return IntervalStats(ok.sum(axis=0).astype(np.int64), inside.sum(axis=0).astype(np.int64),
+                         np.where(ok, upper - lower, 0.0).sum(axis=0))
+
+
 def _ratio(num: np.ndarray, den: np.ndarray) -> np.ndarray:
     num, den = np.asarray(num, float), np.asarray(den, float)
     with np.errstate(invalid="ignore", divide="ignore"):

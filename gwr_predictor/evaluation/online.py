@@ -5,7 +5,9 @@ At frame t a predictor is given only x(t) (None for a missing sample) and return
 t+1..t+h. The loop keeps the truth to itself and scores those predictions against the true frames
 t+1..t+h of the same sequence; a target that is missing (NaN) or past the end is not scored. With
 several predictors, a frame counts only where every one of them predicted, so the numbers in one
-table always come from exactly the same (frame, horizon, joint) entries.
+table always come from exactly the same (frame, horizon, joint) entries. A predictor that states an
+interval with every prediction (`protocol.Spreading`) is also scored on how often the true angle falls
+inside it and how wide it is, on the same frames (`OnlineResult.interval`).
 """
 
 from __future__ import annotations
@@ -19,9 +21,9 @@ import numpy as np
 from tqdm import tqdm
 
 from gwr_predictor.evaluation.errors import EvaluationError
-from gwr_predictor.evaluation.metrics import HorizonStats, future_windows, horizon_stats
+from gwr_predictor.evaluation.metrics import HorizonStats, IntervalStats, future_windows, horizon_stats, interval_stats
 from gwr_predictor.pipeline.conventions import DEFAULT_HORIZON
-from gwr_predictor.protocol import Predictor
+from gwr_predictor.protocol import Predictor, Spreading
 
 
 @dataclass(frozen=True)
@@ -48,14 +50,20 @@ class OnlineResult:
     seconds: float = 0.0  # time spent inside step()
     trace: Trace | None = None
     extra: dict[str, Any] = field(default_factory=dict)
+    #: for a predictor that states an interval (`protocol.Spreading`): its stated share and how its intervals did
+    interval_nominal: float | None = None
+    interval: IntervalStats | None = None
 
     @property
     def coverage(self) -> float:
         return self.predicted_frames / self.frames if self.frames else 0.0
 
     def summary(self) -> dict[str, Any]:
-        return {**self.stats.to_dict(), "frames": self.frames, "scored_frames": self.scored_frames,
-                "coverage": round(self.coverage, 4), "us_per_frame": 1e6 * self.seconds / max(self.frames, 1)}
+        out = {**self.stats.to_dict(), "frames": self.frames, "scored_frames": self.scored_frames,
+               "coverage": round(self.coverage, 4), "us_per_frame": 1e6 * self.seconds / max(self.frames, 1)}
+        if self.interval is not None:
+            out["interval"] = {"nominal": self.interval_nominal, **self.interval.to_dict()}
+        return out
 
 
 def as_angles(sequence: Any) -> np.ndarray:
@@ -69,13 +77,25 @@ def as_angles(sequence: Any) -> np.ndarray:
 def run_sequence(predictor: Predictor, inputs: np.ndarray, horizon: int, learn: bool = True
                  ) -> tuple[np.ndarray, float]:
     """Feed one sequence frame by frame; returns predictions (T, horizon, J) (NaN = none) and seconds."""
+    preds, _, seconds = run_with_intervals(predictor, inputs, horizon, learn)
+    return preds, seconds
+
+
+def run_with_intervals(predictor: Predictor, inputs: np.ndarray, horizon: int, learn: bool = True
+                       ) -> tuple[np.ndarray, np.ndarray | None, float]:
+    """`run_sequence`, plus the stated intervals (2, T, horizon, J) [lower, upper] (NaN = none) of a
+    `Spreading` predictor (None for another); the seconds count its `step` only."""
     t_len, joints = inputs.shape
     preds = np.full((t_len, horizon, joints), np.nan)
+    spreads = isinstance(predictor, Spreading)
+    bounds = np.full((2, t_len, horizon, joints), np.nan) if spreads else None
     missing = ~np.isfinite(inputs).all(axis=1)
     predictor.reset_sequence()
-    start = time.perf_counter()
+    seconds = 0.0
     for t in range(t_len):
+        start = time.perf_counter()
         out = predictor.step(None if missing[t] else inputs[t], learn=learn)
+        seconds += time.perf_counter() - start
         if out is None:
             continue
         out = np.asarray(out, dtype=float)
@@ -83,7 +103,11 @@ def run_sequence(predictor: Predictor, inputs: np.ndarray, horizon: int, learn: 
             raise EvaluationError(f"{type(predictor).__name__}.step returned shape {out.shape}; "
                                   f"need at least ({horizon}, {joints})")
         preds[t] = out[:horizon]
-    return preds, time.perf_counter() - start
+        if bounds is not None:
+            stated = predictor.interval()  # type: ignore[attr-defined]
+            if stated is not None:
+                bounds[0, t], bounds[1, t] = stated[0][:horizon], stated[1][:horizon]
+    return preds, bounds, seconds
 
 
 def compare_online(predictors: Mapping[str, Predictor], sequences: Sequence[Any], *, learn: bool = True,
@@ -104,15 +128,19 @@ def compare_online(predictors: Mapping[str, Predictor], sequences: Sequence[Any]
         raise EvaluationError("all sequences must have the same number of joints")
     futures = [future_windows(a, horizon) for a in inputs]
     results = {name: OnlineResult(horizon, HorizonStats.empty(horizon, joints), []) for name in predictors}
+    for name, predictor in predictors.items():
+        if isinstance(predictor, Spreading):
+            results[name].interval_nominal = float(predictor.interval_nominal)
+            results[name].interval = IntervalStats.empty(horizon, joints)
     traces: dict[str, list[np.ndarray]] = {name: [] for name in predictors}
     total = passes * sum(a.shape[0] for a in inputs) * len(predictors)
     with tqdm(total=total, desc=desc, unit="frame", disable=not progress, leave=False, mininterval=0.5) as bar:
         for _ in range(passes):
             pass_stats = {name: HorizonStats.empty(horizon, joints) for name in predictors}
             for seq, future in zip(inputs, futures, strict=True):
-                preds = {}
+                preds, bounds = {}, {}
                 for name, predictor in predictors.items():
-                    preds[name], seconds = run_sequence(predictor, seq, horizon, learn)
+                    preds[name], bounds[name], seconds = run_with_intervals(predictor, seq, horizon, learn)
                     results[name].seconds += seconds
                     bar.update(seq.shape[0])
                 present = {name: np.isfinite(pr).all(axis=(1, 2)) for name, pr in preds.items()}
@@ -123,6 +151,10 @@ def compare_online(predictors: Mapping[str, Predictor], sequences: Sequence[Any]
                     res.predicted_frames += int(present[name].sum())
                     res.scored_frames += int(common.sum())
                     pass_stats[name] = pass_stats[name].merge(horizon_stats(pr[common], future[common]))
+                    stated = bounds[name]
+                    if stated is not None and res.interval is not None:
+                        res.interval = res.interval.merge(interval_stats(stated[0, common], stated[1, common],
+                                                                         future[common]))
                     if trace:
                         err = np.linalg.norm(pr - future, axis=2)
                         err[~common] = np.nan

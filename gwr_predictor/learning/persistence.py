@@ -53,7 +53,8 @@ class Persist:
     `queues`: attribute -> row shape (of the object) of deques of rows or None. `nan_ok`: arrays (and
     values) where NaN means "none yet"; every other float array, optional array, queue row and float
     value must be finite, since a learner never holds NaN or inf there and one such value would spread
-    through everything it computes after (a corrupt file is refused, not learned from)."""
+    through everything it computes after (a corrupt file is refused, not learned from). `added`: names of
+    members added after files were written without them; such a file loads with the member fresh."""
 
     arrays: tuple[str, ...] = ()
     values: tuple[str, ...] = ()
@@ -61,15 +62,16 @@ class Persist:
     members: Mapping[str, str] = field(default_factory=dict)
     queues: Mapping[str, Callable[[Any], tuple[int, ...]]] = field(default_factory=dict)
     nan_ok: tuple[str, ...] = ()
+    added: tuple[str, ...] = ()
 
     def extend(self, arrays: tuple[str, ...] = (), values: tuple[str, ...] = (), optional: tuple[str, ...] = (),
                members: Mapping[str, str] | None = None,
                queues: Mapping[str, Callable[[Any], tuple[int, ...]]] | None = None,
-               nan_ok: tuple[str, ...] = ()) -> Persist:
+               nan_ok: tuple[str, ...] = (), added: tuple[str, ...] = ()) -> Persist:
         """This declaration plus a subclass's fields."""
         return Persist(self.arrays + arrays, self.values + values, self.optional + optional,
                        {**self.members, **(members or {})}, {**self.queues, **(queues or {})},
-                       self.nan_ok + nan_ok)
+                       self.nan_ok + nan_ok, self.added + added)
 
 
 def key(attr: str) -> str:
@@ -141,12 +143,25 @@ class Persistent:
             fill_queue(getattr(self, attr), present, arrays[key(attr)], row_shape(self), where + key(attr))
         for attr, name in decl.members.items():
             member = getattr(self, attr)
-            if member is not None:
+            if member is not None and not (name in decl.added and name not in header):  # absent: stays fresh
                 prefix = f"{where}{name}." if name else where
                 saved = field_of(header, name, where) if name else header
                 setattr(self, attr, member._restored(saved, sub(arrays, name), prefix))
         self._load_extra(header, arrays)
         return self
+
+    def _absent(self, header: Mapping[str, Any], prefix: str = "") -> tuple[str, ...]:
+        """The array-name prefixes of the `added` members (at any depth) that `header` was written without."""
+        out: list[str] = []
+        for attr, name in self.PERSIST.members.items():
+            member = getattr(self, attr)
+            if member is None or not name:
+                continue
+            if name in self.PERSIST.added and name not in header:
+                out.append(f"{prefix}{name}.")
+            elif isinstance(header.get(name), Mapping):
+                out.extend(member._absent(header[name], f"{prefix}{name}."))
+        return tuple(out)
 
 
 class Checkpointed(Persistent):
@@ -181,7 +196,8 @@ class Checkpointed(Persistent):
         the saved parameters (CheckpointError if arrays are missing)."""
         try:
             model = cls._fresh(header)
-            expected = model._capture()[1]  # the arrays a fresh model of these parameters holds
+            absent = model._absent(header)  # members added since the file was written: they stay fresh
+            expected = [k for k in model._capture()[1] if not k.startswith(absent)]
         except (KeyError, ValueError, TypeError, IndexError, GwrPredictorError) as exc:
             cls._inconsistent(source, exc)
         require_arrays((a for a in expected if a.rpartition(".")[2] not in ADDED_LATER), arrays, source)

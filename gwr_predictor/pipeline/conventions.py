@@ -6,7 +6,9 @@ skeleton -> angles -> hierarchy -> predictions -> compensator -> robot.
 "Custom arrays" are std_msgs/Float64MultiArray messages whose layout dims are labelled. A
 MultiArray has no header, so the stamp of the frame travels in the data itself: the layout's
 `data_offset` is 1 and `data[0]` is the stamp in seconds (float64, the source clock). Dim labels
-carry the names: the joint dim's label is ``"joint:" + "|".join(names)``.
+carry the names: the joint dim's label is ``"joint:" + "|".join(names)``. The interval stated with the
+predictions of a frame carries its stated share in its first dim's label: ``"interval:0.8"`` (rows lower,
+upper), then the horizon and joint dims as the predictions' own.
 
 This module is pure Python/numpy; `gwr_predictor.nodes.messages` turns these into msg objects.
 """
@@ -29,6 +31,7 @@ from gwr_predictor.robot.nao import ARM_JOINTS
 TOPIC_SKELETON = "skeleton"  # Float64MultiArray, skeleton layout, 30 fps
 TOPIC_ANGLES = "arm_angles"  # sensor_msgs/JointState, ARM_JOINTS, 10 fps
 TOPIC_PREDICTIONS = "predictions"  # Float64MultiArray, prediction layout (horizon x joint)
+TOPIC_PREDICTION_INTERVAL = "prediction_interval"  # Float64MultiArray, interval layout (bound x horizon x joint)
 TOPIC_PREDICTED_ANGLES = "predicted_angles"  # JointState: the h-step-ahead prediction
 TOPIC_COMMAND = "joint_commands"  # JointState: what the robot is told to execute
 TOPIC_ROBOT_STATE = "joint_states"  # JointState: what the simulated Nao reports
@@ -44,6 +47,9 @@ INSTANCE_KEY = "instance"
 TOPIC_SKELETON_MARKERS = "skeleton_markers"  # visualization_msgs/MarkerArray: joints + bones, capture stamp
 TOPIC_SKELETON_POSES = "skeleton_poses"  # geometry_msgs/PoseArray: the skeleton, SKELETON_JOINTS order, header stamp
 TOPIC_PREDICTED_TRAJECTORY = "predicted_trajectory"  # trajectory_msgs/JointTrajectory: t+1..t+h
+#: JointTrajectory twins of the interval: its lower and upper bounds at the predicted trajectory's stamp and times
+TOPIC_PREDICTED_TRAJECTORY_LOWER = "predicted_trajectory_lower"
+TOPIC_PREDICTED_TRAJECTORY_UPPER = "predicted_trajectory_upper"
 TOPIC_PREDICTED_ARM_MARKERS = "predicted_arm_markers"  # MarkerArray: the Nao's arms at t+h, frame torso
 TOPIC_ROBOT_DESCRIPTION = "robot_description"  # std_msgs/String: the URDF, transient-local
 TOPIC_BODY_TRACKING = "body_tracking_data"  # MarkerArray in: Azure Kinect / Orbbec body tracking
@@ -55,6 +61,7 @@ TOPIC_TYPES: dict[str, str] = {
     TOPIC_SKELETON: "std_msgs/msg/Float64MultiArray",
     TOPIC_ANGLES: "sensor_msgs/msg/JointState",
     TOPIC_PREDICTIONS: "std_msgs/msg/Float64MultiArray",
+    TOPIC_PREDICTION_INTERVAL: "std_msgs/msg/Float64MultiArray",
     TOPIC_PREDICTED_ANGLES: "sensor_msgs/msg/JointState",
     TOPIC_COMMAND: "sensor_msgs/msg/JointState",
     TOPIC_ROBOT_STATE: "sensor_msgs/msg/JointState",
@@ -63,6 +70,8 @@ TOPIC_TYPES: dict[str, str] = {
     TOPIC_SKELETON_MARKERS: "visualization_msgs/msg/MarkerArray",
     TOPIC_SKELETON_POSES: "geometry_msgs/msg/PoseArray",
     TOPIC_PREDICTED_TRAJECTORY: "trajectory_msgs/msg/JointTrajectory",
+    TOPIC_PREDICTED_TRAJECTORY_LOWER: "trajectory_msgs/msg/JointTrajectory",
+    TOPIC_PREDICTED_TRAJECTORY_UPPER: "trajectory_msgs/msg/JointTrajectory",
     TOPIC_PREDICTED_ARM_MARKERS: "visualization_msgs/msg/MarkerArray",
     TOPIC_ROBOT_DESCRIPTION: "std_msgs/msg/String",
 }
@@ -99,6 +108,7 @@ MAX_MARKERS = 4096
 JOINT_DIM_PREFIX = "joint:"
 XYZ_LABEL = "xyz"
 HORIZON_LABEL = "horizon"
+INTERVAL_PREFIX = "interval:"
 
 
 #: PipelineError, for a MultiArray whose layout does not match the convention; the message says what differs.
@@ -207,16 +217,57 @@ def unpack_predictions(packed: PackedArray) -> tuple[float, tuple[str, ...], np.
     dims = packed.dims
     if len(dims) != 2 or dims[0].label != HORIZON_LABEL:
         raise LayoutError(f"prediction layout must be [horizon, joint:...], got {[d.label[:20] for d in dims]}")
-    names = parse_joint_label(dims[1].label)
-    if dims[1].size != len(names):
-        raise LayoutError(f"joint dim size {dims[1].size} != {len(names)} names in its label")
-    h = dims[0].size
-    check_size("prediction rows (horizon)", h, MAX_HORIZON)
+    stamp, names, rows = _horizon_rows(packed, dims[0], dims[1], 1, "prediction")
+    return stamp, names, rows[0]
+
+
+def _horizon_rows(packed: PackedArray, horizon: ArrayDim, joints: ArrayDim, planes: int, what: str
+                  ) -> tuple[float, tuple[str, ...], np.ndarray]:
+    """(stamp, joint names, the values as (planes, horizon, joints)) of an array whose last two dims are a
+    horizon and labelled joints, after checking both against the data. Raises LayoutError."""
+    names = parse_joint_label(joints.label)
+    if joints.size != len(names):
+        raise LayoutError(f"joint dim size {joints.size} != {len(names)} names in its label")
+    h = horizon.size
+    check_size(f"{what} rows (horizon)", h, MAX_HORIZON)
     data = np.asarray(packed.data, dtype=np.float64)
-    if packed.data_offset != 1 or data.size != 1 + h * len(names) or h < 1:
-        raise LayoutError(f"expected data_offset 1 and {1 + h * len(names)} values, got "
-                          f"{packed.data_offset} and {data.size}")
-    return float(data[0]), names, data[1:].reshape(h, len(names))
+    expected = 1 + planes * h * len(names)
+    if packed.data_offset != 1 or data.size != expected or h < 1:
+        raise LayoutError(f"expected data_offset 1 and {expected} values, got {packed.data_offset} and {data.size}")
+    return float(data[0]), names, data[1:].reshape(planes, h, len(names))
+
+
+def pack_interval(stamp: float, lower: np.ndarray, upper: np.ndarray, nominal: float,
+                  names: tuple[str, ...] = ARM_JOINTS) -> PackedArray:
+    """The central interval stated with the predictions made at frame `stamp`: its bounds (horizon x joints,
+    rad, each) and the share of true angles it should hold -> labelled array [interval:<share>(2), horizon,
+    joint:...], rows lower then upper."""
+    lower, upper = np.asarray(lower, dtype=np.float64), np.asarray(upper, dtype=np.float64)
+    if lower.shape != upper.shape or lower.ndim != 2 or lower.shape[1] != len(names):
+        raise LayoutError(f"interval bounds must both be (horizon, {len(names)}), got {lower.shape} and {upper.shape}")
+    if not 0.0 < nominal < 1.0:
+        raise LayoutError(f"an interval's stated share must be in (0, 1), got {nominal}")
+    h, j = lower.shape
+    dims = (ArrayDim(f"{INTERVAL_PREFIX}{nominal!r}", 2, 2 * h * j), ArrayDim(HORIZON_LABEL, h, h * j),
+            ArrayDim(joint_label(names), j, j))
+    return PackedArray(dims, 1, np.concatenate(([float(stamp)], lower.ravel(), upper.ravel())))
+
+
+def unpack_interval(packed: PackedArray) -> tuple[float, tuple[str, ...], float, np.ndarray, np.ndarray]:
+    """Labelled interval array -> (stamp, joint names, stated share, lower, upper (horizon x joints each)).
+    Raises LayoutError."""
+    dims = packed.dims
+    if len(dims) != 3 or not dims[0].label.startswith(INTERVAL_PREFIX) or dims[1].label != HORIZON_LABEL:
+        raise LayoutError(f"interval layout must be [interval:<share>, horizon, joint:...], got "
+                          f"{[d.label[:20] for d in dims]}")
+    try:
+        nominal = float(dims[0].label[len(INTERVAL_PREFIX):])
+    except ValueError:
+        raise LayoutError(f"interval label {dims[0].label[:40]!r} does not state a share") from None
+    if not 0.0 < nominal < 1.0 or dims[0].size != 2:
+        raise LayoutError(f"an interval has 2 bounds and a share in (0, 1), got {dims[0].size} and {nominal}")
+    stamp, names, bounds = _horizon_rows(packed, dims[1], dims[2], 2, "interval")
+    return stamp, names, nominal, bounds[0], bounds[1]
 
 
 # --- pipeline timing and QoS (used by the nodes in gwr_predictor.nodes) --------------------------

@@ -35,18 +35,24 @@ def _checked(series: Mapping[str, tuple[np.ndarray, np.ndarray]], n: int) -> dic
 
 def plot_angle_series(path: str | Path, series: Mapping[str, tuple[np.ndarray, np.ndarray]], title: str = "",
                       names: Sequence[str] = ARM_JOINTS,
-                      marks: Sequence[float] | Mapping[str, float] | None = None) -> Path:
+                      marks: Sequence[float] | Mapping[str, float] | None = None,
+                      bands: Mapping[str, tuple[str, np.ndarray, np.ndarray, np.ndarray]] | None = None) -> Path:
     """Draw every series on one subplot per joint (two columns when even) and save a PNG.
 
     `series` maps a legend label to (t (T,), angles (T, len(names))); NaN rows show as gaps.
     `marks` are times of vertical dashed lines (a mapping labels them, e.g. repetition starts).
-    Known Nao joints get their limits as faint horizontal lines.
+    `bands` maps a legend label to (the series it surrounds, t (T,), lower, upper (T, len(names))): a shaded
+    band in that series' colour (a stated interval). Known Nao joints get their limits as faint horizontal lines.
     """
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
     names = tuple(names)
     data = _checked(series, len(names))
+    shaded = {}
+    for label, (of, t, lo, hi) in (bands or {}).items():
+        (t, lo), (_, hi) = _checked({label: (t, lo)}, len(names))[label], _checked({label: (t, hi)}, len(names))[label]
+        shaded[label] = (of, t, lo, hi)
     cols = 2 if len(names) % 2 == 0 and len(names) > 1 else 1
     rows = len(names) // cols
     fig = Figure(figsize=(6.5 * cols, 1.9 * rows + 0.8), layout="constrained")
@@ -56,8 +62,11 @@ def plot_angle_series(path: str | Path, series: Mapping[str, tuple[np.ndarray, n
     for k, name in enumerate(names):
         # Column-major, so with ARM_JOINTS the left arm is the left column.
         ax = axes[k % rows, k // rows]
+        colours = {}
         for label, (t, a) in data.items():
-            ax.plot(t, a[:, k], label=label, linewidth=1.2)
+            colours[label] = ax.plot(t, a[:, k], label=label, linewidth=1.2)[0].get_color()
+        for label, (of, t, lo, hi) in shaded.items():
+            ax.fill_between(t, lo[:, k], hi[:, k], color=colours.get(of, "0.5"), alpha=0.2, linewidth=0, label=label)
         if name in JOINT_LIMITS:  # only limits near the data, so they do not squash it
             lo, hi = ax.get_ylim()
             for lim in JOINT_LIMITS[name]:

@@ -15,6 +15,8 @@ Definitions (all times are the stamps inside the messages, one clock):
   compensator mode of each namespace is read from its delay_compensator's /diagnostics ("mode").
 - pipeline: a bag of `run_pipeline.sh --namespace NS` holds `/NS/arm_angles`, ...; the bag's only
   pipeline is read, or the one named (`namespaces.choose_pipeline`), and only its nodes' /diagnostics.
+- the stated interval (/prediction_interval, the default's): per step k, the share of the observed frames
+  matched as above that fall inside the interval stated at t for t + k, and its mean width (rad).
 """
 
 from __future__ import annotations
@@ -66,6 +68,10 @@ class RunData:
     warnings: list[str] = field(default_factory=list)
     #: the pipeline's namespace ("" = root): its topics are `<namespace>/arm_angles`, ...
     namespace: str = ""
+    #: the interval stated with the predictions (if recorded): stamps (M,), bounds (2, M, h, 8), stated share
+    interval_t: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    interval_bounds: np.ndarray = field(default_factory=lambda: np.zeros((2, 0, 1, len(ARM_JOINTS))))
+    interval_nominal: float | None = None
 
 
 @dataclass
@@ -86,6 +92,11 @@ class PipelineReport:
     learner: dict[str, str] = field(default_factory=dict)
     rejected: dict[str, int] = field(default_factory=dict)
     namespace: str = ""
+    #: the stated interval, if recorded: its share, and per step the share of the observed angles inside it
+    #: and its mean width (rad)
+    interval_nominal: float | None = None
+    interval_coverage_per_step: list[float] | None = None
+    interval_width_per_step_rad: list[float] | None = None
 
     def to_json(self) -> str:
         return json.dumps(to_jsonable(asdict(self)), indent=2, sort_keys=False)
@@ -100,6 +111,10 @@ class PipelineReport:
             f"{self.scored_predictions} predictions (holding the last frame instead: {self.hold_mae_rad:.4f} rad)",
             "  per step: " + " ".join(f"{v:.3f}" for v in self.prediction_mae_per_step_rad),
         ]
+        if self.interval_coverage_per_step is not None and self.interval_width_per_step_rad is not None:
+            lines.append(f"stated {100 * (self.interval_nominal or 0):.0f} % interval, per step: observed angles "
+                         "inside " + " ".join(f"{100 * v:.1f} %" for v in self.interval_coverage_per_step)
+                         + "; mean width " + " ".join(f"{v:.3f}" for v in self.interval_width_per_step_rad) + " rad")
         for ns, r in self.robots.items():
             lag = "n/a" if r["lag_s"] is None else f"{r['lag_s']:.3f} s"
             mae = "n/a" if r["tracking_mae_rad"] is None else f"{r['tracking_mae_rad']:.4f} rad"
@@ -136,7 +151,8 @@ _namespace = namespaces.split_topic  # '/uncompensated/joint_states' -> '/uncomp
 def expected_type(topic: str, pipeline: str = "") -> str | None:
     """The message type the report and the video read `topic` as (in the pipeline of namespace `pipeline`),
     None for a topic they do not read."""
-    for base in (conventions.TOPIC_ANGLES, conventions.TOPIC_PREDICTIONS, conventions.TOPIC_SKELETON):
+    for base in (conventions.TOPIC_ANGLES, conventions.TOPIC_PREDICTIONS, conventions.TOPIC_SKELETON,
+                 conventions.TOPIC_PREDICTION_INTERVAL):
         if topic == namespaces.in_pipeline(pipeline, base):
             return conventions.TOPIC_TYPES[base]
     for base in (conventions.TOPIC_ROBOT_STATE, conventions.TOPIC_LEARNER_STATUS, conventions.TOPIC_DIAGNOSTICS):
@@ -167,6 +183,7 @@ def read_run(bag: str | Path, namespace: str | None = None) -> RunData:
     person: list[tuple[float, np.ndarray]] = []
     pred_t: list[float] = []
     preds: list[np.ndarray] = []
+    intervals: list[tuple[float, float, np.ndarray]] = []  # (stamp, share, bounds (2, h, 8))
     robots: dict[str, list[tuple[float, np.ndarray]]] = {}
     modes: dict[str, str] = {}
     learner: dict[str, str] = {}
@@ -174,6 +191,7 @@ def read_run(bag: str | Path, namespace: str | None = None) -> RunData:
     angles_topic = namespaces.in_pipeline(pipeline, conventions.TOPIC_ANGLES)
     preds_topic = namespaces.in_pipeline(pipeline, conventions.TOPIC_PREDICTIONS)
     learner_topic = namespaces.in_pipeline(pipeline, conventions.TOPIC_LEARNER_STATUS)
+    interval_topic = namespaces.in_pipeline(pipeline, conventions.TOPIC_PREDICTION_INTERVAL)
     undecodable: dict[str, int] = {}
     read: dict[str, int] = {}
     wrong: dict[str, tuple[str, str]] = {}
@@ -197,6 +215,13 @@ def read_run(bag: str | Path, namespace: str | None = None) -> RunData:
             if names == ARM_JOINTS and (not preds or p.shape == preds[0].shape):
                 pred_t.append(stamp)
                 preds.append(p)
+        elif m.topic == interval_topic:
+            try:
+                stamp, names, share, lower, upper = conventions.unpack_interval(bags.packed_array(m.msg))
+            except LayoutError:
+                continue
+            if names == ARM_JOINTS and (not intervals or lower.shape == intervals[0][2].shape[1:]):
+                intervals.append((stamp, share, np.stack([lower, upper])))
         elif (ns := _namespace(m.topic, conventions.TOPIC_ROBOT_STATE)) is not None:
             row = _arm_vector(m.msg)
             if row is not None and namespaces.within(ns, pipeline):
@@ -217,6 +242,7 @@ def read_run(bag: str | Path, namespace: str | None = None) -> RunData:
                               "the report cannot read the person's angles")
     warnings = [f"{bag}: {wrong_type_text(topic, *types)}; skipped" for topic, types in sorted(wrong.items())
                 if topic not in (preds_topic, namespaces.in_pipeline(pipeline, conventions.TOPIC_SKELETON))]
+    intervals.sort(key=lambda row: row[0])
     rejected: dict[str, int] = {f"bag:undecodable.{t}": n for t, n in sorted(undecodable.items())}
     for name, values in diagnostics.items():
         for key, value in values.items():
@@ -241,6 +267,10 @@ def read_run(bag: str | Path, namespace: str | None = None) -> RunData:
         wrong_types=wrong,
         warnings=warnings,
         namespace=pipeline,
+        interval_t=np.array([row[0] for row in intervals]),
+        interval_bounds=(np.stack([row[2] for row in intervals], axis=1) if intervals
+                         else np.zeros((2, 0, 1, len(ARM_JOINTS)))),
+        interval_nominal=intervals[-1][1] if intervals else None,
     )
 
 
@@ -279,6 +309,24 @@ def prediction_errors(run: RunData, period: float) -> tuple[np.ndarray, float, i
     ok = (idx_h >= 0) & (idx_0 >= 0)
     hold = float(np.mean(np.abs(run.person.values[idx_0[ok]] - run.person.values[idx_h[ok]]))) if ok.any() else math.nan
     return mae, hold, int(ok.sum())
+
+
+def interval_scores(run: RunData, period: float) -> tuple[list[float], list[float]] | None:
+    """Per step k, the share of the observed frames (matched as for the prediction error) inside the interval
+    stated for them, and the interval's mean width (rad); None if no interval was recorded."""
+    n, h = run.interval_t.size, run.interval_bounds.shape[2]
+    if n == 0:
+        return None
+    coverage, width = [], []
+    for k in range(1, h + 1):
+        idx = match_frames(run.person, run.interval_t + k * period, 0.5 * period)
+        ok = idx >= 0
+        lower, upper = run.interval_bounds[0, ok, k - 1], run.interval_bounds[1, ok, k - 1]
+        truth = run.person.values[idx[ok]]
+        inside = (truth >= lower) & (truth <= upper)
+        coverage.append(float(inside.mean()) if inside.size else math.nan)
+        width.append(float((upper - lower).mean()) if inside.size else math.nan)
+    return coverage, width
 
 
 def resample(series: Series, grid: np.ndarray, max_gap_s: float) -> np.ndarray:
@@ -324,12 +372,16 @@ def compute_report(run: RunData, period: float = 1.0 / conventions.ANGLE_FPS, dt
     mae, hold, scored = prediction_errors(run, period)
     neurons = {layer: count for layer, key in conventions.NEURON_KEYS.items()
                if (count := _counter(run.learner.get(key, ""))) is not None}
+    interval = interval_scores(run, period)
     return PipelineReport(
         bag=str(run.bag), duration_s=run.duration_s, message_counts=run.counts, horizon=int(mae.size),
         frame_period_s=period, scored_predictions=scored, prediction_mae_rad=float(mae[-1]),
         prediction_mae_per_step_rad=[float(v) for v in mae], hold_mae_rad=hold,
         robots={ns: robot_summary(run, ns, dt, max_lag_s, max_gap_s) for ns in run.robots},
-        neurons=neurons, learner=run.learner, rejected=run.rejected, namespace=run.namespace)
+        neurons=neurons, learner=run.learner, rejected=run.rejected, namespace=run.namespace,
+        interval_nominal=run.interval_nominal,
+        interval_coverage_per_step=None if interval is None else interval[0],
+        interval_width_per_step_rad=None if interval is None else interval[1])
 
 
 def plot_run(run: RunData, path: str | Path, seconds: float = 20.0, period: float = 1.0 / conventions.ANGLE_FPS
@@ -346,14 +398,23 @@ def plot_run(run: RunData, path: str | Path, seconds: float = 20.0, period: floa
 
     h = run.predictions.shape[1]
     series = {"person": window(run.person.t, _break_gaps(run.person))}
+    bands = {}
+    predicted = f"prediction +{round(h * period * 1000)} ms"
     if run.predictions.shape[0]:
         pred = Series(run.predictions_t + h * period, run.predictions[:, -1])
-        series[f"prediction +{round(h * period * 1000)} ms"] = window(pred.t, _break_gaps(pred))
+        series[predicted] = window(pred.t, _break_gaps(pred))
+    if run.interval_t.size and run.interval_bounds.shape[2] == h:  # the interval stated for the same step
+        t = run.interval_t + h * period
+        lower = window(t, _break_gaps(Series(t, run.interval_bounds[0, :, -1])))
+        upper = window(t, run.interval_bounds[1, :, -1])
+        bands[f"its stated {100 * (run.interval_nominal or 0):.0f} % interval"] = (predicted, lower[0], lower[1],
+                                                                                   upper[1])
     for ns, robot in run.robots.items():
         label = f"robot {ns or '/'} ({run.modes.get(ns, '?')})"
         series[label] = window(robot.t, robot.values)
     name = run.bag.parent.name if run.bag.name == "bag" else run.bag.name  # the run folder's name
-    return plot_angle_series(path, series, title=f"{name}: person, prediction and robots, last {seconds:.0f} s")
+    return plot_angle_series(path, series, title=f"{name}: person, prediction and robots, last {seconds:.0f} s",
+                             bands=bands)
 
 
 def _break_gaps(series: Series, max_gap_s: float = conventions.MAX_GAP_S) -> np.ndarray:

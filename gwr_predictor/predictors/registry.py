@@ -143,12 +143,22 @@ def load_predictor(name: str, path: str | os.PathLike[str]) -> Predictor:
 
 
 # --- the built-in predictors (imports deferred: choosing `hold` must not load the GWR code) -------
+#: The baselines that state an interval with every prediction: the default's spread of their own residuals
+#: (`default_predictor.spread.WithSpread`), so that the reports compare widths at equal coverage.
+SPREADING_BASELINES = ("hold", "rls_ar")
+
+
 def _baseline(name: str) -> Factory:
     def make(params: Any, seed: int) -> Predictor:
         from gwr_predictor.predictors.baselines import make_baselines
 
         hp = hierarchy_params(params)
-        return make_baselines(hp.horizon, hp.span)[name]  # type: ignore[return-value]
+        model = make_baselines(hp.horizon, hp.span)[name]
+        if name not in SPREADING_BASELINES:
+            return model  # type: ignore[return-value]
+        from gwr_predictor.default_predictor.spread import SpreadParams, WithSpread
+
+        return WithSpread(model, SpreadParams(horizon=hp.horizon, joints=hp.n_joints, groups=1))
 
     return make
 

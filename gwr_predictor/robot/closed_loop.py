@@ -20,8 +20,8 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from gwr_predictor.protocol import Predictor
-from gwr_predictor.robot.compensator import DelayCompensator, Mode
+from gwr_predictor.protocol import Predictor, Spreading
+from gwr_predictor.robot.compensator import CompensatorParams, DelayCompensator, Mode
 from gwr_predictor.robot.delayed_arm import RobotError, RobotParams, SimulatedRobot
 from gwr_predictor.robot.nao import ARM_JOINTS
 from gwr_predictor.robot.tracking import estimate_lag, tracking_error
@@ -66,13 +66,15 @@ def run_closed_loop(angles: np.ndarray, predictor: Predictor, delay_s: float = 0
                     sensing_delay_s: float = 0.0, dt: float = 0.01, frame_period: float = 0.1,
                     compensator_delay_s: float | None = None, stale_after_s: float = 0.5,
                     transport_delay: Callable[[float], float] | None = None,
-                    learn: bool = True) -> ClosedLoopResult:
+                    learn: bool = True, spread_shrink: float = 0.0) -> ClosedLoopResult:
     """Drive a simulated robot from `angles` (T x 8, one row per frame) through the full chain.
 
     `delay_s` is the sensorimotor delay without the motor latency, `sensing_delay_s` of it before
     the predictor; `robot` sets latency, motor time constant and backend (its delay is replaced).
     The compensator assumes `compensator_delay_s` (default: `delay_s`). `transport_delay(t)`,
     if given, sets the command transport delay at every control period (a variable delay).
+    `spread_shrink`: the compensator's option of that name, fed the interval a `Spreading` predictor
+    states with each prediction.
     """
     person = np.asarray(angles, dtype=float)
     if person.ndim != 2 or person.shape[1] != len(ARM_JOINTS) or person.shape[0] < 2:
@@ -85,8 +87,10 @@ def run_closed_loop(angles: np.ndarray, predictor: Predictor, delay_s: float = 0
         raise RobotError(f"dt={dt!r} must divide frame_period={frame_period!r} into whole control periods")
     n_frames = person.shape[0]
     params = replace(robot or RobotParams(), delay_s=delay_s - sensing_delay_s, dt=dt)
-    comp = DelayCompensator(compensation, delay_s if compensator_delay_s is None else compensator_delay_s,
-                            frame_period, stale_after_s)
+    comp = DelayCompensator(params=CompensatorParams(
+        compensation, delay_s if compensator_delay_s is None else compensator_delay_s, frame_period, stale_after_s,
+        spread_shrink=spread_shrink))
+    spreads = isinstance(predictor, Spreading)
     predictor.reset_sequence()
 
     per_frame = round(frame_period / dt)
@@ -105,7 +109,9 @@ def run_closed_loop(angles: np.ndarray, predictor: Predictor, delay_s: float = 0
             while k < n_frames and arrival_step[k] <= n:
                 observed[k] = person[k]
                 preds = predictor.step(person[k], learn=learn)
-                out = comp.command(bot.t, person[k], preds, k * frame_period, bot.state(), obs_stamp=k * frame_period)
+                interval = predictor.interval() if spreads else None  # type: ignore[attr-defined]
+                out = comp.command(bot.t, person[k], preds, k * frame_period, bot.state(), obs_stamp=k * frame_period,
+                                   interval=interval)
                 bot.command(out.angles)
                 commands[k], steps_used[k] = out.angles, out.step_used
                 k += 1

@@ -33,6 +33,13 @@ state of the hardware is followed; the paper leaves the estimation of xi out of 
 Without usable predictions (none yet, not finite, or older than `stale_after_s`) every mode
 falls back to the newest observation and says why.
 
+With `spread_shrink` c > 0 and the interval the predictor states with its predictions (the default's
+spread: `default_predictor/spread.py`), the chosen pose is pulled towards the newest observation per joint
+by how wide the interval is against the step it predicts: with d = P(t+k) - x(t) and w the interval's
+half-width at step k, the command is x(t) + d^2 / (d^2 + c w^2) d. A prediction whose interval dwarfs the
+move it predicts is a guess, and the robot then moves less on it; 0 (the default) leaves every command
+as chosen (its measured effect: docs/pipeline.md).
+
 The command is the chosen pose as it is, not clipped into the joint limits: the robot's input
 clips every command once (`SimulatedRobot.command`; `trajectory.command_trajectory` for a real
 robot's controller), whichever source it comes from.
@@ -81,6 +88,9 @@ PARAM_SPECS: dict[str, ParamSpec] = {s.name: s for s in (
     ParamSpec("guard_margin", 0.93, "guarded: a lead is used only if its recent MSE is below this share of "
               "holding still's", 0.0, 1.0, lo_open=True),
     ParamSpec("guard_min_frames", 10, "guarded: frames a lead must have been scored on before it is used", 1, 100_000),
+    ParamSpec("spread_shrink", 0.0, "pull each joint of the command towards the observation by d^2 / (d^2 + c w^2), "
+              "d the predicted move, w the half-width of the predictor's stated interval at that step (0: off)",
+              0.0, 1e6),
 )}
 
 
@@ -92,7 +102,8 @@ class CompensatorParams:
     robot's pose) and `min_motion` (rad per frame below which the arm counts as still and the
     estimate is left alone) matter to ``variable`` only; `guard_decay` (forgetting of the running
     errors per scored frame), `guard_margin` (the share of holding still's MSE a lead must stay
-    below) and `guard_min_frames` (the evidence it needs first) to ``guarded`` only.
+    below) and `guard_min_frames` (the evidence it needs first) to ``guarded`` only. `spread_shrink`: how
+    much a wide stated interval pulls the command towards the observation (0: not at all).
     """
 
     mode: Mode = PARAM_SPECS["mode"].default
@@ -106,6 +117,7 @@ class CompensatorParams:
     guard_decay: float = PARAM_SPECS["guard_decay"].default
     guard_margin: float = PARAM_SPECS["guard_margin"].default
     guard_min_frames: int = PARAM_SPECS["guard_min_frames"].default
+    spread_shrink: float = PARAM_SPECS["spread_shrink"].default
 
     def __post_init__(self) -> None:
         check_fields(self, PARAM_SPECS.values(), CompensatorError)
@@ -202,7 +214,8 @@ class DelayCompensator:
 
     def command(self, now: float, observation: np.ndarray, predictions: np.ndarray | None = None,
                 pred_stamp: float | None = None, robot_state: np.ndarray | None = None,
-                obs_stamp: float | None = None) -> CompensatorOutput:
+                obs_stamp: float | None = None, interval: tuple[np.ndarray, np.ndarray] | None = None
+                ) -> CompensatorOutput:
         """The angles to send to the robot now.
 
         `now`, `pred_stamp` and `obs_stamp` share one clock (seconds); `predictions` (h x J) are
@@ -212,7 +225,8 @@ class DelayCompensator:
         is more than `stale_after_s` past `pred_stamp`: pass `obs_stamp` when stamps are capture
         times that arrive late, so that a sensing delay is not taken for staleness. The step
         aims at person time `obs_stamp + delay`, so predictions a frame older than the
-        observation still hit it.
+        observation still hit it. `interval`: the (lower, upper) bounds (h x J each) the predictor stated
+        with `predictions`, used with `spread_shrink` (None: none stated, the command is not pulled).
         """
         p = self.params
         obs = self._vector(observation, "observation")
@@ -246,7 +260,28 @@ class DelayCompensator:
             if base is not None:
                 self._guard.expect(pred_stamp, preds, base)
             step = self._guard.allowed(step)
-        return CompensatorOutput(self._output(obs if step == 0 else preds[step - 1]), step, reason)
+        if step == 0:
+            return CompensatorOutput(self._output(obs), 0, reason)
+        return CompensatorOutput(self._shrunk(preds[step - 1], obs, interval, step), step, reason)
+
+    def _shrunk(self, pose: np.ndarray, obs: np.ndarray, interval: tuple[np.ndarray, np.ndarray] | None,
+                step: int) -> np.ndarray:
+        """The chosen pose P(t+step), pulled towards the observation where the stated interval is wide
+        (`spread_shrink`); as it is without an interval or with the option off."""
+        c = self.params.spread_shrink
+        if not c or interval is None:
+            return self._output(pose)
+        lower, upper = (np.asarray(b, dtype=float) for b in interval)
+        if lower.shape != upper.shape or lower.ndim != 2 or lower.shape[0] < step or lower.shape[1] != pose.size:
+            raise CompensatorError(f"interval bounds must be (horizon >= {step}, {pose.size}) each, got "
+                                   f"{lower.shape} and {upper.shape}")
+        half = 0.5 * (upper[step - 1] - lower[step - 1])
+        move = pose - obs
+        moved = move * move
+        keep = np.divide(moved, moved + c * half * half, out=np.ones_like(moved), where=moved > 0.0)
+        if not np.isfinite(keep).all():  # a NaN or inf bound says nothing: the pose as chosen
+            return self._output(pose)
+        return obs + keep * move
 
     def _pose_at(self, t: float, obs: np.ndarray, obs_t: float) -> np.ndarray | None:
         """The observed pose stamped t (the P(t+0) of predictions made at t), if still known."""

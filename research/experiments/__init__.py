@@ -26,6 +26,7 @@ EXPERIMENTS: dict[str, str] = {
     "gate": "The confidence gate's settings: worst ratio to hold-last per clip vs the gain where motion repeats",
     "repeats": "Real movements performed 8 times with variation: one pass from scratch, learning curve, closed loop",
     "tune": "Settings of the default predictor and of RLS-AR, chosen by one protocol (same split, same budget)",
+    "calibration": "How sure: coverage and width of the interval stated with every prediction, per step and data set",
 }
 
 
