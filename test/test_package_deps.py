@@ -16,6 +16,7 @@ PYTHON_KEYS = {
     "matplotlib": "python3-matplotlib",
     "PIL": "python3-pil",
     "tqdm": "python3-tqdm",
+    "threadpoolctl": "python3-threadpoolctl",
     "pybullet": "python3-pybullet-pip",
     "rosbags": "python3-rosbags-pip",
     "mcap": "mcap-ros2-support",  # the key that brings the mcap package (mcap-ros2-support depends on it)
