@@ -36,10 +36,11 @@ MAX_CSV_BYTES = MAX_TEXT_BYTES
 MAX_SKELETON_BYTES = 4 << 20
 #: A model checkpoint (npz members inflated).
 MAX_CHECKPOINT_BYTES = 2 << 30
-#: Neurons of one network a checkpoint may declare (checked in the array headers, before reading), for
-#: layers without a `max_neurons` and above a larger one: the edges of a network take 2 n^2 bytes (this
-#: many: 800 MB), and the largest networks the experiments report, the upper layers without
-#: normalisation, grow past 10,000. A checkpoint of a larger network is refused naming this limit.
+#: Neurons of one network a checkpoint may declare (checked in the array headers, before reading), and the
+#: largest `max_neurons` a layer may have: the product's layers are bounded far below it (the default's
+#: network at 1,000, the paper's layers at 5,000), while the largest networks the experiments report, the
+#: upper layers without normalisation, grow past 10,000. A checkpoint of a larger network is refused
+#: naming this limit.
 MAX_NETWORK_NEURONS = 20_000
 #: Joints of one skeleton (BVH joints and End Sites, ASF bone starts and ends, array columns / 3).
 #: Real skeletons with fingers and face have up to about 150.

@@ -252,6 +252,10 @@ def measure_bmu_cost(dims: tuple[int, ...] = (8, 24, 72), sizes: tuple[int, ...]
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
+    from research import day
+
+    sub = parser.add_subparsers(dest="what", metavar="day", help="`day`: a robot's day, compressed (research/day.py)")
+    day.configure(sub.add_parser("day", description=day.__doc__.splitlines()[0]))
     parser.add_argument("--quick", action="store_true", help="small sizes and few frames (a smoke run)")
     parser.add_argument("--size", type=int, default=1000, help="neurons per layer for frames_per_s")
     parser.add_argument("--pgwr-size", type=int, default=5000, help="P-GWR neurons for predict_p99_ms")
@@ -262,6 +266,10 @@ def configure(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    if args.what == "day":
+        from research import day
+
+        return day.run(args)
     size, pgwr_size, frames = args.size, args.pgwr_size, args.frames
     if args.quick:
         size, pgwr_size, frames = min(size, 100), min(pgwr_size, 300), min(frames, 300)

@@ -99,6 +99,32 @@ def test_the_memory_grows_only_when_required_and_keeps_what_it_stored():
     assert small.size == 5
 
 
+def test_a_person_holding_a_pose_stops_adding_snippets_but_a_movement_from_it_is_stored():
+    """The tracker's noise keeps the keys of one held pose apart (their changes are noise): every few frames
+    one of them was new. With `still_radius` a still snippet is stored only where no still one holds a pose
+    that near; the onset of a movement from the pose (a still key, a moving future) is no still snippet."""
+    rng = np.random.default_rng(4)
+    pose = np.array([1.4, 0.15, -1.2, -0.4, 1.4, -0.15, 1.2, 0.4])
+    held = pose + rng.normal(0.0, 0.01, (3000, 8))
+    sizes = {}
+    for radius in (0.0, 2.0):
+        memory = TrajectoryMemory(MemoryParams(still_radius=radius))
+        for f in held[:1500]:
+            memory.step(f)
+        before = memory.size
+        for f in held[1500:]:
+            memory.step(f)
+        sizes[radius] = (before, memory.size)
+    grew = {r: after - before for r, (before, after) in sizes.items()}
+    assert grew[0.0] > 100  # kept growing while the person stood still
+    assert grew[2.0] < 0.1 * grew[0.0]
+    onset = pose + np.linspace(0.0, 0.6, 30)[:, None] * np.linspace(1.0, -1.0, 8)  # a movement from the pose
+    for f in onset:
+        memory.step(f)
+    moving = ~memory.still[:memory.size]
+    assert moving[sizes[2.0][1]:].any()  # the frames before it, whose futures move, are stored as they are
+
+
 def test_a_full_memory_learns_a_new_movement_in_place_of_what_it_recalled_longest_ago():
     """At capacity a new snippet replaces the one recalled longest ago, so a movement first met once the
     memory is full is learned in place. Measured at 600 ms: 0.062 / 0.010 / 0.009 rad on its first three

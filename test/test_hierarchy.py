@@ -10,7 +10,7 @@ from gwr_predictor.commands import cli
 from gwr_predictor.learning.gwr import InputError
 from gwr_predictor.learning.hierarchy import FlatPredictor, Hierarchy
 from gwr_predictor.learning.online_loop import ErrorTracker
-from gwr_predictor.learning.params import GWRParams, HierarchyParams, hierarchy_parameter_specs
+from gwr_predictor.learning.params import HIERARCHY_MAX_NEURONS, GWRParams, HierarchyParams, hierarchy_parameter_specs
 
 H = 6
 
@@ -53,7 +53,7 @@ def test_default_hierarchy_follows_the_paper():
 def test_flat_round_trip_and_specs_cover_every_key():
     p = HierarchyParams(mode="vector", input_scale=0.3, gwr2=GWRParams(max_edge_age=250, max_neurons=900))
     flat = p.to_flat()
-    assert flat["gwr2.max_edge_age"] == 250 and flat["gwr1.max_neurons"] == 0
+    assert flat["gwr2.max_edge_age"] == 250 and flat["gwr1.max_neurons"] == HIERARCHY_MAX_NEURONS
     assert HierarchyParams.from_flat(flat) == p
     specs = hierarchy_parameter_specs()
     assert {s.name for s in specs} == set(flat)

@@ -6,8 +6,11 @@ twice. The memory stores snippets: a key (the newest pose and its changes over t
 pose. A snippet is stored when no stored key lies within `insert_scale` x the running motion scale
 of it (it grows when required, like the GWR). At `capacity` a new snippet replaces the one recalled
 longest ago (stored, if never recalled), so a person met after hours still has their movements
-learned; below it nothing is forgotten. On real motion nearly every frame is stored (the tracker's
-noise keeps keys apart), so the default 20,000 snippets last about half an hour at 10 fps. To
+learned; below it nothing is forgotten. On new motion nearly every frame is stored (the tracker's
+noise keeps keys apart), so the default 5,000 snippets hold about ten minutes of motion that never
+comes back, and what recurs is recalled and stays. A person holding a pose would add snippets for
+ever the same way (a still key's changes are the tracker's noise): a still snippet (`still_radius`)
+is stored only where no still one holds a pose that near. To
 predict, the `k` nearest keys are read out at the present speed: a movement made r times as fast as
 a stored one reaches the stored step k r at our step k, with r the least-squares ratio of the
 present changes to the stored ones (clipped to [`min_ratio`, `max_ratio`]), read by linear
@@ -72,8 +75,11 @@ MEMORY_SPECS = {spec.name: spec for spec in (
               "two)", 1, 64),
     ParamSpec("velocity_weight", 0.5, "weight of the key's changes against its pose in the distance", 0.0, 100.0),
     ParamSpec("insert_scale", 0.5, "a snippet is stored when no key is within this x the motion scale", 0.0, 1e3),
-    ParamSpec("capacity", 20000, "snippets at most (there a new one replaces the one recalled longest ago)", 1,
-              10**7),
+    ParamSpec("capacity", 5000, "snippets at most (there a new one replaces the one recalled longest ago)", 1,
+              200_000),
+    ParamSpec("still_radius", 2.0, "a snippet whose pose moves less than this x the motion scale over its key and its "
+              "future is still, and is stored only where no still one's pose is that near (0: stored as any other)",
+              0.0, 100.0),
     ParamSpec("min_ratio", 0.6, "slowest speed, against a stored snippet's, read out", 0.0, 1.0, lo_open=True),
     ParamSpec("max_ratio", 1.6, "fastest speed, against a stored snippet's, read out", 1.0, 10.0),
     ParamSpec("noise_floor", 0.01, "lower bound of the motion scale (rad)", 0.0, 10.0, lo_open=True),
@@ -97,6 +103,7 @@ class MemoryParams:
     velocity_weight: float = MEMORY_SPECS["velocity_weight"].default
     insert_scale: float = MEMORY_SPECS["insert_scale"].default
     capacity: int = MEMORY_SPECS["capacity"].default
+    still_radius: float = MEMORY_SPECS["still_radius"].default
     min_ratio: float = MEMORY_SPECS["min_ratio"].default
     max_ratio: float = MEMORY_SPECS["max_ratio"].default
     noise_floor: float = MEMORY_SPECS["noise_floor"].default
@@ -155,6 +162,7 @@ class TrajectoryMemory(Checkpointed):
         self._norms = np.empty(size)  # a distance is then one matrix-vector product (`_distances`)
         self.futures = np.empty((size, self._future + 1, p.n_joints))  # displacements from the key's pose, 0..future
         self.used = np.empty(size, dtype=np.int64)  # per snippet: the frame it was stored or last recalled at
+        self.still = np.zeros(size, dtype=bool)  # per snippet: a still one (`still_radius`)
         # what a read leaves for the store of its own key `future` frames later (`_nearest_stored`): per read,
         # (clock, nearest squared distance, its slot); per store since, (clock, slot)
         self._reads: deque[tuple[int, float, int]] = deque(maxlen=self._future + 1)
@@ -217,10 +225,15 @@ class TrajectoryMemory(Checkpointed):
 
     def _store(self, key: np.ndarray, future: np.ndarray) -> None:
         p = self.params
+        still = p.still_radius > 0 and self._is_still(key, future)
         if self.size:
-            radius = max(self.motion_rms, p.noise_floor) * p.insert_scale
-            if self._nearest_stored(key) <= radius * radius * len(key) / p.n_joints:
-                return
+            if still:
+                if self._near_still(key):
+                    return
+            else:
+                radius = max(self.motion_rms, p.noise_floor) * p.insert_scale
+                if self._nearest_stored(key) <= radius * radius * len(key) / p.n_joints:
+                    return
         if self.size >= p.capacity:  # full: the snippet recalled longest ago makes room
             slot = int(np.argmin(self.used[:self.size]))
             self.replaced += 1
@@ -231,8 +244,27 @@ class TrajectoryMemory(Checkpointed):
         self._weigh(slice(slot, slot + 1))
         self.futures[slot] = future
         self.used[slot] = self.clock
+        self.still[slot] = still
         self._stores.append((self.clock, slot))
 
+    def _is_still(self, key: np.ndarray, future: np.ndarray) -> bool:
+        """Whether the pose moves less than `still_radius` x the motion scale over the key's longest lag and
+        over every step of the future: a person holding a pose, whose key's changes are the tracker's noise."""
+        p = self.params
+        limit = (p.still_radius * max(self.motion_rms, p.noise_floor)) ** 2
+        change = key[-p.n_joints:]
+        return float(change.dot(change)) <= limit and float(np.einsum("fj,fj->f", future, future).max()) <= limit
+
+    def _near_still(self, key: np.ndarray) -> bool:
+        """Whether a stored still snippet's pose lies within `still_radius` x the motion scale of the key's.
+        Poses only: a still key's changes are noise, which keeps keys of one held pose apart for ever."""
+        p = self.params
+        held = self.still[:self.size]
+        if not held.any():
+            return False
+        diff = self.keys[:self.size, :p.n_joints] - key[:p.n_joints]
+        d2 = np.einsum("nj,nj->n", diff, diff)
+        return float(d2[held].min()) <= (p.still_radius * max(self.motion_rms, p.noise_floor)) ** 2
     def _nearest_stored(self, key: np.ndarray) -> float:
         """The squared distance of the nearest stored key to the key being stored, which the read `future`
         frames ago searched for already: its nearest then, unless that snippet was replaced since, against
@@ -323,8 +355,9 @@ class TrajectoryMemory(Checkpointed):
     def _save_extra(self) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
         arrays: dict[str, np.ndarray] = {"keys": self.keys[:self.size].copy(),
                                          "futures": self.futures[:self.size].copy()}
-        if self.size:  # a memory saved before `used` existed has none: see `_load_extra`
+        if self.size:  # a memory saved before `used` (or `still`) existed has none: see `_load_extra`
             arrays["used"] = self.used[:self.size].copy()
+            arrays["still"] = self.still[:self.size].copy()
         return {"clock": self.clock, "replaced": self.replaced}, arrays
 
     def _load_extra(self, header: Mapping[str, Any], arrays: Mapping[str, np.ndarray]) -> None:
@@ -344,5 +377,9 @@ class TrajectoryMemory(Checkpointed):
         if used.shape != (n,):
             raise CheckpointError(f"snippet use times of shape {used.shape} do not fit size {n}")
         self.used[:n] = used
+        still = np.asarray(arrays["still"]) if "still" in arrays else np.zeros(n, dtype=bool)  # none was
+        if still.shape != (n,) or still.dtype != bool:
+            raise CheckpointError(f"snippet still flags of shape {still.shape} ({still.dtype}) do not fit size {n}")
+        self.still[:n] = still
         self.clock = int(header.get("clock", n))
         self.replaced = int(header.get("replaced", 0))

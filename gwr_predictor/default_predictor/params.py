@@ -20,9 +20,15 @@ class DefaultPredictorError(GwrPredictorError, ValueError):
 LocalLinearError = DefaultPredictorError
 
 
+#: The default network's bound (neurons): each holds a local linear model of 48 x 48 values (18 kB), so
+#: 1,000 of them are 18 MB of memory and of checkpoint. Chosen by measurement (docs/tuning.md: cost at
+#: the bound, and no loss on the tuning set, whose streams stay far below it).
+NETWORK_MAX_NEURONS = 1000
+
+
 def default_gwr() -> GWRParams:
-    """The GWR step of the default's network: the paper's, with edges removed at age 100."""
-    return GWRParams(max_edge_age=100)
+    """The GWR step of the default's network: the paper's, with edges removed at age 100, bounded."""
+    return GWRParams(max_edge_age=100, max_neurons=NETWORK_MAX_NEURONS)
 
 
 LOCAL_LINEAR_SPECS = {spec.name: spec for spec in (

@@ -14,6 +14,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
+from gwr_predictor.file_limits import MAX_NETWORK_NEURONS
 from gwr_predictor.parameter_spec import ParameterError, ParamSpec, check_fields
 
 #: Edge ages are stored as int16, so the age limit stays well inside its range.
@@ -40,7 +41,8 @@ GWR_SPECS: dict[str, ParamSpec] = {s.name: s for s in (
     ParamSpec("kappa", 1.05, "firing-counter curve constant (Eq. 3); the counter tends to 1 - 1/kappa", 1.0, 10.0),
     ParamSpec("max_edge_age", 100, "edges older than this are removed, then neurons left without edges",
               1, MAX_EDGE_AGE_LIMIT),
-    ParamSpec("max_neurons", 0, "no insertion beyond this many neurons (0 = unlimited)", 2, 10_000_000, none_value=0),
+    ParamSpec("max_neurons", 0, "neurons at most: beyond, a new neuron replaces the one best-matching longest ago (0 = "
+              "unlimited)", 2, MAX_NETWORK_NEURONS, none_value=0),
 )}
 
 @dataclass(frozen=True)
@@ -103,8 +105,14 @@ HIERARCHY_SPECS: dict[str, ParamSpec] = {s.name: s for s in (
 )}
 
 
-def _default_gwr(max_edge_age: int) -> GWRParams:
-    return GWRParams(max_edge_age=max_edge_age)
+#: The bound of each of the hierarchy's layers: a robot runs for hours, and an unbounded layer grows for
+#: as long (the paper's, `HierarchyParams.paper()`, have none). Above every size the experiments reach
+#: (1,634 / 2,144 / 1,083 neurons after the demonstrator's five training epochs).
+HIERARCHY_MAX_NEURONS = 5000
+
+
+def _default_gwr(max_edge_age: int, bounded: bool = True) -> GWRParams:
+    return GWRParams(max_edge_age=max_edge_age, max_neurons=HIERARCHY_MAX_NEURONS if bounded else None)
 
 
 @dataclass(frozen=True)
@@ -161,7 +169,8 @@ class HierarchyParams:
         weights are the predicted frame itself, plus this package's input scaling (see
         docs/learning.md). `changes` override fields, as in `replace`."""
         base = cls(mode="recursive", readout_k=1, target="absolute", input_scale=DEFAULT_INPUT_SCALE,
-                   normalise_distance=True)
+                   normalise_distance=True, gwr1=_default_gwr(100, bounded=False),
+                   gwr2=_default_gwr(200, bounded=False), pgwr=_default_gwr(300, bounded=False))
         return base.replace(**changes) if changes else base
 
     # --- flat form ---------------------------------------------------------------------------
