@@ -164,8 +164,8 @@ class TrajectoryMemory(Checkpointed):
         self.used = np.empty(size, dtype=np.int64)  # per snippet: the frame it was stored or last recalled at
         self.still = np.zeros(size, dtype=bool)  # per snippet: a still one (`still_radius`)
         # what a read leaves for the store of its own key `future` frames later (`_nearest_stored`): per read,
-        # (clock, nearest squared distance, its slot); per store since, (clock, slot)
-        self._reads: deque[tuple[int, float, int]] = deque(maxlen=self._future + 1)
+        # (clock, its key, the nearest squared distance, its slot); per store since, (clock, slot)
+        self._reads: deque[tuple[int, np.ndarray, float, int]] = deque(maxlen=self._future + 1)
         self._stores: deque[tuple[int, int]] = deque(maxlen=self._future + 1)
         self.size = 0
         self.clock = 0  # frames observed (the clock of `used`)
@@ -200,7 +200,9 @@ class TrajectoryMemory(Checkpointed):
             return None
         frames = np.asarray(recent)  # oldest first: the snippet to store starts it, the present window ends it
         if learn and len(recent) == recent.maxlen:
-            self._store(self._key(frames[:self._span]), frames[self._span - 1:] - frames[self._span - 1])
+            read = self._read_at(self.clock - self._future)  # the same window was read then: its key too
+            key = self._key(frames[:self._span]) if read is None else read[1]
+            self._store(key, frames[self._span - 1:] - frames[self._span - 1], read)
         if self.size < p.k:
             return None
         return obs + self._read(self._key(frames[-self._span:]))
@@ -223,7 +225,12 @@ class TrajectoryMemory(Checkpointed):
         d2 += query @ query
         return np.maximum(d2, 0.0, out=d2)
 
-    def _store(self, key: np.ndarray, future: np.ndarray) -> None:
+    def _read_at(self, clock: int) -> tuple[int, np.ndarray, float, int] | None:
+        """What the read at `clock` left (None: none read then, or too long ago)."""
+        reads = self._reads
+        return reads[0] if reads and reads[0][0] == clock else next((r for r in reads if r[0] == clock), None)
+
+    def _store(self, key: np.ndarray, future: np.ndarray, read: tuple[int, np.ndarray, float, int] | None) -> None:
         p = self.params
         still = p.still_radius > 0 and self._is_still(key, future)
         if self.size:
@@ -232,7 +239,7 @@ class TrajectoryMemory(Checkpointed):
                     return
             else:
                 radius = max(self.motion_rms, p.noise_floor) * p.insert_scale
-                if self._nearest_stored(key) <= radius * radius * len(key) / p.n_joints:
+                if self._nearest_stored(key, read) <= radius * radius * len(key) / p.n_joints:
                     return
         if self.size >= p.capacity:  # full: the snippet recalled longest ago makes room
             slot = int(np.argmin(self.used[:self.size]))
@@ -265,18 +272,16 @@ class TrajectoryMemory(Checkpointed):
         diff = self.keys[:self.size, :p.n_joints] - key[:p.n_joints]
         d2 = np.einsum("nj,nj->n", diff, diff)
         return float(d2[held].min()) <= (p.still_radius * max(self.motion_rms, p.noise_floor)) ** 2
-    def _nearest_stored(self, key: np.ndarray) -> float:
-        """The squared distance of the nearest stored key to the key being stored, which the read `future`
-        frames ago searched for already: its nearest then, unless that snippet was replaced since, against
-        the few stored since (one search of a full memory per frame instead of two)."""
-        then = self.clock - self._future
-        read = next((r for r in self._reads if r[0] == then), None)
+    def _nearest_stored(self, key: np.ndarray, read: tuple[int, np.ndarray, float, int] | None) -> float:
+        """The squared distance of the nearest stored key to the key being stored, which the `read` of the
+        same key `future` frames ago searched for already: its nearest then, unless that snippet was
+        replaced since, against the few stored since (one search of a full memory per frame, not two)."""
         if read is None:
             return float(self._distances(key).min())
-        since = [slot for clock, slot in self._stores if clock > then]
-        if read[2] in since:  # the nearest then is gone
+        since = [slot for clock, slot in self._stores if clock > read[0]]
+        if read[3] in since:  # the nearest then is gone
             return float(self._distances(key).min())
-        return min(read[1], float(self._distances(key, np.asarray(since)).min())) if since else read[1]
+        return min(read[2], float(self._distances(key, np.asarray(since)).min())) if since else read[2]
 
     def _weigh(self, rows: slice) -> None:
         """The weighted keys and their squared norms of stored `rows` (the same call stored or loaded, so a
@@ -292,7 +297,7 @@ class TrajectoryMemory(Checkpointed):
         d2 = self._distances(key)
         closest = int(d2.argmin())
         nearest_other, recallable = float(d2[closest]), self.size
-        self._reads.append((self.clock, nearest_other, closest))
+        self._reads.append((self.clock, key, nearest_other, closest))
         if nearest_other <= EXACT:  # copies (a recording replayed): left out of the minimum, and of recall if
             copies = d2 <= EXACT  # enough others are left
             masked = np.where(copies, np.inf, d2)

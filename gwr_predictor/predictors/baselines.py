@@ -185,12 +185,13 @@ class RLSAutoregressive(Checkpointed):
         """Predictions (horizon, J) for the next frames, by feeding each one back into the regressor."""
         if not self._started:
             return None
-        buf = self._buf.copy()
+        reg = self._regressor(self._buf)  # [x(t), x(t-1), ..., 1], shifted by a frame per step
         out = np.empty((self.horizon, self.joints))
+        j = self.joints
         for k in range(self.horizon):
-            out[k] = self._regressor(buf) @ self.weights_
-            buf[1:] = buf[:-1]
-            buf[0] = out[k]
+            out[k] = reg @ self.weights_
+            reg[j:-1] = reg[:-j - 1]  # numpy copies overlapping slices as if through a buffer
+            reg[:j] = out[k]
         return out
 
     def _update(self, phi: np.ndarray, target: np.ndarray) -> None:
@@ -198,7 +199,9 @@ class RLSAutoregressive(Checkpointed):
         p_phi = self.p_ @ phi
         gain = p_phi / (lam + phi @ p_phi)
         self.weights_ += np.outer(gain, target - phi @ self.weights_)
-        p = (self.p_ - np.outer(gain, p_phi)) / lam
+        p = self.p_ - np.outer(gain, p_phi)
+        if lam != 1.0:  # x / 1 is x: no pass over P without forgetting
+            p /= lam
         self.p_ = 0.5 * (p + p.T)
         self.updates_ += 1
         if not np.isfinite(self.weights_).all():
