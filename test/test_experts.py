@@ -125,6 +125,26 @@ def test_a_person_holding_a_pose_stops_adding_snippets_but_a_movement_from_it_is
     assert moving[sizes[2.0][1]:].any()  # the frames before it, whose futures move, are stored as they are
 
 
+def test_a_large_memory_searched_in_float32_first_recalls_what_an_exact_search_recalls(monkeypatch):
+    """Above `FLOAT32_ABOVE` snippets a read measures every key in float32, then the nearest few exactly: the
+    snippets it recalls are those an exact search recalls, and its predictions differ by rounding only."""
+    from gwr_predictor.default_predictor import memory as memory_module
+
+    x = np.cumsum(np.random.default_rng(2).normal(scale=0.02, size=(4200, 8)), axis=0)
+    x[3000:3600] = x[1000:1600] + 0.001  # a stretch that comes again: the fit over its neighbours
+    runs = {}
+    for threshold in (memory_module.FLOAT32_ABOVE, 10**9):
+        monkeypatch.setattr(memory_module, "FLOAT32_ABOVE", threshold)
+        memory = TrajectoryMemory(MemoryParams(capacity=3000))
+        preds = [memory.step(f) for f in x]
+        runs[threshold] = (memory, np.array([np.full((6, 8), np.nan) if p is None else p for p in preds]))
+    (fast, fast_preds), (exact, exact_preds) = runs.values()
+    assert fast.size == exact.size == 3000 and fast.replaced > 0
+    np.testing.assert_array_equal(fast.used[:3000], exact.used[:3000])  # the same snippets recalled, when
+    np.testing.assert_array_equal(fast.keys[:3000], exact.keys[:3000])  # and the same ones stored
+    np.testing.assert_allclose(fast_preds, exact_preds, rtol=0, atol=1e-12)
+
+
 def test_a_full_memory_learns_a_new_movement_in_place_of_what_it_recalled_longest_ago():
     """At capacity a new snippet replaces the one recalled longest ago, so a movement first met once the
     memory is full is learned in place. Measured at 600 ms: 0.062 / 0.010 / 0.009 rad on its first three

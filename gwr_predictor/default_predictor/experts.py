@@ -145,8 +145,16 @@ class Experts(Checkpointed):
     def _score(self, obs: np.ndarray, due: np.ndarray, valid: np.ndarray) -> None:
         err = ((due - obs) ** 2).sum(axis=2) / self.params.n_joints  # (members, horizon); NaN: no prediction
         scored = valid & np.isfinite(err)
-        decay = np.where(scored, self.params.decay, 1.0)
         made = self.record_weight[(self._t - self._made_ago) % self.params.horizon]
+        if scored.all():  # the usual frame: every member scored at every step (the same sums, fewer calls)
+            err *= made
+            self.sse *= self.params.decay
+            self.sse += err
+            self.weight *= self.params.decay
+            self.weight += made
+            self.scored += 1
+            return
+        decay = np.where(scored, self.params.decay, 1.0)
         self.sse *= decay
         self.sse += np.where(scored, err * made, 0.0)
         self.weight *= decay

@@ -58,6 +58,9 @@ BEFORE = {"longest_lag": SAVED_LONGEST_LAG, "fit_k": 0}
 SHORTEST_FUTURE = 12
 #: A key this close (squared, rad^2) to the present one is a copy of it: the same recording replayed.
 EXACT = 1e-12
+#: Above this many snippets a read first measures every key in float32 (half the bytes a search reads), then
+#: the few it finds nearest exactly (`_near`); below it every key exactly.
+FLOAT32_ABOVE = 2048
 
 MEMORY_SPECS = {spec.name: spec for spec in (
     ParamSpec("horizon", DEFAULT_HORIZON, "frames predicted", 1, MAX_HORIZON),
@@ -160,6 +163,8 @@ class TrajectoryMemory(Checkpointed):
         self.keys = np.empty((size, len(self._key_weights)))  # pose, then its changes (unweighted)
         self._weighted = np.empty_like(self.keys)  # the keys x `_key_weights`, and their squared norms:
         self._norms = np.empty(size)  # a distance is then one matrix-vector product (`_distances`)
+        self._weighted32 = np.empty(self.keys.shape, dtype=np.float32)  # the same in float32 (`_near`)
+        self._norms32 = np.empty(size, dtype=np.float32)
         self.futures = np.empty((size, self._future + 1, p.n_joints))  # displacements from the key's pose, 0..future
         self.used = np.empty(size, dtype=np.int64)  # per snippet: the frame it was stored or last recalled at
         self.still = np.zeros(size, dtype=bool)  # per snippet: a still one (`still_radius`)
@@ -288,18 +293,52 @@ class TrajectoryMemory(Checkpointed):
         loaded memory continues to the bit)."""
         weighted = self._weighted[rows]
         np.multiply(self.keys[rows], self._key_weights, out=weighted)
-        self._norms[rows] = np.einsum("nd,nd->n", weighted, weighted)
+        norms = np.einsum("nd,nd->n", weighted, weighted)
+        self._norms[rows] = norms
+        self._weighted32[rows] = weighted
+        self._norms32[rows] = norms
+
+    def _near(self, key: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(slots, exact squared distances to `key`) of every stored snippet a read may need: all of them, or in
+        a memory above `FLOAT32_ABOVE` the few nearest by a float32 pass over all of them, measured again
+        exactly. The float32 pass halves what a full memory's search reads; its rounding error is bounded
+        (`bound`), so the few are used only where they surely hold the nearest ones a read needs and every
+        copy; otherwise (near-ties at the cut) every key is measured exactly, as below the threshold."""
+        p = self.params
+        everyone = np.arange(self.size)
+        if self.size <= FLOAT32_ABOVE:
+            return everyone, self._distances(key)
+        needed = max(p.k, p.fit_k)
+        few = 2 * needed + 16
+        query = key * self._key_weights
+        qq = float(query @ query)
+        norms32 = self._norms32[:self.size]
+        d32 = self._weighted32[:self.size] @ query.astype(np.float32)
+        d32 *= -2.0
+        d32 += norms32
+        d32 += np.float32(qq)
+        slots = np.argpartition(d32, few - 1)[:few]
+        cut = float(d32[slots].max())
+        # |float32 - exact| of |a|^2 - 2 a.b + |b|^2 over d values: every rounding at most 2^-24 relative, of
+        # terms at most |a|^2 + |b|^2 (2 |a.b| <= |a|^2 + |b|^2), over 2 d + 4 of them; doubled
+        bound = (4 * len(key) + 8) * 2.0 ** -24 * (float(norms32.max()) * (1 + 2.0 ** -23) + qq)
+        d2 = self._distances(key, slots)
+        others = d2[d2 > EXACT]
+        if len(others) >= needed and float(np.partition(others, needed - 1)[needed - 1]) < cut - bound:
+            order = np.argsort(slots)  # the order of the slots, whichever way they were found
+            return slots[order], d2[order]
+        return everyone, self._distances(key)
 
     def _read(self, key: np.ndarray) -> np.ndarray:
         """(horizon, J) displacements: the k nearest snippets' futures at the present speed, weighted, or
         where the motion is familiar the `fit_k` nearest fitted (`_fit`)."""
         p = self.params
-        d2 = self._distances(key)
+        slots, d2 = self._near(key)
         closest = int(d2.argmin())
         nearest_other, recallable = float(d2[closest]), self.size
-        self._reads.append((self.clock, key, nearest_other, closest))
+        self._reads.append((self.clock, key, nearest_other, int(slots[closest])))
         if nearest_other <= EXACT:  # copies (a recording replayed): left out of the minimum, and of recall if
-            copies = d2 <= EXACT  # enough others are left
+            copies = d2 <= EXACT  # enough others are left (`_near` holds every copy)
             masked = np.where(copies, np.inf, d2)
             others = self.size - int(np.count_nonzero(copies))
             nearest_other = float(masked.min())  # inf without others
@@ -311,9 +350,12 @@ class TrajectoryMemory(Checkpointed):
         self.travel = math.sqrt(float(change.dot(change))) / scale
         fit = p.fit_k > 0 and self.familiarity <= p.fit_radius
         k = min(max(p.k, p.fit_k), recallable) if fit else p.k  # a fit takes the snippets there are
-        nearest = np.argpartition(d2, k - 1)[:k] if self.size > k else np.arange(self.size)
+        chosen = np.argpartition(d2, k - 1)[:k] if len(d2) > k else np.arange(len(d2))
+        if self.size > FLOAT32_ABOVE:  # the same order whichever way `_near` found them
+            chosen = chosen[np.argsort(slots[chosen])]
+        nearest = slots[chosen]
         self.used[nearest] = self.clock
-        w = 1.0 / (d2[nearest] + 1e-6)
+        w = 1.0 / (d2[chosen] + 1e-6)
         w /= w.sum()
         read = self._at_present_speed(nearest, key)
         if fit:
