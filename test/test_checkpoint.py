@@ -214,7 +214,7 @@ def test_beyond_the_paper_options_are_saved_and_continue_bit_for_bit(tmp_path, m
         np.testing.assert_array_equal(model.step(x), twin.step(x))
 
 
-@pytest.mark.parametrize("version", [1, 2, 3])
+@pytest.mark.parametrize("version", [1, 2, 3, 4])
 def test_files_of_earlier_formats_are_refused_with_a_hint(saved, version):
     _rewrite(saved, {"format_version": version})
     with pytest.raises(CheckpointError, match=rf"format_version {version} is not supported .*older build.*retrain"):

@@ -159,22 +159,6 @@ def test_a_network_saved_at_its_bound_continues_bit_for_bit_evictions_included()
     np.testing.assert_array_equal(g.edge_array(), h.edge_array())
 
 
-def test_a_network_saved_before_eviction_existed_loads_with_a_fresh_record():
-    rng = np.random.default_rng(5)
-    g = GWR(2, P.replace(max_neurons=20), rng)
-    for x in rng.uniform(-20, 20, (200, 2)):
-        g.learn(x)
-    state = g.state()
-    for added in ("last_matched", "clock", "evicted"):
-        del state[added]
-    h = GWR.from_state(state)
-    assert h.clock == 0 and not h.last_matched.any() and h.evicted == 0
-    np.testing.assert_array_equal(h.weights, g.weights)
-    for x in rng.uniform(-20, 20, (300, 2)):
-        h.learn(x)
-    assert h.n_neurons <= 20
-
-
 @pytest.mark.parametrize("last_matched", [[-1] * 2, [0.5, 0], [0, 1, 2], [9, 0]])
 def test_a_record_of_last_matches_that_does_not_fit_is_refused(last_matched):
     g = net([[0.0], [1.0]], edges=[(0, 1, 0)])

@@ -148,7 +148,8 @@ class TrajectoryMemory(Checkpointed):
 
     kind: ClassVar[str] = "TrajectoryMemory"
     PARAMS = MemoryParams
-    PERSIST = Persist(values=("size", "_motion_ms"), queues={"_recent": lambda m: (m.params.n_joints,)})
+    PERSIST = Persist(values=("size", "_motion_ms", "clock", "replaced"),
+                      queues={"_recent": lambda m: (m.params.n_joints,)})
 
     def __init__(self, params: MemoryParams | None = None) -> None:
         self.params = p = params or MemoryParams()
@@ -400,12 +401,9 @@ class TrajectoryMemory(Checkpointed):
 
     # --- persistence: the stored snippets (as many as there are; the rest is declared above) ---------
     def _save_extra(self) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
-        arrays: dict[str, np.ndarray] = {"keys": self.keys[:self.size].copy(),
-                                         "futures": self.futures[:self.size].copy()}
-        if self.size:  # a memory saved before `used` (or `still`) existed has none: see `_load_extra`
-            arrays["used"] = self.used[:self.size].copy()
-            arrays["still"] = self.still[:self.size].copy()
-        return {"clock": self.clock, "replaced": self.replaced}, arrays
+        n = self.size
+        return {}, {"keys": self.keys[:n].copy(), "futures": self.futures[:n].copy(), "used": self.used[:n].copy(),
+                    "still": self.still[:n].copy()}
 
     def _load_extra(self, header: Mapping[str, Any], arrays: Mapping[str, np.ndarray]) -> None:
         n, p = self.size, self.params
@@ -419,14 +417,11 @@ class TrajectoryMemory(Checkpointed):
         self.keys[:n] = keys
         self.futures[:n] = futures
         self._weigh(slice(0, n))
-        # saved before snippets were replaced at capacity: recalled in the order they were stored
-        used = np.asarray(arrays["used"]) if "used" in arrays else np.arange(n)
-        if used.shape != (n,):
-            raise CheckpointError(f"snippet use times of shape {used.shape} do not fit size {n}")
+        used, still = np.asarray(arrays["used"]), np.asarray(arrays["still"])
+        if used.shape != (n,) or used.dtype.kind not in "iu" or (used < 0).any() or (used > self.clock).any():
+            raise CheckpointError(f"snippet use times of shape {used.shape} do not fit size {n} and clock "
+                                  f"{self.clock}")
         self.used[:n] = used
-        still = np.asarray(arrays["still"]) if "still" in arrays else np.zeros(n, dtype=bool)  # none was
         if still.shape != (n,) or still.dtype != bool:
             raise CheckpointError(f"snippet still flags of shape {still.shape} ({still.dtype}) do not fit size {n}")
         self.still[:n] = still
-        self.clock = int(header.get("clock", n))
-        self.replaced = int(header.get("replaced", 0))

@@ -295,8 +295,8 @@ class LocalLinearPGWR(PredictiveGWR):
             delta=self.delta, visits=arrays["visits"], consolidate_after=self.consolidate_after,
             readout_mse=arrays["readout_mse"], recruit_surprise=self.recruit_surprise,
             recruited=int(header["recruited"]), streaks=arrays["surprise_streaks"], recruit_after=self.recruit_after)
-        net._restore_clock(arrays.get("last_matched"), int(header.get("clock", 0)))
-        net.evicted = int(header.get("evicted", 0))
+        net._restore_clock(arrays["last_matched"], int(header["clock"]))
+        net.evicted = int(header["evicted"])
         if net.out_dim != self.out_dim:
             raise DefaultPredictorError(f"outputs are {net.out_dim}-d, the parameters say {self.out_dim}")
         return net

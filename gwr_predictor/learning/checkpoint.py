@@ -43,8 +43,9 @@ from gwr_predictor.user_files import (
 
 MAGIC = "gwr_predictor.checkpoint"
 #: The one format this build reads and writes; older files are refused with a clear message (their
-#: history: CHANGELOG.md). 4: the layout `persistence.py` makes from each class's declaration.
-FORMAT_VERSION = 4
+#: history: CHANGELOG.md). 4: the layout `persistence.py` makes from each class's declaration; 5: bounded
+#: learners, whose networks carry when each neuron last matched and whose memories which snippets are still.
+FORMAT_VERSION = 5
 HEADER_KEY = "__header__"
 #: The JSON header holds parameters and small per-layer values (a few kB); arrays are members.
 MAX_HEADER_BYTES = 4 << 20

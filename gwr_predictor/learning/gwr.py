@@ -263,12 +263,9 @@ class GWR(Persistent):
             net._edges.fill(edges)
         return net
 
-    def _restore_clock(self, matched: np.ndarray | None, clock: int) -> None:
-        """Eviction's record from a checkpoint: when each neuron was last the BMU, on a clock at `clock`
-        (None, from a checkpoint without it: all at 0, so the first evictions go by index)."""
+    def _restore_clock(self, matched: np.ndarray, clock: int) -> None:
+        """Eviction's record from a checkpoint: when each neuron was last the BMU, on a clock at `clock`."""
         n = self._n
-        if matched is None:
-            return
         matched = np.asarray(matched)
         if matched.shape != (n,) or matched.dtype.kind not in "iu" or (matched < 0).any() or (matched > clock).any():
             raise InputError(f"last-matched steps must be {n} whole numbers in [0, clock {clock}]")
@@ -529,12 +526,11 @@ class GWR(Persistent):
 
     @classmethod
     def from_state(cls, state: dict[str, Any]) -> GWR:
-        """The network of `state()`; one saved before eviction existed (no `last_matched`) starts its record anew."""
         params = GWRParams(**state["params"])
         net = cls.from_arrays(state["weights"], params, edges=state["edges"], counters=state["counters"],
                               match_dim=int(state["match_dim"]), distance_factor=float(state["distance_factor"]))
-        net._restore_clock(state.get("last_matched"), int(state.get("clock", 0)))
-        net.evicted = int(state.get("evicted", 0))
+        net._restore_clock(state["last_matched"], int(state["clock"]))
+        net.evicted = int(state["evicted"])
         return net
 
     def _capture(self) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
@@ -545,7 +541,7 @@ class GWR(Persistent):
     def _restored(self, header: Mapping[str, Any], arrays: Mapping[str, np.ndarray], where: str = "") -> GWR:
         """The saved network in place of this one (built from the owner's parameters), which it must
         match in size, matching part, distance factor and parameters (a network's size is not fixed)."""
-        net = type(self).from_state({**header, **{a: arrays[a] for a in self.STATE_ARRAYS if a in arrays}})
+        net = type(self).from_state({**header, **{a: arrays[a] for a in self.STATE_ARRAYS}})
         for what in ("dim", "match_dim", "distance_factor", "params"):
             if getattr(net, what) != getattr(self, what):
                 raise InputError(f"layer {where.rstrip('.')} has {what} {getattr(net, what)!r}, "

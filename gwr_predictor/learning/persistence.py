@@ -38,9 +38,6 @@ from gwr_predictor.learning.checkpoint import (
 
 Header = dict[str, Any]
 Arrays = dict[str, np.ndarray]
-#: Arrays a checkpoint of an earlier version may lack, by their last name part: the class that holds one
-#: starts it anew (a network's record of when each neuron last matched, which only eviction reads).
-ADDED_LATER = ("last_matched",)
 _C = TypeVar("_C", bound="Checkpointed")
 
 
@@ -200,7 +197,7 @@ class Checkpointed(Persistent):
             expected = [k for k in model._capture()[1] if not k.startswith(absent)]
         except (KeyError, ValueError, TypeError, IndexError, GwrPredictorError) as exc:
             cls._inconsistent(source, exc)
-        require_arrays((a for a in expected if a.rpartition(".")[2] not in ADDED_LATER), arrays, source)
+        require_arrays(expected, arrays, source)
         try:
             return model._restored(header, arrays)
         except (KeyError, ValueError, TypeError, IndexError, GwrPredictorError) as exc:
