@@ -52,10 +52,15 @@ class EdgeTable:
     def has_edges(self, i: int) -> bool:
         return bool(self.ids[i].any())
 
+    def _slot(self, i: int, j: int) -> int:
+        """The slot of neighbour j in i's row (-1: none)."""
+        hit = (self.ids[i] == j + 1).nonzero()[0]
+        return int(hit[0]) if hit.size else -1
+
     def age(self, i: int, j: int) -> int | None:
         """Age of edge i-j, None without one."""
-        hit = (self.ids[i] == j + 1).nonzero()[0]
-        return int(self.ages[i, hit[0]]) if hit.size else None
+        slot = self._slot(i, j)
+        return None if slot < 0 else int(self.ages[i, slot])
 
     def grow_older(self, b: int, ids: np.ndarray, slots: np.ndarray) -> np.ndarray:
         """Age every edge of b by one (b's neighbours `ids` in its `slots`); returns the new ages."""
@@ -72,9 +77,9 @@ class EdgeTable:
 
     def _half_link(self, i: int, j: int) -> None:
         row = self.ids[i]
-        hit = (row == j + 1).nonzero()[0]
-        if hit.size:
-            self.ages[i, hit[0]] = 0
+        slot = self._slot(i, j)
+        if slot >= 0:
+            self.ages[i, slot] = 0
             return
         free = (row == 0).nonzero()[0]
         if free.size:
@@ -91,10 +96,9 @@ class EdgeTable:
         self._drop_half(j, i)
 
     def _drop_half(self, i: int, j: int) -> None:
-        row = self.ids[i]
-        hit = (row == j + 1).nonzero()[0]
-        if hit.size:
-            row[hit[0]] = 0
+        slot = self._slot(i, j)
+        if slot >= 0:
+            self.ids[i, slot] = 0
 
     def unlink_all(self, i: int) -> None:
         """Remove every edge of i."""
@@ -140,5 +144,5 @@ class EdgeTable:
             return
         for i, j, a in edges.tolist():
             self.link(i, j)
-            self.ages[i, (self.ids[i] == j + 1).argmax()] = a
-            self.ages[j, (self.ids[j] == i + 1).argmax()] = a
+            self.ages[i, self._slot(i, j)] = a
+            self.ages[j, self._slot(j, i)] = a
