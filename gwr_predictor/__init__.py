@@ -15,7 +15,7 @@ Experiments, ablations, blends and benchmarks live in the repository's research/
 not installed: `gwr-predictor experiment|bench|soak` run them from a source checkout.
 
 ROS nodes live in `gwr_predictor.nodes` and only convert messages. Every predictor follows
-`Predictor` (`protocol.py`); every error the package raises derives from `GwrPredictorError`.
+`Predictor` (`learning/protocol.py`); every error the package raises derives from `GwrPredictorError`.
 
 Start here: `make_predictor("hierarchy")` (or any `predictor_names()`), `compare_online(models,
 demo_angle_sequences(...))`, `load_predictor(name, checkpoint)`.
@@ -40,11 +40,11 @@ _EXPORTS = {
     "compare_online": "evaluation.online",
     "skeleton_to_angles": "data.angles",
     "extract_angles": "data.extraction",
-    "ParamSpec": "parameter_spec",
+    "ParamSpec": "parameters.spec",
     "load_skeleton": "data.skeleton_files",
     "ARM_JOINTS": "robot.nao",
     "GwrPredictorError": "errors",
-    "Predictor": "protocol",
+    "Predictor": "learning.protocol",
     "register": "predictors.registry",
     "predictor_names": "predictors.registry",
     "demo_angle_sequences": "data.datasets",

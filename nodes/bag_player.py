@@ -23,7 +23,7 @@ from rclpy.clock import Clock, ClockType
 from rclpy.duration import Duration
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
-from gwr_predictor.parameter_spec import ParamSpec
+from gwr_predictor.parameters.spec import ParamSpec
 from gwr_predictor.pipeline import bags
 
 from . import messages

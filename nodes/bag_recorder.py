@@ -31,7 +31,7 @@ from rclpy.clock import Clock, ClockType
 from rclpy.event_handler import SubscriptionEventCallbacks
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 
-from gwr_predictor.parameter_spec import ParamSpec
+from gwr_predictor.parameters.spec import ParamSpec
 from gwr_predictor.pipeline import bags, conventions
 
 from . import messages, standard_messages

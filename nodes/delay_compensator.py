@@ -36,7 +36,7 @@ from typing import Any
 
 import numpy as np
 
-from gwr_predictor.parameter_spec import ParamSpec
+from gwr_predictor.parameters.spec import ParamSpec
 from gwr_predictor.pipeline import conventions
 from gwr_predictor.pipeline.clock_jumps import CLOCK_JUMP_SPEC, ClockJumpWatch, CommandStamps
 from gwr_predictor.pipeline.conventions import LayoutError

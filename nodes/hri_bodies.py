@@ -20,7 +20,7 @@ from geometry_msgs.msg import PointStamped
 
 from gwr_predictor.data import hri_bodies
 from gwr_predictor.data.smoothing import MedianOf3
-from gwr_predictor.parameter_spec import ParameterError, ParamSpec
+from gwr_predictor.parameters.spec import ParameterError, ParamSpec
 from gwr_predictor.pipeline import conventions
 from gwr_predictor.robot.nao import ARM_JOINTS
 

@@ -23,7 +23,7 @@ from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
-from gwr_predictor.parameter_spec import ParamSpec
+from gwr_predictor.parameters.spec import ParamSpec
 from gwr_predictor.pipeline import conventions
 from gwr_predictor.pipeline.clock_jumps import CLOCK_JUMP_SPEC, RobotTimeBase
 from gwr_predictor.pipeline.gates import ArmAnglesGate

@@ -1,6 +1,6 @@
 """Plumbing every pipeline node shares, so that each node file only converts, calls and publishes.
 
-- `declare_parameters`: `gwr_predictor.parameter_spec.ParamSpec`s as described ROS parameters; a bad
+- `declare_parameters`: `gwr_predictor.parameters.spec.ParamSpec`s as described ROS parameters; a bad
   value stops the node with a `ParameterError` naming the parameter and what is allowed.
 - the counters and input gates are library code (`gwr_predictor.pipeline.gates`).
 - `PipelineNode`: a Node with the above plus a periodic DiagnosticArray on /diagnostics carrying
@@ -47,7 +47,7 @@ from rclpy.task import Future
 
 from gwr_predictor.errors import GwrPredictorError
 from gwr_predictor.learning.blas import single_threaded_blas
-from gwr_predictor.parameter_spec import ParameterError, ParamSpec
+from gwr_predictor.parameters.spec import ParameterError, ParamSpec
 from gwr_predictor.pipeline import conventions, params_file, stamps
 from gwr_predictor.pipeline.gates import ArmAnglesGate, RejectionCounter, check_stamp
 

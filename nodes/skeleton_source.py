@@ -20,7 +20,7 @@ from gwr_predictor.data import demonstrator, faults
 from gwr_predictor.data.mocap import ImportOptions, load_any_skeleton
 from gwr_predictor.data.skeleton_files import SkeletonSequence
 from gwr_predictor.errors import GwrPredictorError
-from gwr_predictor.parameter_spec import ParamSpec
+from gwr_predictor.parameters.spec import ParamSpec
 from gwr_predictor.pipeline import conventions
 from gwr_predictor.pipeline.markers import SKELETON_FRAME
 

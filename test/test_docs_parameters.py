@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pytest
 
-from gwr_predictor.parameter_spec import markdown_table
+from gwr_predictor.parameters.spec import markdown_table
 from gwr_predictor.predictors.registry import learner_names
 
 ROOT = Path(__file__).resolve().parents[1]

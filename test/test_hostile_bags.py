@@ -7,9 +7,9 @@ import zipfile
 import numpy as np
 import pytest
 
-from gwr_predictor import file_limits
 from gwr_predictor.commands.cli import main as cli_main
 from gwr_predictor.data.skeleton_files import SkeletonFileError, load_skeleton
+from gwr_predictor.files import limits
 from gwr_predictor.learning.checkpoint import CheckpointError, read_checkpoint
 from gwr_predictor.pipeline import bags
 from gwr_predictor.pipeline.message_latency import latency_report
@@ -135,4 +135,4 @@ def test_files_that_cannot_be_recordings_are_refused_before_reading(tmp_path, mo
     monkeypatch.setattr("gwr_predictor.learning.checkpoint.MAX_CHECKPOINT_BYTES", 4 << 20)
     with pytest.raises(CheckpointError, match="inflate to 8 MB"):
         read_checkpoint(bomb, "Hierarchy")
-    assert file_limits.MAX_RECORDING_BYTES >= 200 << 20  # an hour at 30 fps is about 39 MB of positions
+    assert limits.MAX_RECORDING_BYTES >= 200 << 20  # an hour at 30 fps is about 39 MB of positions

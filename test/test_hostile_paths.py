@@ -4,7 +4,7 @@ links, YAML alias bombs, FIFOs and devices where a file is expected, MCAP files 
 Each is refused at once with a one-line error naming the file (or, in a running node, counted and
 logged), within bounded memory: whatever could allocate runs in a subprocess under an address-space
 limit, so that the old behaviour (gigabytes, then a MemoryError traceback) fails the test instead of
-the machine. The rules live in `gwr_predictor.user_files` (reading, YAML, writing, lock files),
+the machine. The rules live in `gwr_predictor.files.user_files` (reading, YAML, writing, lock files),
 `gwr_predictor.pipeline.mcap_limits` and `checkpoint.check_network_sizes`.
 """
 
@@ -28,7 +28,7 @@ import pytest
 from test_node_bad_input import FAST, joint_state
 
 from gwr_predictor.commands import cli
-from gwr_predictor.file_limits import MAX_NETWORK_NEURONS
+from gwr_predictor.files.limits import MAX_NETWORK_NEURONS
 from gwr_predictor.learning.checkpoint import CheckpointError, CheckpointLock, check_checkpoint_place
 from gwr_predictor.pipeline import bags
 from gwr_predictor.pipeline.params_file import ParamsFileError, check_params_files

@@ -29,8 +29,8 @@ from gwr_predictor.errors import GwrPredictorError
 from gwr_predictor.evaluation.online import EvaluationError, compare_online
 from gwr_predictor.evaluation.output import markdown_table, to_jsonable
 from gwr_predictor.learning.params import HierarchyParams
+from gwr_predictor.learning.protocol import Learner, Predictor
 from gwr_predictor.predictors import registry
-from gwr_predictor.protocol import Learner, Predictor
 from gwr_predictor.robot.nao import ARM_JOINTS
 
 DEFAULT_METHODS = ("hold", "const_velocity", "rls_ar", "hierarchy")

@@ -24,6 +24,7 @@ from gwr_predictor.data.datasets import demo_angle_sequences
 from gwr_predictor.data.demonstrator import PATTERNS, DemonstratorError
 from gwr_predictor.default_predictor.gate import inner_model
 from gwr_predictor.learning.checkpoint import check_checkpoint_place
+from gwr_predictor.learning.protocol import Learner
 from gwr_predictor.pipeline.params_file import load_params_file
 from gwr_predictor.predictors.registry import (
     DEFAULT_PREDICTOR,
@@ -31,7 +32,6 @@ from gwr_predictor.predictors.registry import (
     make_predictor,
     settings_from_parameters,
 )
-from gwr_predictor.protocol import Learner
 
 NODE_NAME = "gwr_hierarchy"
 

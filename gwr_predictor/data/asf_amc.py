@@ -20,8 +20,8 @@ from pathlib import Path
 
 import numpy as np
 
-from gwr_predictor import file_limits as limits
 from gwr_predictor.data.mocap import MocapClip, MocapError
+from gwr_predictor.files import limits
 
 INCH_M = 0.0254
 _DOF_AXIS = {"rx": "x", "ry": "y", "rz": "z"}

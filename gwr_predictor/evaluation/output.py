@@ -19,8 +19,8 @@ from typing import Any
 
 import numpy as np
 
-from gwr_predictor import json_safe, user_files
 from gwr_predictor.evaluation.errors import EvaluationError
+from gwr_predictor.files import json_safe, user_files
 
 #: EvaluationError, for an output that cannot be written; the message names the file.
 ExperimentOutputError = EvaluationError

@@ -29,9 +29,8 @@ from typing import Any, NoReturn
 import numpy as np
 
 from gwr_predictor.errors import GwrPredictorError
-from gwr_predictor.file_limits import MAX_CHECKPOINT_BYTES, MAX_NETWORK_NEURONS, check_zip_directory, npy_header
-from gwr_predictor.learning.errors import LearningError
-from gwr_predictor.user_files import (
+from gwr_predictor.files.limits import MAX_CHECKPOINT_BYTES, MAX_NETWORK_NEURONS, check_zip_directory, npy_header
+from gwr_predictor.files.user_files import (
     check_folder,
     final_target,
     fsync_folder,
@@ -40,6 +39,7 @@ from gwr_predictor.user_files import (
     open_to_read,
     regular_file_size,
 )
+from gwr_predictor.learning.errors import LearningError
 
 MAGIC = "gwr_predictor.checkpoint"
 #: The one format this build reads and writes; older files are refused with a clear message (their
@@ -279,7 +279,7 @@ def check_network_sizes(path: Path, shapes: Mapping[str, tuple[int, ...]]) -> No
             neurons = (shapes[f"{prefix}weights"] or (0,))[0]
             if neurons > MAX_NETWORK_NEURONS:
                 raise CheckpointError(f"{path}: network {prefix.rstrip('.') or 'gwr'!r} declares {neurons:,} neurons, "
-                                      f"over the limit of {MAX_NETWORK_NEURONS:,} (gwr_predictor.file_limits); "
+                                      f"over the limit of {MAX_NETWORK_NEURONS:,} (gwr_predictor.files.limits); "
                                       "refused before reading", source=path)
 
 

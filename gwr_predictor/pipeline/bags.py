@@ -36,13 +36,13 @@ from rosbags.rosbag2.metadata import parse_qos
 from rosbags.rosbag2.storage_mcap import McapWriter
 from rosbags.typesys import Stores, get_typestore
 
-from gwr_predictor.parameter_spec import ParameterError
+from gwr_predictor.files.user_files import load_yaml, open_to_read, regular_file_size
+from gwr_predictor.parameters.spec import ParameterError
 from gwr_predictor.pipeline import conventions
 from gwr_predictor.pipeline.conventions import ArrayDim, PackedArray
 from gwr_predictor.pipeline.errors import PipelineError
 from gwr_predictor.pipeline.mcap_limits import MAGIC as MCAP_MAGIC
 from gwr_predictor.pipeline.mcap_limits import MAX_CHUNK_BYTES, check_mcap
-from gwr_predictor.user_files import load_yaml, open_to_read, regular_file_size
 
 JOINT_STATE = "sensor_msgs/msg/JointState"
 FLOAT64_MULTIARRAY = "std_msgs/msg/Float64MultiArray"

@@ -14,8 +14,8 @@ from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
+from gwr_predictor.files.user_files import load_yaml
 from gwr_predictor.pipeline.errors import PipelineError
-from gwr_predictor.user_files import load_yaml
 
 #: A params file is settings, never data: larger than this is not one.
 MAX_PARAMS_FILE_BYTES = 1 << 20

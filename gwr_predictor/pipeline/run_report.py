@@ -29,7 +29,7 @@ from typing import Any
 
 import numpy as np
 
-from gwr_predictor.json_safe import to_jsonable
+from gwr_predictor.files.json_safe import to_jsonable
 from gwr_predictor.pipeline import bags, conventions, namespaces
 from gwr_predictor.pipeline.conventions import LayoutError
 from gwr_predictor.pipeline.errors import PipelineError

@@ -18,8 +18,8 @@ from typing import Any
 
 import numpy as np
 
+from gwr_predictor.files.user_files import PendingFile
 from gwr_predictor.pipeline.video import VideoError
-from gwr_predictor.user_files import PendingFile
 
 FORMATS = (".mp4", ".gif")
 MP4_CRF = 28  # H.264 quality: flat colours and few moving pixels compress far below 10 MB a minute

@@ -22,7 +22,7 @@ from typing import Any, Literal
 
 import numpy as np
 
-from gwr_predictor.parameter_spec import ParameterError, ParamSpec
+from gwr_predictor.parameters.spec import ParameterError, ParamSpec
 from gwr_predictor.robot.nao import ARM_JOINTS, VELOCITY_LIMITS, RobotError, clip_to_limits
 
 BACKENDS = ("kinematic", "pybullet")
