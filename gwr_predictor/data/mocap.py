@@ -27,7 +27,7 @@ import numpy as np
 from gwr_predictor.data.errors import DataError
 from gwr_predictor.data.skeleton_files import SkeletonFileError, SkeletonSequence
 from gwr_predictor.files import limits
-from gwr_predictor.pipeline.conventions import SKELETON_FPS, SKELETON_JOINTS
+from gwr_predictor.joints.skeleton import SKELETON_FPS, SKELETON_JOINTS
 
 #: Length units by name -> metres per unit. "auto" picks one from the skeleton's size.
 UNITS: dict[str, float] = {"m": 1.0, "cm": 0.01, "mm": 0.001, "inch": 0.0254, "dm": 0.1}

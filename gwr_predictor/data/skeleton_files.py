@@ -41,7 +41,7 @@ from gwr_predictor.files.limits import (
     check_file_size,
 )
 from gwr_predictor.files.user_files import output_file
-from gwr_predictor.pipeline.conventions import SKELETON_JOINTS
+from gwr_predictor.joints.skeleton import SKELETON_JOINTS
 
 CAMERA_CONVENTION = "openni-rh"
 CAMERA_CONVENTION_TEXT = ("metres; x towards the person's right (sensor's left), y up, "
