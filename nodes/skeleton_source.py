@@ -17,7 +17,8 @@ import numpy as np
 from rclpy.publisher import Publisher
 
 from gwr_predictor.data import demonstrator, faults
-from gwr_predictor.data.mocap import ImportOptions, load_any_skeleton
+from gwr_predictor.data.mocap import load_any_skeleton
+from gwr_predictor.data.mocap_clip import ImportOptions
 from gwr_predictor.data.skeleton_files import SkeletonSequence
 from gwr_predictor.errors import GwrPredictorError
 from gwr_predictor.parameters.spec import ParamSpec

@@ -14,7 +14,8 @@ from mocap_files import write_bvh
 from test_importer_limits import bvh_text, pt_bytes
 from test_mocap import AMC, ASF
 
-from gwr_predictor.data.mocap import ImportOptions, load_any_skeleton, load_clip
+from gwr_predictor.data.mocap import load_any_skeleton, load_clip
+from gwr_predictor.data.mocap_clip import ImportOptions
 from gwr_predictor.data.skeleton_files import SkeletonFileError, SkeletonSequence, load_skeleton, save_skeleton
 from gwr_predictor.files import limits
 

@@ -14,7 +14,8 @@ from mocap_files import write_bvh
 
 from gwr_predictor.data.asf_amc import load_amc
 from gwr_predictor.data.bvh import load_bvh
-from gwr_predictor.data.mocap import MocapError, load_any_skeleton, load_clip
+from gwr_predictor.data.mocap import load_any_skeleton, load_clip
+from gwr_predictor.data.mocap_clip import MocapError
 from gwr_predictor.data.skeleton_files import SkeletonFileError, load_skeleton
 from gwr_predictor.data.torch_files import load_tensor
 from gwr_predictor.errors import GwrPredictorError

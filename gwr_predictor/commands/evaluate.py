@@ -24,7 +24,8 @@ import numpy as np
 
 from gwr_predictor.commands.import_options import add_import_options, import_options
 from gwr_predictor.commands.param_overrides import parse_overrides
-from gwr_predictor.data.mocap import ImportOptions, load_any_skeleton
+from gwr_predictor.data.mocap import load_any_skeleton
+from gwr_predictor.data.mocap_clip import ImportOptions
 from gwr_predictor.errors import GwrPredictorError
 from gwr_predictor.evaluation.online import EvaluationError, compare_online
 from gwr_predictor.evaluation.output import markdown_table, to_jsonable

@@ -8,7 +8,7 @@ as R = R_1 @ R_2 @ R_3 (e.g. `Zrotation Xrotation Yrotation` -> Rz Rx Ry), angle
 joint's global rotation is its parent's times its own; its position is the parent's position plus
 the parent's global rotation times its local translation, which is the OFFSET, or the position
 channels when the joint has them (they replace the OFFSET). `End Site`s are kept as joints named
-`<parent>_end`. Units are whatever the file used (see `mocap.ImportOptions.units`); Y is up unless
+`<parent>_end`. Units are whatever the file used (see `mocap_clip.ImportOptions.units`); Y is up unless
 told otherwise. Positions of a joint are where its bone starts: `LeftArm` is the shoulder.
 """
 
@@ -22,7 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
-from gwr_predictor.data.mocap import MocapClip, MocapError
+from gwr_predictor.data.mocap_clip import MocapClip, MocapError
 from gwr_predictor.files.limits import (
     MAX_DEPTH,
     MAX_JOINTS,

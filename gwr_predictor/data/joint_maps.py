@@ -31,7 +31,7 @@ from pathlib import Path
 
 import numpy as np
 
-from gwr_predictor.data.mocap import MocapError
+from gwr_predictor.data.mocap_clip import MocapError
 from gwr_predictor.files.limits import MAX_SKELETON_BYTES
 from gwr_predictor.files.user_files import load_yaml, read_text
 from gwr_predictor.joints.skeleton import SKELETON_JOINTS

@@ -22,7 +22,7 @@ from typing import Any
 
 import numpy as np
 
-from gwr_predictor.data.mocap import ImportOptions, MocapClip, MocapError
+from gwr_predictor.data.mocap_clip import ImportOptions, MocapClip, MocapError
 from gwr_predictor.files.limits import MAX_RECORDING_BYTES, MAX_VALUES, check_archive, check_count
 
 STORAGE_DTYPES = {"FloatStorage": np.float32, "DoubleStorage": np.float64, "HalfStorage": np.float16,
