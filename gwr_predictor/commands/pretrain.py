@@ -19,6 +19,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from tqdm import tqdm
 
 from gwr_predictor.data.datasets import demo_angle_sequences
 from gwr_predictor.data.demonstrator import PATTERNS, DemonstratorError
@@ -117,8 +118,6 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _epoch(model: Any, seqs: list[Any], label: str, quiet: bool) -> None:
-    from tqdm import tqdm
-
     with tqdm(total=sum(len(s) for s in seqs), desc=label, unit="frame", disable=quiet, leave=False,
               mininterval=0.5) as bar:
         for seq in seqs:

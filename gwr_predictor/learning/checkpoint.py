@@ -21,6 +21,7 @@ import json
 import os
 import re
 import tempfile
+import time
 import zipfile
 from collections.abc import Iterable, Mapping
 from pathlib import Path
@@ -339,8 +340,6 @@ def set_aside(path: str | Path, when: str | None = None) -> Path:
     (never deleted, never overwritten) so a fresh model can start; returns where it went. OSError
     if it cannot be moved: then the caller must not start, or it would overwrite the file. Through a
     symlink it is the target that moves (beside itself): the link stays, and saves recreate the target."""
-    import time
-
     path = destination(path)
     aside = path.with_name(f"{path.name}.corrupt-{when or time.strftime('%Y%m%d-%H%M%S')}")
     os.replace(path, aside)

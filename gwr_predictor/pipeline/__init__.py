@@ -36,7 +36,7 @@ _EXPORTS = {
     "read_video_run": "video",
     "render_video": "video",
     "FrameRenderer": "video",
-    "VideoError": "video",
+    "VideoError": "video_files",
     "VideoWriter": "video_files",
 }
 __all__ = sorted(_EXPORTS)

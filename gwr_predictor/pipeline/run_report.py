@@ -33,6 +33,7 @@ from gwr_predictor.files.json_safe import to_jsonable
 from gwr_predictor.pipeline import bags, conventions, namespaces
 from gwr_predictor.pipeline.conventions import LayoutError
 from gwr_predictor.pipeline.errors import PipelineError
+from gwr_predictor.pipeline.plotting import plot_angle_series
 from gwr_predictor.robot.nao import ARM_JOINTS
 from gwr_predictor.robot.tracking import LagError, estimate_lag, tracking_error
 
@@ -387,8 +388,6 @@ def compute_report(run: RunData, period: float = 1.0 / conventions.ANGLE_FPS, dt
 def plot_run(run: RunData, path: str | Path, seconds: float = 20.0, period: float = 1.0 / conventions.ANGLE_FPS
              ) -> Path:
     """PNG of the last `seconds`: person, h-step prediction (at the time it predicts), each robot."""
-    from gwr_predictor.pipeline.plotting import plot_angle_series
-
     end = run.person.t[-1]
     start = end - seconds
 
