@@ -4,8 +4,8 @@ links, YAML alias bombs, FIFOs and devices where a file is expected, MCAP files 
 Each is refused at once with a one-line error naming the file (or, in a running node, counted and
 logged), within bounded memory: whatever could allocate runs in a subprocess under an address-space
 limit, so that the old behaviour (gigabytes, then a MemoryError traceback) fails the test instead of
-the machine. The rules live in `gwr_predictor.files.user_files` (reading, YAML, writing, lock files),
-`gwr_predictor.pipeline.mcap_limits` and `checkpoint.check_network_sizes`.
+the machine. The rules live in `gwr_predictor.files.user_files` (reading, writing, lock files),
+`files.yaml_safe` (YAML), `gwr_predictor.pipeline.mcap_limits` and `checkpoint.check_network_sizes`.
 """
 
 from __future__ import annotations

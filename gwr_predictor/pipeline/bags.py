@@ -36,7 +36,8 @@ from rosbags.rosbag2.metadata import parse_qos
 from rosbags.rosbag2.storage_mcap import McapWriter
 from rosbags.typesys import Stores, get_typestore
 
-from gwr_predictor.files.user_files import load_yaml, open_to_read, regular_file_size
+from gwr_predictor.files.user_files import open_to_read, regular_file_size
+from gwr_predictor.files.yaml_safe import load_yaml
 from gwr_predictor.parameters.spec import ParameterError
 from gwr_predictor.pipeline import conventions
 from gwr_predictor.pipeline.conventions import ArrayDim, PackedArray
