@@ -14,7 +14,7 @@ from pathlib import Path
 
 from gwr_predictor.commands.run_folder import add_run_arguments, bag_and_folder
 from gwr_predictor.files.user_files import write_output
-from gwr_predictor.pipeline.bags import BagError
+from gwr_predictor.pipeline.bag_messages import BagError
 from gwr_predictor.pipeline.message_latency import latency_report
 
 

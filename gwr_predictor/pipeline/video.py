@@ -29,7 +29,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from gwr_predictor.data.angles import AngleExtractionError, torso_frame
-from gwr_predictor.pipeline import bags, conventions, namespaces
+from gwr_predictor.pipeline import bag_messages, bag_reader, conventions, namespaces
 from gwr_predictor.pipeline.conventions import LayoutError
 from gwr_predictor.pipeline.run_report import RunData, Series, read_run, resample, wrong_type_text
 from gwr_predictor.pipeline.video_files import VideoError, open_video
@@ -93,11 +93,11 @@ def _read_skeleton(bag: Path, pipeline: str = "") -> tuple[np.ndarray, np.ndarra
     frames: list[np.ndarray] = []
     names: tuple[str, ...] = ()
     expected = conventions.TOPIC_TYPES[conventions.TOPIC_SKELETON]
-    for m in bags.read_bag(bag, topics=[namespaces.in_pipeline(pipeline, conventions.TOPIC_SKELETON)]):
+    for m in bag_reader.read_bag(bag, topics=[namespaces.in_pipeline(pipeline, conventions.TOPIC_SKELETON)]):
         if m.msg is None or m.msgtype != expected:
             continue  # another type: read_run reported it
         try:
-            stamp, these, pos = conventions.unpack_skeleton(bags.packed_array(m.msg))
+            stamp, these, pos = conventions.unpack_skeleton(bag_messages.packed_array(m.msg))
         except LayoutError:
             continue  # a malformed frame is skipped here as the angle extractor rejects it live
         if not names:
@@ -132,7 +132,7 @@ def video_run(run: RunData, skeleton: tuple[np.ndarray, np.ndarray, tuple[str, .
 
 def read_video_run(bag: str | Path, namespace: str | None = None) -> VideoRun:
     """Read what a video needs from a pipeline bag (the pipeline in `namespace`, by default the bag's only
-    one). Raises bags.BagError / VideoError."""
+    one). Raises bag_messages.BagError / VideoError."""
     bag = Path(bag)
     run = read_run(bag, namespace)
     return video_run(run, _read_skeleton(bag, run.namespace))
