@@ -28,7 +28,9 @@ from gwr_predictor.pipeline.markers import SKELETON_FRAME, skeleton_figure
 from gwr_predictor.robot.nao import ARM_JOINTS
 
 from . import messages, standard_messages
-from .node_base import PipelineNode, run_node, stream_qos
+from .pipeline_node import PipelineNode
+from .qos import stream_qos
+from .runner import run_node
 
 PARAMS = (
     ParamSpec("max_gap_s", conventions.MAX_GAP_S,

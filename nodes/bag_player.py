@@ -23,11 +23,14 @@ from rclpy.clock import Clock, ClockType
 from rclpy.duration import Duration
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
-from gwr_predictor.parameters.spec import ParamSpec
+from gwr_predictor.parameters.spec import ParameterError, ParamSpec
 from gwr_predictor.pipeline import bag_messages, bag_qos, bag_reader, bag_replay
 
 from . import messages
-from .node_base import NodeFatalError, ParameterError, PipelineNode, run_node, stream_qos
+from .exits import NodeFatalError
+from .pipeline_node import PipelineNode
+from .qos import stream_qos
+from .runner import run_node
 
 PARAMS = (
     ParamSpec("bag", "", "bag to replay: a rosbag2 directory (MCAP) or a bare .mcap file"),

@@ -31,11 +31,14 @@ from rclpy.clock import Clock, ClockType
 from rclpy.event_handler import SubscriptionEventCallbacks
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 
-from gwr_predictor.parameters.spec import ParamSpec
+from gwr_predictor.parameters.spec import ParameterError, ParamSpec
 from gwr_predictor.pipeline import bag_messages, bag_qos, bag_writer, conventions
 
 from . import messages, standard_messages
-from .node_base import NodeFatalError, ParameterError, PipelineNode, run_node, stream_qos
+from .exits import NodeFatalError
+from .pipeline_node import PipelineNode
+from .qos import stream_qos
+from .runner import run_node
 
 PARAMS = (
     ParamSpec("path", "", "bag directory to create (must not exist); empty: recording_<date-time> in the working dir"),

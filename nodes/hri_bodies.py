@@ -25,7 +25,9 @@ from gwr_predictor.pipeline import conventions
 from gwr_predictor.robot.nao import ARM_JOINTS
 
 from . import messages
-from .node_base import PipelineNode, run_node, status_qos, stream_qos
+from .pipeline_node import PipelineNode
+from .qos import status_qos, stream_qos
+from .runner import run_node
 
 PARAMS = (
     ParamSpec("body_id", "", "follow only this body (its joint_states are subscribed at once, no tracked list "

@@ -23,7 +23,7 @@ from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
-from gwr_predictor.parameters.spec import ParamSpec
+from gwr_predictor.parameters.spec import ParameterError, ParamSpec
 from gwr_predictor.pipeline import conventions
 from gwr_predictor.pipeline.clock_jumps import CLOCK_JUMP_SPEC, RobotTimeBase
 from gwr_predictor.pipeline.gates import ArmAnglesGate
@@ -33,7 +33,10 @@ from gwr_predictor.robot.pybullet_nao import NaoSimulator, SimulatorError, save_
 from gwr_predictor.robot.urdf import default_urdf_path
 
 from . import messages, standard_messages
-from .node_base import NodeFatalError, ParameterError, PipelineNode, run_node, stream_qos
+from .exits import NodeFatalError
+from .pipeline_node import PipelineNode
+from .qos import stream_qos
+from .runner import run_node
 
 PARAMS = (
     ParamSpec("backend", "pybullet", "robot model", choices=("pybullet", "kinematic")),

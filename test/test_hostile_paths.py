@@ -313,7 +313,8 @@ def test_a_signal_stops_a_node_whose_start_blocks(tmp_path):
     script = tmp_path / "slow_node.py"
     script.write_text(textwrap.dedent(f"""
         import sys
-        from gwr_predictor.nodes.node_base import PipelineNode, run_node
+        from gwr_predictor.nodes.pipeline_node import PipelineNode
+        from gwr_predictor.nodes.runner import run_node
 
         class Blocked(PipelineNode):
             NODE_NAME = "blocked"

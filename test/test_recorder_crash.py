@@ -11,8 +11,9 @@ from fakes import FullDisk
 from ros_harness import allocate_domain_id
 
 from gwr_predictor.nodes import messages
+from gwr_predictor.nodes.exits import NodeFatalError
 from gwr_predictor.nodes.messages import JointState
-from gwr_predictor.nodes.node_base import NodeFatalError, stream_qos
+from gwr_predictor.nodes.qos import stream_qos
 from gwr_predictor.pipeline import bag_messages, bag_reader, bag_recovery
 from gwr_predictor.robot.nao import ARM_JOINTS
 
@@ -84,7 +85,7 @@ def test_ctrl_c_and_sigterm_close_the_bag_whole(ros, tmp_path, sig):
 @pytest.mark.ros
 def test_sigterm_right_after_a_burst_still_records_the_whole_burst(ros, tmp_path):
     """What was published before the stop is in the bag: the recorder takes the messages still queued
-    in its subscription before it closes the bag (`node_base._drain`), instead of dropping them."""
+    in its subscription before it closes the bag (`runner._drain`), instead of dropping them."""
     path = tmp_path / "bag"
     recorder, _, _ = start_recorder(ros, path)
     pub = ros.probe.publisher("/arm_angles", JointState, stream_qos(1000))  # deep enough to lose nothing
