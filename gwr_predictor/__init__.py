@@ -9,7 +9,10 @@ The library is pure Python + numpy (no rclpy), one subpackage per concern, in th
 - `evaluation`: the online evaluation loop, metrics and result tables;
 - `robot`: Nao kinematics/URDF, PyBullet simulator, delayed arm, delay compensator;
 - `pipeline`: message conventions, MCAP bags, run reports and latency (ROS-free);
-- `commands`: the `gwr-predictor` command line over all of the above.
+- `commands`: the `gwr-predictor` command line over all of the above;
+
+and below them all, what every part shares: `joints` (the arm angles' and the skeleton's joints and
+rates), `files` (the rules for files and paths a user names), `parameters` (`ParamSpec`).
 
 Experiments, ablations, blends and benchmarks live in the repository's research/ folder, which is
 not installed: `gwr-predictor experiment|bench|soak` run them from a source checkout.

@@ -55,8 +55,7 @@ def test_every_public_name_of_the_package_and_its_subpackages_resolves():
     import importlib
 
     for pkg in ("gwr_predictor", "gwr_predictor.learning", "gwr_predictor.predictors", "gwr_predictor.evaluation",
-                "gwr_predictor.data", "gwr_predictor.robot", "gwr_predictor.pipeline", "gwr_predictor.joints",
-                "gwr_predictor.parameters"):
+                "gwr_predictor.data", "gwr_predictor.robot", "gwr_predictor.pipeline"):
         module = importlib.import_module(pkg)
         for name in module.__all__:
             assert getattr(module, name) is not None, f"{pkg}.{name}"
