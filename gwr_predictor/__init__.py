@@ -9,13 +9,16 @@ The library is pure Python + numpy (no rclpy), one subpackage per concern, in th
 - `evaluation`: the online evaluation loop, metrics and result tables;
 - `robot`: Nao kinematics/URDF, PyBullet simulator, delayed arm, delay compensator;
 - `pipeline`: message conventions, MCAP bags, run reports and latency (ROS-free);
-- `commands`: the `gwr-predictor` command line over all of the above.
+- `commands`: the `gwr-predictor` command line over all of the above;
+
+and below them all, what every part shares: `joints` (the arm angles' and the skeleton's joints and
+rates), `files` (the rules for files and paths a user names), `parameters` (`ParamSpec`).
 
 Experiments, ablations, blends and benchmarks live in the repository's research/ folder, which is
 not installed: `gwr-predictor experiment|bench|soak` run them from a source checkout.
 
 ROS nodes live in `gwr_predictor.nodes` and only convert messages. Every predictor follows
-`Predictor` (`protocol.py`); every error the package raises derives from `GwrPredictorError`.
+`Predictor` (`learning/protocol.py`); every error the package raises derives from `GwrPredictorError`.
 
 Start here: `make_predictor("hierarchy")` (or any `predictor_names()`), `compare_online(models,
 demo_angle_sequences(...))`, `load_predictor(name, checkpoint)`.
@@ -40,11 +43,11 @@ _EXPORTS = {
     "compare_online": "evaluation.online",
     "skeleton_to_angles": "data.angles",
     "extract_angles": "data.extraction",
-    "ParamSpec": "parameter_spec",
+    "ParamSpec": "parameters.spec",
     "load_skeleton": "data.skeleton_files",
     "ARM_JOINTS": "robot.nao",
     "GwrPredictorError": "errors",
-    "Predictor": "protocol",
+    "Predictor": "learning.protocol",
     "register": "predictors.registry",
     "predictor_names": "predictors.registry",
     "demo_angle_sequences": "data.datasets",

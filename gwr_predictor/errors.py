@@ -8,7 +8,7 @@ still surface with a traceback.
 Below it, one class per subpackage, in its `errors.py` (or its central module): `data.DataError`,
 `learning.LearningError`, `default_predictor.DefaultPredictorError`, `predictors.PredictorError`,
 `evaluation.EvaluationError`, `robot.RobotError`, `pipeline.PipelineError`, the commands'
-`RecordingError`, the nodes' `NodeFatalError`; and `parameter_spec.ParameterError` for a setting out
+`RecordingError`, the nodes' `NodeFatalError`; and `parameters.spec.ParameterError` for a setting out
 of its range. A case a caller must tell apart is an attribute of the class, not a class of its own
 (`PipelineError.reason == "too_large"`, `LearningError.kind_mismatch`, `.locked`, `.source`). Older
 names (`SkeletonFileError`, `CheckpointError`, `BagError`, ...) are module aliases of their

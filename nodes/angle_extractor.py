@@ -20,7 +20,7 @@ from gwr_predictor.data import k4abt
 from gwr_predictor.data.extraction import frame_angles
 from gwr_predictor.data.skeleton_files import MAX_PLAUSIBLE_METRES
 from gwr_predictor.data.smoothing import MedianOf3
-from gwr_predictor.parameter_spec import ParamSpec
+from gwr_predictor.parameters.spec import ParamSpec
 from gwr_predictor.pipeline import conventions
 from gwr_predictor.pipeline.conventions import SKELETON_JOINTS, LayoutError
 from gwr_predictor.pipeline.gates import SkeletonReorder
@@ -28,7 +28,9 @@ from gwr_predictor.pipeline.markers import SKELETON_FRAME, skeleton_figure
 from gwr_predictor.robot.nao import ARM_JOINTS
 
 from . import messages, standard_messages
-from .node_base import PipelineNode, run_node, stream_qos
+from .pipeline_node import PipelineNode
+from .qos import stream_qos
+from .runner import run_node
 
 PARAMS = (
     ParamSpec("max_gap_s", conventions.MAX_GAP_S,

@@ -23,11 +23,14 @@ from rclpy.clock import Clock, ClockType
 from rclpy.duration import Duration
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
-from gwr_predictor.parameter_spec import ParamSpec
-from gwr_predictor.pipeline import bags
+from gwr_predictor.parameters.spec import ParameterError, ParamSpec
+from gwr_predictor.pipeline import bag_messages, bag_qos, bag_reader, bag_replay
 
 from . import messages
-from .node_base import NodeFatalError, ParameterError, PipelineNode, run_node, stream_qos
+from .exits import NodeFatalError
+from .pipeline_node import PipelineNode
+from .qos import stream_qos
+from .runner import run_node
 
 PARAMS = (
     ParamSpec("bag", "", "bag to replay: a rosbag2 directory (MCAP) or a bare .mcap file"),
@@ -51,8 +54,8 @@ _DURABILITY = {"volatile": DurabilityPolicy.VOLATILE, "transient_local": Durabil
 
 
 def publisher_qos(offered: list[Any]) -> QoSProfile:
-    """The recorded publishers' QoS (`bags.replay_qos`), or the pipeline's stream QoS for bags without it."""
-    chosen = bags.replay_qos(offered, stream_qos().depth)
+    """The recorded publishers' QoS (`bag_qos.replay_qos`), or the pipeline's stream QoS for bags without it."""
+    chosen = bag_qos.replay_qos(offered, stream_qos().depth)
     if chosen is None:
         return stream_qos()
     return QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=chosen.depth,
@@ -71,13 +74,13 @@ class BagPlayerNode(PipelineNode):
             raise ParameterError("parameters 'clock' and 'restamp' exclude each other: with clock:=true the nodes "
                                  "run on the recorded time, so the stamps must stay as recorded")
         try:
-            self.remaps = bags.parse_remaps(p["remap"])
+            self.remaps = bag_replay.parse_remaps(p["remap"])
         except ValueError as exc:
             raise ParameterError(f"parameter 'remap': {exc}") from None
         self.bag = Path(p["bag"])
         try:
-            info = bags.bag_info(self.bag)
-        except bags.BagError as exc:
+            info = bag_reader.bag_info(self.bag)
+        except bag_messages.BagError as exc:
             raise NodeFatalError(str(exc)) from None
         stored = {topic for topic, (_, count) in info.topics.items() if count}
         wanted = set(p["topics"]) or stored
@@ -92,7 +95,7 @@ class BagPlayerNode(PipelineNode):
                             for topic in self.topics}
         self.clock_pub = self.create_publisher(messages.Clock, "/clock", clock_qos()) if p["clock"] else None
         self.last_clock_wall = -math.inf
-        self.messages: list[bags.BagMessage] = []
+        self.messages: list[bag_reader.BagMessage] = []
         self.index = 0
         self.start_wall: float | None = None
         self.first_ns = 0
@@ -111,8 +114,8 @@ class BagPlayerNode(PipelineNode):
         """Read the selected messages (raw) into memory: pipeline bags are a few MB."""
         undecodable: dict[str, int] = {}
         try:
-            self.messages = list(bags.read_bag(self.bag, self.topics, decode=False, undecodable=undecodable))
-        except bags.BagError as exc:
+            self.messages = list(bag_reader.read_bag(self.bag, self.topics, decode=False, undecodable=undecodable))
+        except bag_messages.BagError as exc:
             raise NodeFatalError(str(exc)) from None
         for topic, n in undecodable.items():  # replaying them would hand the subscribers the same bytes
             self.counters.count(f"skipped.undecodable.{topic}", n)
@@ -162,10 +165,10 @@ class BagPlayerNode(PipelineNode):
         if self.index >= len(self.messages):
             self.end_of_bag()
 
-    def publish(self, message: bags.BagMessage) -> None:
+    def publish(self, message: bag_reader.BagMessage) -> None:
         raw: Any = message.raw
         if self.params["restamp"]:
-            raw = bags.shift_stamp(raw, message.msgtype, self.restamp_offset)
+            raw = bag_replay.shift_stamp(raw, message.msgtype, self.restamp_offset)
         self.publishers_[message.topic].publish(raw)
         self.counters.count(f"published.{message.topic}")
 

@@ -1,8 +1,8 @@
 """bag_recorder: records pipeline topics as received (raw CDR) into a rosbag2 MCAP bag.
 
 No rosbag2_py on PyPI, so recording is the package's own job: raw subscriptions hand over the CDR
-bytes from the wire, which `gwr_predictor.pipeline.bags.BagWriter` stores unchanged. The bag is flushed
-periodically (a crash loses at most one flush period; `bags.recover_bag` repairs it) and closed
+bytes from the wire, which `gwr_predictor.pipeline.bag_writer.BagWriter` stores unchanged. The bag is flushed
+periodically (a crash loses at most one flush period; `bag_recovery.recover_bag` repairs it) and closed
 properly on Ctrl-C and SIGTERM. An unwritable path or a full disk stops the node with exit code 1.
 
 Each topic's entry in the bag carries the QoS profiles its publishers offer, read from the ROS
@@ -31,11 +31,14 @@ from rclpy.clock import Clock, ClockType
 from rclpy.event_handler import SubscriptionEventCallbacks
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 
-from gwr_predictor.parameter_spec import ParamSpec
-from gwr_predictor.pipeline import bags, conventions
+from gwr_predictor.parameters.spec import ParameterError, ParamSpec
+from gwr_predictor.pipeline import bag_messages, bag_qos, bag_writer, conventions
 
 from . import messages, standard_messages
-from .node_base import NodeFatalError, ParameterError, PipelineNode, run_node, stream_qos
+from .exits import NodeFatalError
+from .pipeline_node import PipelineNode
+from .qos import stream_qos
+from .runner import run_node
 
 PARAMS = (
     ParamSpec("path", "", "bag directory to create (must not exist); empty: recording_<date-time> in the working dir"),
@@ -74,9 +77,9 @@ def topic_types(resolve: Callable[[str], str], names: list[str]) -> dict[str, st
     return resolved
 
 
-def offered_profile(qos: QoSProfile) -> bags.Qos:
+def offered_profile(qos: QoSProfile) -> bag_qos.Qos:
     """An rclpy QoSProfile (as discovered for a publisher) -> the profile stored in the bag."""
-    return bags.qos_profile(history=qos.history.name, depth=qos.depth, reliability=qos.reliability.name,
+    return bag_qos.qos_profile(history=qos.history.name, depth=qos.depth, reliability=qos.reliability.name,
                             durability=qos.durability.name, deadline_ns=qos.deadline.nanoseconds,
                             lifespan_ns=qos.lifespan.nanoseconds, liveliness=qos.liveliness.name,
                             liveliness_lease_ns=qos.liveliness_lease_duration.nanoseconds,
@@ -96,12 +99,12 @@ class BagRecorderNode(PipelineNode):
             raise ParameterError(f"parameter 'topics': {exc}") from None
         if not topics:
             raise ParameterError("parameter 'topics' is empty: nothing to record")
-        self.writer = bags.BagWriter(path, topics, offered_qos=self.offered_qos)
+        self.writer = bag_writer.BagWriter(path, topics, offered_qos=self.offered_qos)
         self.on_disk = 0  # messages written as of the last flush: what survives a SIGKILL
         self.failure: str | None = None
         try:
             self.writer.open()
-        except bags.BagError as exc:
+        except bag_messages.BagError as exc:
             raise NodeFatalError(str(exc)) from None
         self.recorded: dict[str, Any] = {}  # topic -> its subscription
         self.matched: set[str] = set()
@@ -144,7 +147,7 @@ class BagRecorderNode(PipelineNode):
                     raise ValueError(f"published with {len(types)} types {types}")
                 messages.message_class(types[0])
                 self.writer.add_topic(topic, types[0])
-            except (ValueError, bags.BagError) as exc:
+            except (ValueError, bag_messages.BagError) as exc:
                 self.not_recordable.add(topic)
                 self.counters.count("topics.not_recordable")
                 self.get_logger().warning(f"not recording {topic}: {exc}")
@@ -154,7 +157,7 @@ class BagRecorderNode(PipelineNode):
             self.counters.count("topics.discovered")
             self.get_logger().info(f"recording {topic} ({types[0]}) from now on")
 
-    def offered_qos(self, topic: str) -> list[bags.Qos]:
+    def offered_qos(self, topic: str) -> list[bag_qos.Qos]:
         """The QoS profiles the topic's publishers offer now (one per publisher, as the graph reports them)."""
         return [offered_profile(info.qos_profile) for info in self.get_publishers_info_by_topic(topic)]
 
@@ -173,7 +176,7 @@ class BagRecorderNode(PipelineNode):
         try:
             self.write_held(stamp)
             self.writer.write_raw(topic, stamp, raw)
-        except bags.BagError as exc:
+        except bag_messages.BagError as exc:
             self.stop_recording(exc)
 
     def drain_progress(self) -> int:
@@ -194,11 +197,11 @@ class BagRecorderNode(PipelineNode):
             if self.before_clock and self.get_clock().now().nanoseconds:
                 self.write_held(self.get_clock().now().nanoseconds)
             self.writer.flush()
-        except bags.BagError as exc:
+        except bag_messages.BagError as exc:
             self.stop_recording(exc)
         self.on_disk = self.writer.total_written
 
-    def stop_recording(self, exc: bags.BagError) -> None:
+    def stop_recording(self, exc: bag_messages.BagError) -> None:
         """A failed write or flush (full disk, I/O error): stop the node, exit code 1, never a
         bag reported as complete (the shutdown hook says it is not)."""
         self.failure = str(exc)
@@ -214,14 +217,14 @@ class BagRecorderNode(PipelineNode):
         if self.failure is not None:
             raise NodeFatalError(f"bag {self.writer.path} is INCOMPLETE ({self.failure}); {self.on_disk} messages "
                                  "were flushed before the failure: recover them with "
-                                 f"gwr_predictor.pipeline.bags.recover_bag({str(self.writer.path)!r})")
+                                 f"gwr_predictor.pipeline.bag_recovery.recover_bag({str(self.writer.path)!r})")
         try:
             if self.before_clock:  # use_sim_time and no /clock ever: nothing better than 0
                 self.get_logger().warning(f"no /clock during the recording: {len(self.before_clock)} messages "
                                           "stamped 0 in the bag")
                 self.write_held(0)
             self.writer.close()
-        except bags.BagError as exc:
+        except bag_messages.BagError as exc:
             raise NodeFatalError(str(exc)) from None
         total = self.writer.total_written
         self.get_logger().info(f"bag closed: {self.writer.path} ({total} messages)")

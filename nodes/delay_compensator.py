@@ -36,7 +36,7 @@ from typing import Any
 
 import numpy as np
 
-from gwr_predictor.parameter_spec import ParamSpec
+from gwr_predictor.parameters.spec import ParameterError, ParamSpec
 from gwr_predictor.pipeline import conventions
 from gwr_predictor.pipeline.clock_jumps import CLOCK_JUMP_SPEC, ClockJumpWatch, CommandStamps
 from gwr_predictor.pipeline.conventions import LayoutError
@@ -46,7 +46,10 @@ from gwr_predictor.robot import compensator, naoqi_output
 from gwr_predictor.robot.nao import ARM_JOINTS
 
 from . import messages, standard_messages
-from .node_base import NodeFatalError, ParameterError, PipelineNode, run_node, stream_qos
+from .exits import NodeFatalError
+from .pipeline_node import PipelineNode
+from .qos import stream_qos
+from .runner import run_node
 
 PARAMS = (
     replace(compensator.PARAM_SPECS["mode"], live=True),

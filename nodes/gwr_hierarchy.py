@@ -52,26 +52,22 @@ from gwr_predictor.learning.checkpoint import (
 )
 from gwr_predictor.learning.hierarchy import Hierarchy
 from gwr_predictor.learning.params import HIERARCHY_SPECS, HierarchyParams
+from gwr_predictor.learning.protocol import Spreading
 from gwr_predictor.learning.saver import CheckpointSaver
-from gwr_predictor.parameter_spec import ParamSpec
+from gwr_predictor.parameters.spec import ParameterError, ParamSpec
 from gwr_predictor.pipeline import conventions
 from gwr_predictor.pipeline.gates import missing_frames
 from gwr_predictor.pipeline.markers import ROBOT_FRAME, arm_figure
 from gwr_predictor.pipeline.trajectory import prediction_trajectory
 from gwr_predictor.predictors import registry
 from gwr_predictor.predictors.registry import DEFAULT_PREDICTOR, learner_names, load_predictor, make_predictor
-from gwr_predictor.protocol import Spreading
 from gwr_predictor.robot.nao import ARM_JOINTS
 
 from . import messages, standard_messages
-from .node_base import (
-    NodeFatalError,
-    ParameterError,
-    PipelineNode,
-    run_node,
-    status_qos,
-    stream_qos,
-)
+from .exits import NodeFatalError
+from .pipeline_node import PipelineNode
+from .qos import status_qos, stream_qos
+from .runner import run_node
 
 PARAMS = (
     ParamSpec("predictor", DEFAULT_PREDICTOR, "model: 'gwr_experts' (default: the local-linear P-GWR, two "

@@ -20,12 +20,14 @@ from geometry_msgs.msg import PointStamped
 
 from gwr_predictor.data import hri_bodies
 from gwr_predictor.data.smoothing import MedianOf3
-from gwr_predictor.parameter_spec import ParameterError, ParamSpec
+from gwr_predictor.parameters.spec import ParameterError, ParamSpec
 from gwr_predictor.pipeline import conventions
 from gwr_predictor.robot.nao import ARM_JOINTS
 
 from . import messages
-from .node_base import PipelineNode, run_node, status_qos, stream_qos
+from .pipeline_node import PipelineNode
+from .qos import status_qos, stream_qos
+from .runner import run_node
 
 PARAMS = (
     ParamSpec("body_id", "", "follow only this body (its joint_states are subscribed at once, no tracked list "

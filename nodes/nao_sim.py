@@ -23,16 +23,20 @@ from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
-from gwr_predictor.parameter_spec import ParamSpec
+from gwr_predictor.parameters.spec import ParameterError, ParamSpec
 from gwr_predictor.pipeline import conventions
 from gwr_predictor.pipeline.clock_jumps import CLOCK_JUMP_SPEC, RobotTimeBase
 from gwr_predictor.pipeline.gates import ArmAnglesGate
 from gwr_predictor.robot.delayed_arm import ROBOT_SPECS, RobotError, SimulatedRobot, sine_delay
 from gwr_predictor.robot.nao import ROBOT_ARM_JOINTS, robot_arm_positions
+from gwr_predictor.robot.pybullet_nao import NaoSimulator, SimulatorError, save_png
 from gwr_predictor.robot.urdf import default_urdf_path
 
 from . import messages, standard_messages
-from .node_base import NodeFatalError, ParameterError, PipelineNode, run_node, stream_qos
+from .exits import NodeFatalError
+from .pipeline_node import PipelineNode
+from .qos import stream_qos
+from .runner import run_node
 
 PARAMS = (
     ParamSpec("backend", "pybullet", "robot model", choices=("pybullet", "kinematic")),
@@ -62,8 +66,6 @@ class NaoSimNode(PipelineNode):
             raise ParameterError("parameter 'render_dir' needs backend 'pybullet'")
         self.sim = None
         if p["backend"] == "pybullet":
-            from gwr_predictor.robot.pybullet_nao import NaoSimulator, SimulatorError
-
             step = min(p["control_period_s"], 1.0 / 240.0)
             try:
                 try:
@@ -169,8 +171,6 @@ class NaoSimNode(PipelineNode):
         return f"simulated Nao ({self.params['backend']}) on {super().hardware_id()}"
 
     def render(self) -> None:
-        from gwr_predictor.robot.pybullet_nao import save_png
-
         index = self.counters.get("frames.rendered")
         path = self.render_dir / f"nao_{index:05d}.png"
         try:

@@ -17,15 +17,19 @@ import numpy as np
 from rclpy.publisher import Publisher
 
 from gwr_predictor.data import demonstrator, faults
-from gwr_predictor.data.mocap import ImportOptions, load_any_skeleton
+from gwr_predictor.data.mocap import load_any_skeleton
+from gwr_predictor.data.mocap_clip import ImportOptions
 from gwr_predictor.data.skeleton_files import SkeletonSequence
 from gwr_predictor.errors import GwrPredictorError
-from gwr_predictor.parameter_spec import ParamSpec
+from gwr_predictor.parameters.spec import ParameterError, ParamSpec
 from gwr_predictor.pipeline import conventions
 from gwr_predictor.pipeline.markers import SKELETON_FRAME
 
 from . import messages, standard_messages
-from .node_base import NodeFatalError, ParameterError, PipelineNode, run_node, stream_qos
+from .exits import NodeFatalError
+from .pipeline_node import PipelineNode
+from .qos import stream_qos
+from .runner import run_node
 
 PARAMS = (
     ParamSpec("source", "demonstrator", "where skeletons come from", choices=("demonstrator", "file", "none")),

@@ -27,10 +27,10 @@ import numpy as np
 
 from gwr_predictor.errors import GwrPredictorError
 from gwr_predictor.learning.checkpoint import CheckpointError, raise_state_error, read_checkpoint, write_checkpoint
-from gwr_predictor.parameter_spec import ParamSpec, check_fields
-from gwr_predictor.pending import PendingPredictions
+from gwr_predictor.learning.pending import PendingPredictions
+from gwr_predictor.learning.protocol import Predictor
+from gwr_predictor.parameters.spec import ParamSpec, check_fields
 from gwr_predictor.pipeline.conventions import DEFAULT_HORIZON
-from gwr_predictor.protocol import Predictor
 
 
 class BlendError(GwrPredictorError, ValueError):

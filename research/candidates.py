@@ -35,10 +35,10 @@ import numpy as np
 from gwr_predictor.default_predictor.params import LocalLinearParams
 from gwr_predictor.default_predictor.predictor import LocalLinearPredictor
 from gwr_predictor.errors import GwrPredictorError
+from gwr_predictor.learning.protocol import Predictor
 from gwr_predictor.learning.rls import RecursiveLeastSquares, window_features
 from gwr_predictor.predictors import registry
 from gwr_predictor.predictors.registry import hierarchy_params
-from gwr_predictor.protocol import Predictor
 from research.blend import BlendedPredictor
 
 #: frames the candidates' global read-out spans (RLS-AR's and the direct linear model's order)

@@ -34,10 +34,10 @@ from tqdm import tqdm
 from gwr_predictor.data.datasets import demo_angle_sequences
 from gwr_predictor.default_predictor import make_default
 from gwr_predictor.evaluation.output import ExperimentOutputError, figure, save_figure
+from gwr_predictor.files.user_files import write_output
 from gwr_predictor.learning.blas import blas_threads, single_threaded_blas
 from gwr_predictor.learning.saver import CheckpointSaver
 from gwr_predictor.predictors.baselines import TUNED_RLS, RLSAutoregressive
-from gwr_predictor.user_files import write_output
 from research.bench import random_walk_stream
 from research.soak import current_rss_mb
 

@@ -10,9 +10,9 @@ from __future__ import annotations
 import os
 from typing import Any
 
+from gwr_predictor.learning.protocol import Predictor
 from gwr_predictor.predictors import registry
 from gwr_predictor.predictors.registry import Factory, Loader, gate_loader, hierarchy_params
-from gwr_predictor.protocol import Predictor
 
 
 def local_linear_params(params: Any, **changes: Any) -> Any:

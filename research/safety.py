@@ -16,7 +16,7 @@ from typing import Any
 import numpy as np
 
 from gwr_predictor.default_predictor import Experts, GatedPredictor, GateParams, RecognitionSwitch, View, make_default
-from gwr_predictor.pending import PendingPredictions
+from gwr_predictor.learning.pending import PendingPredictions
 from gwr_predictor.predictors.baselines import HoldLast, observation
 
 #: Each round's default in today's terms: what it set, then every later round's change undone.

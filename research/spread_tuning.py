@@ -34,7 +34,7 @@ import numpy as np
 
 from gwr_predictor.default_predictor.spread import Spread, SpreadParams
 from gwr_predictor.evaluation.metrics import IntervalStats, future_windows, interval_stats
-from gwr_predictor.pending import PendingPredictions
+from gwr_predictor.learning.pending import PendingPredictions
 
 METHODS = ("hold", "rls_ar", "gwr_experts")
 CACHE = Path("/tmp/gwr_spread_cache")

@@ -30,7 +30,7 @@ from rclpy.node import Node
 from rclpy.qos import QoSProfile
 
 from gwr_predictor.nodes import messages
-from gwr_predictor.nodes.node_base import status_qos, stream_qos
+from gwr_predictor.nodes.qos import status_qos, stream_qos
 
 ROOT = Path(__file__).resolve().parents[1]
 BIN = Path(sys.executable).parent

@@ -10,7 +10,7 @@ import numpy as np
 import yaml
 from mcap.reader import make_reader
 
-from gwr_predictor.pipeline import bags
+from gwr_predictor.pipeline import bag_messages, bag_reader, bag_writer
 
 ROOT = Path(__file__).resolve().parents[1]
 SAMPLE = ROOT / "bags" / "demo_sample"
@@ -25,13 +25,13 @@ def mcap_rosbag2_metadata(mcap_path: Path) -> dict:
 
 def test_bag_writer_writes_the_ros_distro_rosbag2_writes(tmp_path):
     path = tmp_path / "bag"
-    with bags.BagWriter(path, {"/arm_angles": bags.JOINT_STATE}) as writer:
-        writer.write("/arm_angles", 1_000, bags.joint_state_msg(["a"], np.zeros(1), 1.0))
+    with bag_writer.BagWriter(path, {"/arm_angles": bag_messages.JOINT_STATE}) as writer:
+        writer.write("/arm_angles", 1_000, bag_messages.joint_state_msg(["a"], np.zeros(1), 1.0))
     metadata = yaml.safe_load((path / "metadata.yaml").read_text())["rosbag2_bagfile_information"]
     assert metadata["ros_distro"] == "jazzy"
     (mcap_file,) = path.glob("*.mcap")
     assert mcap_rosbag2_metadata(mcap_file)["ros_distro"] == "jazzy"
-    assert bags.bag_info(path).topics["/arm_angles"] == (bags.JOINT_STATE, 1)  # still a bag rosbags reads
+    assert bag_reader.bag_info(path).topics["/arm_angles"] == (bag_messages.JOINT_STATE, 1)  # still a bag rosbags reads
 
 
 def test_shipped_sample_bag_has_stored_qos_and_the_jazzy_distro():

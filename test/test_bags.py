@@ -12,7 +12,7 @@ from mcap.reader import make_reader
 from mcap_ros2.decoder import DecoderFactory
 from rosbags.rosbag2 import Reader
 
-from gwr_predictor.pipeline import bags
+from gwr_predictor.pipeline import bag_messages, bag_reader, bag_recovery, bag_writer
 from gwr_predictor.pipeline.conventions import (
     TOPIC_ANGLES,
     TOPIC_PREDICTIONS,
@@ -31,21 +31,22 @@ def angles(k: int) -> np.ndarray:
 
 
 def write_session(path, frames: int = 20) -> None:
-    with bags.BagWriter(path, TOPICS) as writer:
+    with bag_writer.BagWriter(path, TOPICS) as writer:
         for k in range(frames):
             stamp = 1_700_000_000.0 + 0.1 * k
-            writer.write(TOPIC_ANGLES, T0 + k * 100_000_000, bags.joint_state_msg(ARM_JOINTS, angles(k), stamp))
+            writer.write(TOPIC_ANGLES, T0 + k * 100_000_000, bag_messages.joint_state_msg(ARM_JOINTS, angles(k), stamp))
             preds = np.outer(np.arange(1, 7), angles(k))
             writer.write(TOPIC_PREDICTIONS, T0 + k * 100_000_000 + 1,
-                         bags.multiarray_msg(pack_predictions(stamp, preds)))
+                         bag_messages.multiarray_msg(pack_predictions(stamp, preds)))
 
 
 def test_written_bag_has_rosbag2_metadata_and_counts(tmp_path):
     path = tmp_path / "session"
     write_session(path)
-    info = bags.bag_info(path)
+    info = bag_reader.bag_info(path)
     assert info.message_count == 40 and info.storage == "mcap"
-    assert info.topics == {TOPIC_ANGLES: (bags.JOINT_STATE, 20), TOPIC_PREDICTIONS: (bags.FLOAT64_MULTIARRAY, 20)}
+    assert info.topics == {TOPIC_ANGLES: (bag_messages.JOINT_STATE, 20),
+                           TOPIC_PREDICTIONS: (bag_messages.FLOAT64_MULTIARRAY, 20)}
     assert info.start_ns == T0 and info.end_ns == T0 + 19 * 100_000_000 + 1
     meta = (path / "metadata.yaml").read_text()
     assert "version: 9" in meta and "storage_identifier: mcap" in meta
@@ -56,7 +57,7 @@ def test_written_bag_has_rosbag2_metadata_and_counts(tmp_path):
 def test_joint_states_round_trip_exactly(tmp_path):
     path = tmp_path / "session"
     write_session(path)
-    got = [bags.joint_state_arrays(m.msg) for m in bags.read_bag(path, [TOPIC_ANGLES])]
+    got = [bag_messages.joint_state_arrays(m.msg) for m in bag_reader.read_bag(path, [TOPIC_ANGLES])]
     assert len(got) == 20
     for k, (stamp, names, positions) in enumerate(got):
         assert names == ARM_JOINTS
@@ -67,10 +68,10 @@ def test_joint_states_round_trip_exactly(tmp_path):
 def test_prediction_arrays_round_trip_exactly(tmp_path):
     path = tmp_path / "session"
     write_session(path)
-    msgs = list(bags.read_bag(path, [TOPIC_PREDICTIONS]))
+    msgs = list(bag_reader.read_bag(path, [TOPIC_PREDICTIONS]))
     for k, m in enumerate(msgs):
         assert m.timestamp_ns == T0 + k * 100_000_000 + 1
-        stamp, names, preds = unpack_predictions(bags.packed_array(m.msg))
+        stamp, names, preds = unpack_predictions(bag_messages.packed_array(m.msg))
         assert names == ARM_JOINTS and stamp == 1_700_000_000.0 + 0.1 * k
         np.testing.assert_array_equal(preds, np.outer(np.arange(1, 7), angles(k)))
 
@@ -89,73 +90,73 @@ def test_mcap_ros2_decoder_reads_the_same_messages(tmp_path):
 
 
 def test_raw_cdr_is_stored_unchanged(tmp_path):
-    msg = bags.joint_state_msg(ARM_JOINTS, angles(1), 3.25)
-    raw = bags.serialize(msg)
-    with bags.BagWriter(tmp_path / "raw", {TOPIC_ANGLES: bags.JOINT_STATE}) as writer:
+    msg = bag_messages.joint_state_msg(ARM_JOINTS, angles(1), 3.25)
+    raw = bag_messages.serialize(msg)
+    with bag_writer.BagWriter(tmp_path / "raw", {TOPIC_ANGLES: bag_messages.JOINT_STATE}) as writer:
         writer.write_raw(TOPIC_ANGLES, 5, raw)
-    (stored,) = bags.read_bag(tmp_path / "raw")
-    assert stored.raw == raw and stored.timestamp_ns == 5 and stored.msgtype == bags.JOINT_STATE
+    (stored,) = bag_reader.read_bag(tmp_path / "raw")
+    assert stored.raw == raw and stored.timestamp_ns == 5 and stored.msgtype == bag_messages.JOINT_STATE
     assert writer.messages_written == {TOPIC_ANGLES: 1}
 
 
 def test_an_exception_inside_the_with_block_still_leaves_a_readable_bag(tmp_path):
     path = tmp_path / "interrupted"
-    with pytest.raises(KeyboardInterrupt), bags.BagWriter(path, TOPICS) as writer:
-        writer.write(TOPIC_ANGLES, 1, bags.joint_state_msg(ARM_JOINTS, angles(0), 0.0))
+    with pytest.raises(KeyboardInterrupt), bag_writer.BagWriter(path, TOPICS) as writer:
+        writer.write(TOPIC_ANGLES, 1, bag_messages.joint_state_msg(ARM_JOINTS, angles(0), 0.0))
         raise KeyboardInterrupt
-    assert [m.topic for m in bags.read_bag(path)] == [TOPIC_ANGLES]
+    assert [m.topic for m in bag_reader.read_bag(path)] == [TOPIC_ANGLES]
 
 
 def test_existing_path_is_refused_naming_it(tmp_path):
     path = tmp_path / "taken"
     path.mkdir()
-    with pytest.raises(bags.BagError, match=r"taken.*exists"), bags.BagWriter(path, TOPICS):
+    with pytest.raises(bag_messages.BagError, match=r"taken.*exists"), bag_writer.BagWriter(path, TOPICS):
         pass
 
 
 def test_unwritable_path_is_reported_naming_it(tmp_path):
     blocker = tmp_path / "a_file"
     blocker.write_text("not a directory")
-    with pytest.raises(bags.BagError, match="a_file/bag"), bags.BagWriter(blocker / "bag", TOPICS):
+    with pytest.raises(bag_messages.BagError, match="a_file/bag"), bag_writer.BagWriter(blocker / "bag", TOPICS):
         pass
 
 
 def test_full_disk_is_reported_naming_the_bag(tmp_path):
     path = tmp_path / "full"
-    writer = bags.BagWriter(path, TOPICS, flush_every=1)
+    writer = bag_writer.BagWriter(path, TOPICS, flush_every=1)
     writer.open()
     storage = writer._writer.storage
     storage.bio = FullDisk(storage.bio)
-    with pytest.raises(bags.BagError, match=r"full.*No space left"):
-        writer.write(TOPIC_ANGLES, 1, bags.joint_state_msg(ARM_JOINTS, angles(0), 0.0))
-    with pytest.raises(bags.BagError, match="not open"):
-        writer.write(TOPIC_ANGLES, 2, bags.joint_state_msg(ARM_JOINTS, angles(0), 0.0))
+    with pytest.raises(bag_messages.BagError, match=r"full.*No space left"):
+        writer.write(TOPIC_ANGLES, 1, bag_messages.joint_state_msg(ARM_JOINTS, angles(0), 0.0))
+    with pytest.raises(bag_messages.BagError, match="not open"):
+        writer.write(TOPIC_ANGLES, 2, bag_messages.joint_state_msg(ARM_JOINTS, angles(0), 0.0))
 
 
 def test_undeclared_topics_and_unknown_types_are_refused(tmp_path):
-    with pytest.raises(bags.BagError, match="my_msgs/msg/Thing"):
-        bags.BagWriter(tmp_path / "x", {"thing": "my_msgs/msg/Thing"})
-    with bags.BagWriter(tmp_path / "y", TOPICS) as writer, pytest.raises(bags.BagError, match="'other'"):
+    with pytest.raises(bag_messages.BagError, match="my_msgs/msg/Thing"):
+        bag_writer.BagWriter(tmp_path / "x", {"thing": "my_msgs/msg/Thing"})
+    with bag_writer.BagWriter(tmp_path / "y", TOPICS) as writer, pytest.raises(bag_messages.BagError, match="'other'"):
         writer.write_raw("other", 1, b"")
 
 
 def test_reading_something_that_is_not_a_bag_names_it(tmp_path):
-    with pytest.raises(bags.BagError, match="nothing_here"):
-        list(bags.read_bag(tmp_path / "nothing_here"))
+    with pytest.raises(bag_messages.BagError, match="nothing_here"):
+        list(bag_reader.read_bag(tmp_path / "nothing_here"))
     (tmp_path / "half").mkdir()
-    with pytest.raises(bags.BagError, match=r"half.*metadata.yaml"):
-        bags.bag_info(tmp_path / "half")
+    with pytest.raises(bag_messages.BagError, match=r"half.*metadata.yaml"):
+        bag_reader.bag_info(tmp_path / "half")
 
 
 CRASHING_RECORDER = textwrap.dedent("""
     import os, sys
     import numpy as np
-    from gwr_predictor.pipeline import bags
+    from gwr_predictor.pipeline import bag_messages, bag_reader, bag_recovery, bag_writer
     from gwr_predictor.robot.nao import ARM_JOINTS
-    writer = bags.BagWriter(sys.argv[1], {"arm_angles": bags.JOINT_STATE}, flush_every=int(sys.argv[2]))
+    writer = bag_writer.BagWriter(sys.argv[1], {"arm_angles": bag_messages.JOINT_STATE}, flush_every=int(sys.argv[2]))
     writer.open()
     for k in range(int(sys.argv[3])):
-        writer.write("arm_angles", 1000 + k, bags.joint_state_msg(ARM_JOINTS, np.full(8, float(k)), k * 0.1))
+        writer.write("arm_angles", 1000 + k, bag_messages.joint_state_msg(ARM_JOINTS, np.full(8, float(k)), k * 0.1))
     os._exit(9)  # a crash: no close, no atexit, no buffer flush
 """)
 
@@ -170,18 +171,18 @@ def crash_recorder(path, flush_every: int, messages: int) -> None:
 def test_a_crashed_writer_is_recovered_up_to_its_last_flush(tmp_path):
     path = tmp_path / "crashed"
     crash_recorder(path, flush_every=10, messages=37)
-    with pytest.raises(bags.BagError, match="recover_bag"):
-        list(bags.read_bag(path))
-    info = bags.recover_bag(path)
+    with pytest.raises(bag_messages.BagError, match="recover_bag"):
+        list(bag_reader.read_bag(path))
+    info = bag_recovery.recover_bag(path)
     assert info.message_count == 30
-    positions = [m.msg.position[0] for m in bags.read_bag(path)]
+    positions = [m.msg.position[0] for m in bag_reader.read_bag(path)]
     assert positions == [float(k) for k in range(30)]
     assert sorted(p.name for p in path.iterdir()) == ["crashed.mcap", "crashed.mcap.damaged", "metadata.yaml"]
-    assert bags.recover_bag(path) == info  # a sound bag is left alone
+    assert bag_recovery.recover_bag(path) == info  # a sound bag is left alone
 
 
 def test_a_writer_that_never_flushed_is_reported_unrecoverable(tmp_path):
     path = tmp_path / "lost"
     crash_recorder(path, flush_every=0, messages=5)
-    with pytest.raises(bags.BagError, match=r"lost.*nothing recoverable"):
-        bags.recover_bag(path)
+    with pytest.raises(bag_messages.BagError, match=r"lost.*nothing recoverable"):
+        bag_recovery.recover_bag(path)

@@ -35,7 +35,7 @@ from gwr_predictor.learning.hierarchy import Hierarchy
 from gwr_predictor.learning.params import HierarchyParams
 from gwr_predictor.nodes import messages
 from gwr_predictor.nodes.messages import DiagnosticArray
-from gwr_predictor.nodes.node_base import status_qos
+from gwr_predictor.nodes.qos import status_qos
 from gwr_predictor.predictors.registry import DEFAULT_PREDICTOR, load_predictor, make_predictor
 
 
@@ -301,6 +301,21 @@ def test_a_stranger_taking_the_node_name_does_not_stop_it(ros):
     finally:
         stranger.close()
     code, _ = victim.stop(signal.SIGINT)
+    assert code == 0
+
+
+@pytest.mark.ros
+def test_a_second_node_of_the_same_name_stops_itself_and_the_first_runs_on(ros):
+    """Two compensators of one name on one domain: the one that started later sees the first's statuses
+    and its endpoints in the graph, and stops with the reason; the first goes on."""
+    diagnostics = ros.diagnostics
+    first = ros.start("delay_compensator", label="first", params=FAST)
+    ros.wait_for_node(diagnostics, "/delay_compensator", timeout=60)
+    code, output = ros.run("delay_compensator", label="second", params=FAST, timeout=60)
+    assert code == 1, output
+    assert "another /delay_compensator (instance" in output and "stopping this one" in output, output
+    assert first.running() and "stopping this one" not in first.output()
+    code, _ = first.stop(signal.SIGINT)
     assert code == 0
 
 

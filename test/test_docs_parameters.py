@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pytest
 
-from gwr_predictor.parameter_spec import markdown_table
+from gwr_predictor.parameters.spec import markdown_table
 from gwr_predictor.predictors.registry import learner_names
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -46,6 +46,6 @@ def test_each_product_predictors_settings_are_documented(predictor):
 
 
 def test_the_parameters_every_node_declares_are_documented():
-    from gwr_predictor.nodes.node_base import COMMON_PARAMS
+    from gwr_predictor.nodes.pipeline_node import COMMON_PARAMS
 
     assert documented_table("every node") == markdown_table(COMMON_PARAMS)

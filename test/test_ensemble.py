@@ -287,8 +287,8 @@ def test_blend_with_unsaveable_members_refuses_to_save(tmp_path):
 @pytest.mark.parametrize("name", ["hierarchy", "gated_llm_gwr", "gwr_experts"])
 def test_every_learner_says_its_horizon_and_keeps_it_through_a_checkpoint(name, tmp_path):
     """The learner node publishes as many steps as the model predicts, which a loaded checkpoint decides."""
+    from gwr_predictor.learning.protocol import Learner
     from gwr_predictor.predictors.registry import learner_names, load_predictor, make_predictor
-    from gwr_predictor.protocol import Learner
 
     assert name in learner_names()
     model = make_predictor(name, {"horizon": 4, "n_joints": 8})

@@ -109,7 +109,7 @@ def test_a_checkpoint_whose_read_out_queue_disagrees_with_its_regressors_is_refu
 #: Built-in errors the package must not raise at a caller; each module raises its own class instead.
 _BARE = {"ValueError", "RuntimeError", "KeyError"}
 #: Functions that raise one of them on purpose: every caller in the package converts it to its own class.
-_CONVERTED_BY_EVERY_CALLER = {("file_limits.py", "npy_header")}
+_CONVERTED_BY_EVERY_CALLER = {("files/limits.py", "npy_header")}
 
 
 def _caught(handler: ast.ExceptHandler, name: str) -> bool:

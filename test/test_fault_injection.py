@@ -12,7 +12,7 @@ import pytest
 from gwr_predictor.default_predictor.gate import inner_model
 from gwr_predictor.nodes import messages
 from gwr_predictor.nodes.messages import DiagnosticArray, Float64MultiArray, JointState
-from gwr_predictor.pipeline import bags
+from gwr_predictor.pipeline import bag_messages, bag_reader, bag_recovery
 from gwr_predictor.pipeline.conventions import NEURON_KEYS
 from gwr_predictor.predictors.registry import DEFAULT_PREDICTOR, load_predictor
 
@@ -103,9 +103,9 @@ def test_each_node_killed_and_restarted_the_pipeline_recovers_and_keeps_what_it_
     on_disk = int(diagnostics["/bag_recorder"]["messages.on_disk"])
     assert on_disk > 0
     ros.kill(procs["bag_recorder"])
-    with pytest.raises(bags.BagError, match="recover_bag"):
-        bags.bag_info(tmp_path / "bag1")
-    recovered = bags.recover_bag(tmp_path / "bag1")
+    with pytest.raises(bag_messages.BagError, match="recover_bag"):
+        bag_reader.bag_info(tmp_path / "bag1")
+    recovered = bag_recovery.recover_bag(tmp_path / "bag1")
     assert recovered.message_count >= on_disk
     assert all(recovered.topics[f"/{t}"][1] > 0 for t in ("skeleton", "arm_angles", "predictions", "joint_states"))
     n_diag = len(all_diagnostics)
@@ -138,7 +138,7 @@ def test_each_node_killed_and_restarted_the_pipeline_recovers_and_keeps_what_it_
         assert code == 0 and not killed, procs[name].output()[-2000:]
     final = inner_model(load_predictor(DEFAULT_PREDICTOR, checkpoint))
     assert final.frames_seen >= saved_frames + learned_before_stop
-    info = bags.bag_info(tmp_path / "bag2")  # closed properly: no recovery needed
+    info = bag_reader.bag_info(tmp_path / "bag2")  # closed properly: no recovery needed
     assert all(info.topics[f"/{t}"][1] >= FLOW for t in STREAMS), info.topics
-    stamps = [m.msg.header.stamp for m in bags.read_bag(tmp_path / "bag2", ["/arm_angles"])]
-    assert np.all(np.diff([bags.stamp_seconds(s) for s in stamps]) > 0)
+    stamps = [m.msg.header.stamp for m in bag_reader.read_bag(tmp_path / "bag2", ["/arm_angles"])]
+    assert np.all(np.diff([bag_messages.stamp_seconds(s) for s in stamps]) > 0)

@@ -7,16 +7,16 @@ import zipfile
 import numpy as np
 import pytest
 
-from gwr_predictor import file_limits
 from gwr_predictor.commands.cli import main as cli_main
 from gwr_predictor.data.skeleton_files import SkeletonFileError, load_skeleton
+from gwr_predictor.files import limits
 from gwr_predictor.learning.checkpoint import CheckpointError, read_checkpoint
-from gwr_predictor.pipeline import bags
+from gwr_predictor.pipeline import bag_messages, bag_reader, bag_recovery, bag_writer
 from gwr_predictor.pipeline.message_latency import latency_report
 from gwr_predictor.pipeline.run_report import read_run
 from gwr_predictor.robot.nao import ARM_JOINTS
 
-T = bags.TYPESTORE.types
+T = bag_messages.TYPESTORE.types
 DIAGNOSTICS = "diagnostic_msgs/msg/DiagnosticArray"
 GARBAGE = b"\x00\x01\x00\x00\xff\xff\xff\x7fnot a JointState"
 
@@ -26,28 +26,28 @@ def diagnostics_msg(stamp: float, name: str, values: dict[str, int], instance: s
     status = T["diagnostic_msgs/msg/DiagnosticStatus"](
         level=0, name=name, message="", hardware_id="host",
         values=[T["diagnostic_msgs/msg/KeyValue"](key=k, value=str(v)) for k, v in values.items()])
-    header = T["std_msgs/msg/Header"](stamp=bags._stamp(stamp), frame_id="")
+    header = T["std_msgs/msg/Header"](stamp=bag_messages.time_msg(stamp), frame_id="")
     return T[DIAGNOSTICS](header=header, status=[status])
 
 
 def angles_bag(path, n: int = 20, garbage_at: tuple[int, ...] = (), flush_every: int = 0):
-    with bags.BagWriter(path, {"/arm_angles": bags.JOINT_STATE, "/diagnostics": DIAGNOSTICS},
+    with bag_writer.BagWriter(path, {"/arm_angles": bag_messages.JOINT_STATE, "/diagnostics": DIAGNOSTICS},
                         flush_every=flush_every) as writer:
         for k in range(n):
             t = 10.0 + 0.1 * k
             if k in garbage_at:
                 writer.write_raw("/arm_angles", round(t * 1e9), GARBAGE)
             else:
-                writer.write("/arm_angles", round(t * 1e9), bags.joint_state_msg(ARM_JOINTS, np.zeros(8), t))
+                writer.write("/arm_angles", round(t * 1e9), bag_messages.joint_state_msg(ARM_JOINTS, np.zeros(8), t))
     return path
 
 
 def test_undecodable_messages_are_skipped_counted_and_reported(tmp_path, capsys):
     path = angles_bag(tmp_path / "bag", garbage_at=(3, 11))
-    with pytest.raises(bags.BagError, match=r"cannot decode .*/arm_angles"):
-        list(bags.read_bag(path))  # strict by default
+    with pytest.raises(bag_messages.BagError, match=r"cannot decode .*/arm_angles"):
+        list(bag_reader.read_bag(path))  # strict by default
     skipped: dict[str, int] = {}
-    assert len(list(bags.read_bag(path, undecodable=skipped))) == 18
+    assert len(list(bag_reader.read_bag(path, undecodable=skipped))) == 18
     assert skipped == {"/arm_angles": 2}
     assert latency_report(path).undecodable == {"/arm_angles": 2}
     assert read_run(path).rejected["bag:undecodable./arm_angles"] == 2
@@ -63,7 +63,7 @@ def test_a_metadata_yaml_that_lies_makes_latency_and_report_fail(tmp_path, capsy
     meta.write_text(text.replace("message_count: 20", "message_count: 25"))
     assert cli_main(["latency", str(path), "--out", str(tmp_path)]) == 1
     assert "metadata.yaml does not match" in capsys.readouterr().err
-    with pytest.raises(bags.BagError, match="metadata 25, file 20"):
+    with pytest.raises(bag_messages.BagError, match="metadata 25, file 20"):
         read_run(path)
 
 
@@ -72,13 +72,13 @@ def test_a_truncated_mcap_with_metadata_is_recovered_and_its_metadata_rewritten(
     mcap = next(path.glob("*.mcap"))
     data = mcap.read_bytes()
     mcap.write_bytes(data[: len(data) * 2 // 3])  # a disk that filled up, a copy cut short
-    with pytest.raises(bags.BagError):
-        list(bags.read_bag(path))
-    info = bags.recover_bag(path)
+    with pytest.raises(bag_messages.BagError):
+        list(bag_reader.read_bag(path))
+    info = bag_recovery.recover_bag(path)
     assert 10 <= info.message_count < 40 and info.message_count % 10 == 0
-    assert len(list(bags.read_bag(path))) == info.message_count
+    assert len(list(bag_reader.read_bag(path))) == info.message_count
     assert (path / "metadata.yaml.damaged").is_file() and (mcap.parent / (mcap.name + ".damaged")).is_file()
-    assert bags.recover_bag(path) == info  # now sound: left alone
+    assert bag_recovery.recover_bag(path) == info  # now sound: left alone
 
 
 def restart_bag(path, concurrent: bool):
@@ -91,12 +91,12 @@ def restart_bag(path, concurrent: bool):
                      diagnostics_msg(0, "/angle_extractor", {"angles.published": 0}, inst)))
         for k in range(10):
             t = 10.2 + base + 0.1 * k
-            rows.append((t, "/arm_angles", bags.joint_state_msg(ARM_JOINTS, np.zeros(8), t)))
+            rows.append((t, "/arm_angles", bag_messages.joint_state_msg(ARM_JOINTS, np.zeros(8), t)))
         rows.append((11.4 + base, "/diagnostics",
                      diagnostics_msg(0, "/angle_extractor", {"angles.published": 10}, inst)))
     rows.append((9.0, "/diagnostics", diagnostics_msg(0, "/gwr_hierarchy", {"frames.learned": 0}, "L")))
     rows.append((20.0, "/diagnostics", diagnostics_msg(0, "/gwr_hierarchy", {"frames.learned": 20}, "L")))
-    with bags.BagWriter(path, {"/arm_angles": bags.JOINT_STATE, "/diagnostics": DIAGNOSTICS}) as writer:
+    with bag_writer.BagWriter(path, {"/arm_angles": bag_messages.JOINT_STATE, "/diagnostics": DIAGNOSTICS}) as writer:
         for t, topic, msg in sorted(rows, key=lambda r: r[0]):
             writer.write(topic, round(t * 1e9), msg)
     return path
@@ -135,4 +135,4 @@ def test_files_that_cannot_be_recordings_are_refused_before_reading(tmp_path, mo
     monkeypatch.setattr("gwr_predictor.learning.checkpoint.MAX_CHECKPOINT_BYTES", 4 << 20)
     with pytest.raises(CheckpointError, match="inflate to 8 MB"):
         read_checkpoint(bomb, "Hierarchy")
-    assert file_limits.MAX_RECORDING_BYTES >= 200 << 20  # an hour at 30 fps is about 39 MB of positions
+    assert limits.MAX_RECORDING_BYTES >= 200 << 20  # an hour at 30 fps is about 39 MB of positions

@@ -12,11 +12,11 @@ from rosbags.rosbag2 import storage_mcap
 from gwr_predictor.commands.cli import main as cli_main
 from gwr_predictor.data import k4abt
 from gwr_predictor.data.demonstrator import default_subjects, demonstrate_one
-from gwr_predictor.pipeline import bags, conventions
+from gwr_predictor.pipeline import bag_messages, bag_recovery, bag_writer, conventions
 from gwr_predictor.pipeline.run_report import BagSummaryError, read_run
 from gwr_predictor.robot.nao import ARM_JOINTS
 
-T = bags.TYPESTORE.types
+T = bag_messages.TYPESTORE.types
 DIAGNOSTICS = "diagnostic_msgs/msg/DiagnosticArray"
 T0 = 1000.0
 SECONDS = 3.0
@@ -33,22 +33,24 @@ def diagnostics(stamp: float, name: str, values: dict[str, str]):
     status = T["diagnostic_msgs/msg/DiagnosticStatus"](
         level=0, name=name, message="", hardware_id="",
         values=[T["diagnostic_msgs/msg/KeyValue"](key=k, value=v) for k, v in values.items()])
-    return T[DIAGNOSTICS](header=T["std_msgs/msg/Header"](stamp=bags._stamp(stamp), frame_id=""), status=[status])
+    return T[DIAGNOSTICS](header=T["std_msgs/msg/Header"](stamp=bag_messages.time_msg(stamp), frame_id=""),
+                          status=[status])
 
 
 def impostor(msgtype: str, t: float):
     """A message of a type the topic does not have: a labelled array for a JointState topic and vice versa."""
-    if msgtype == bags.JOINT_STATE:
-        return bags.FLOAT64_MULTIARRAY, bags.multiarray_msg(conventions.pack_predictions(t, np.zeros((3, 8))))
-    return bags.JOINT_STATE, bags.joint_state_msg(ARM_JOINTS, np.zeros(8), t)
+    if msgtype == bag_messages.JOINT_STATE:
+        return (bag_messages.FLOAT64_MULTIARRAY,
+                bag_messages.multiarray_msg(conventions.pack_predictions(t, np.zeros((3, 8)))))
+    return bag_messages.JOINT_STATE, bag_messages.joint_state_msg(ARM_JOINTS, np.zeros(8), t)
 
 
 def run_bag(path: Path, wrong: tuple[str, ...] = (), diag_values: dict[str, str] | None = None) -> Path:
     """A small pipeline run (angles, predictions, skeleton, two robots, diagnostics); the topics in
     `wrong` carry messages of another type."""
-    topics = {"/arm_angles": bags.JOINT_STATE, "/predictions": bags.FLOAT64_MULTIARRAY,
-              "/skeleton": bags.FLOAT64_MULTIARRAY, "/joint_states": bags.JOINT_STATE,
-              "/uncompensated/joint_states": bags.JOINT_STATE, "/diagnostics": DIAGNOSTICS,
+    topics = {"/arm_angles": bag_messages.JOINT_STATE, "/predictions": bag_messages.FLOAT64_MULTIARRAY,
+              "/skeleton": bag_messages.FLOAT64_MULTIARRAY, "/joint_states": bag_messages.JOINT_STATE,
+              "/uncompensated/joint_states": bag_messages.JOINT_STATE, "/diagnostics": DIAGNOSTICS,
               "/uncompensated/diagnostics": DIAGNOSTICS, "/learner_status": DIAGNOSTICS}
     types = {topic: impostor(msgtype, 0.0)[0] if topic in wrong else msgtype for topic, msgtype in topics.items()}
     seq = demonstrate_one("wave_both", default_subjects(1)[0], 1, noise=False)
@@ -57,21 +59,23 @@ def run_bag(path: Path, wrong: tuple[str, ...] = (), diag_values: dict[str, str]
         msg = impostor(topics[topic], t)[1] if topic in wrong else make()
         writer.write(topic, int(t * 1e9), msg)
 
-    with bags.BagWriter(path, types) as writer:
+    with bag_writer.BagWriter(path, types) as writer:
         for k in range(round(SECONDS * 10) + 1):
             t = T0 + 0.1 * k
-            put(writer, "/arm_angles", t, lambda t=t: bags.joint_state_msg(ARM_JOINTS, person(t), t))
+            put(writer, "/arm_angles", t, lambda t=t: bag_messages.joint_state_msg(ARM_JOINTS, person(t), t))
             future = np.stack([person(t + 0.1 * j) for j in (1, 2, 3)])
             put(writer, "/predictions", t,
-                lambda t=t, f=future: bags.multiarray_msg(conventions.pack_predictions(t, f)))
+                lambda t=t, f=future: bag_messages.multiarray_msg(conventions.pack_predictions(t, f)))
         for k in range(round(SECONDS * 30) + 1):
             t = T0 + k / 30.0
             frame = seq.positions[k % len(seq.positions)]
-            put(writer, "/skeleton", t, lambda t=t, f=frame: bags.multiarray_msg(conventions.pack_skeleton(t, f)))
+            put(writer, "/skeleton", t,
+                lambda t=t, f=frame: bag_messages.multiarray_msg(conventions.pack_skeleton(t, f)))
         for ns in ("", "/uncompensated"):
             for k in range(round(SECONDS * 50) + 1):
                 t = T0 + 0.02 * k
-                put(writer, f"{ns}/joint_states", t, lambda t=t: bags.joint_state_msg(ARM_JOINTS, person(t - 0.2), t))
+                put(writer, f"{ns}/joint_states", t,
+                    lambda t=t: bag_messages.joint_state_msg(ARM_JOINTS, person(t - 0.2), t))
             values = {"mode": "none" if ns else "fixed", **(diag_values or {})}
             put(writer, f"{ns}/diagnostics", T0 + 1,
                 lambda ns=ns, v=values: diagnostics(T0 + 1, f"{ns}/delay_compensator", v))
@@ -234,10 +238,10 @@ def test_sixty_thousand_bodies_in_one_message_give_the_nearest_one():
 
 def crashed_bag(path: Path) -> Path:
     """A bag whose recorder died after flushing 20 messages (no summary, no metadata.yaml)."""
-    writer = bags.BagWriter(path, {"/arm_angles": bags.JOINT_STATE}, flush_every=5)
+    writer = bag_writer.BagWriter(path, {"/arm_angles": bag_messages.JOINT_STATE}, flush_every=5)
     writer.open()
     for k in range(20):
-        writer.write("/arm_angles", int((T0 + k) * 1e9), bags.joint_state_msg(ARM_JOINTS, np.zeros(8), T0 + k))
+        writer.write("/arm_angles", int((T0 + k) * 1e9), bag_messages.joint_state_msg(ARM_JOINTS, np.zeros(8), T0 + k))
     writer._writer.storage.bio.close()
     return path
 
@@ -265,14 +269,14 @@ def test_recover_bag_on_a_full_disk_is_one_bag_error_and_leaves_the_bag_as_it_wa
     bag = crashed_bag(tmp_path / "bag")
     before = sorted(p.name for p in bag.iterdir())
     monkeypatch.setattr(target, name, replacement)
-    with pytest.raises(bags.BagError) as caught:
-        bags.recover_bag(bag)
+    with pytest.raises(bag_messages.BagError) as caught:
+        bag_recovery.recover_bag(bag)
     message = str(caught.value)
     assert "\n" not in message and message.startswith(str(bag)) and "No space left on device" in message
     assert "unchanged" in message
     monkeypatch.undo()
     assert sorted(p.name for p in bag.iterdir()) == before and sorted(p.name for p in tmp_path.iterdir()) == ["bag"]
-    assert bags.recover_bag(bag).message_count == 20  # once there is space again
+    assert bag_recovery.recover_bag(bag).message_count == 20  # once there is space again
 
 
 def test_recover_bag_that_cannot_move_the_result_into_place_says_where_it_is(tmp_path, monkeypatch):
@@ -286,8 +290,8 @@ def test_recover_bag_that_cannot_move_the_result_into_place_says_where_it_is(tmp
         return real_rename(self, target)
 
     monkeypatch.setattr(Path, "rename", rename)
-    with pytest.raises(bags.BagError) as caught:
-        bags.recover_bag(bag)
+    with pytest.raises(bag_messages.BagError) as caught:
+        bag_recovery.recover_bag(bag)
     message = str(caught.value)
     assert "\n" not in message and "No space left on device" in message
     kept = tmp_path / ".bag.recovering" / "bag"

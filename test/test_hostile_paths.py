@@ -4,8 +4,8 @@ links, YAML alias bombs, FIFOs and devices where a file is expected, MCAP files 
 Each is refused at once with a one-line error naming the file (or, in a running node, counted and
 logged), within bounded memory: whatever could allocate runs in a subprocess under an address-space
 limit, so that the old behaviour (gigabytes, then a MemoryError traceback) fails the test instead of
-the machine. The rules live in `gwr_predictor.user_files` (reading, YAML, writing, lock files),
-`gwr_predictor.pipeline.mcap_limits` and `checkpoint.check_network_sizes`.
+the machine. The rules live in `gwr_predictor.files.user_files` (reading, writing, lock files),
+`files.yaml_safe` (YAML), `gwr_predictor.pipeline.mcap_limits` and `checkpoint.check_network_sizes`.
 """
 
 from __future__ import annotations
@@ -28,9 +28,9 @@ import pytest
 from test_node_bad_input import FAST, joint_state
 
 from gwr_predictor.commands import cli
-from gwr_predictor.file_limits import MAX_NETWORK_NEURONS
+from gwr_predictor.files.limits import MAX_NETWORK_NEURONS
 from gwr_predictor.learning.checkpoint import CheckpointError, CheckpointLock, check_checkpoint_place
-from gwr_predictor.pipeline import bags
+from gwr_predictor.pipeline import bag_messages, bag_reader
 from gwr_predictor.pipeline.params_file import ParamsFileError, check_params_files
 from gwr_predictor.pipeline.video_files import default_suffix
 from gwr_predictor.predictors.registry import make_predictor
@@ -268,8 +268,8 @@ def test_a_chunk_index_claiming_a_terabyte_is_refused_before_reading(tmp_path, b
     bag = copy_bag(tmp_path)
     forge_first_chunk_index(bag / "bag.mcap", 1 << 40)
     target = bag / "bag.mcap" if bare else bag
-    output = refusal("from gwr_predictor.pipeline import bags", f"list(bags.read_bag({str(target)!r}))",
-                     "bags.BagError")
+    output = refusal("from gwr_predictor.pipeline import bag_messages, bag_reader",
+                     f"list(bag_reader.read_bag({str(target)!r}))", "bag_messages.BagError")
     assert "1,099,511,627,776 compressed" in output, output
     if not bare:
         for args in (["report", bag, "--out", tmp_path / "out"], ["render", bag, "-o", tmp_path / "v.gif",
@@ -284,8 +284,9 @@ def test_a_record_longer_than_the_file_is_refused_before_reading(tmp_path):
     data = bytearray(mcap.read_bytes())
     struct.pack_into("<Q", data, 9, 1 << 40)  # the header record's length
     mcap.write_bytes(bytes(data))
-    with pytest.raises(bags.BagError, match=r"record 0x01 at byte 8 declares 1,099,511,627,776 bytes, past the end"):
-        bags.bag_info(mcap)
+    with pytest.raises(bag_messages.BagError,
+                       match=r"record 0x01 at byte 8 declares 1,099,511,627,776 bytes, past the end"):
+        bag_reader.bag_info(mcap)
 
 
 @pytest.mark.ros
@@ -312,7 +313,8 @@ def test_a_signal_stops_a_node_whose_start_blocks(tmp_path):
     script = tmp_path / "slow_node.py"
     script.write_text(textwrap.dedent(f"""
         import sys
-        from gwr_predictor.nodes.node_base import PipelineNode, run_node
+        from gwr_predictor.nodes.pipeline_node import PipelineNode
+        from gwr_predictor.nodes.runner import run_node
 
         class Blocked(PipelineNode):
             NODE_NAME = "blocked"
@@ -350,12 +352,12 @@ def test_bag_metadata_with_aliases_or_over_its_size_is_refused_before_parsing(tm
     text = meta.read_text()
     meta.write_text(text.replace("  duration:\n", "  duration: &span\n", 1).replace(
         "  - duration:\n      nanoseconds: 30984965707\n", "  - duration: *span\n", 1))
-    assert bags.bag_info(SAMPLE_BAG).message_count == 3840  # the same bag without the alias reads
-    with pytest.raises(bags.BagError, match=r"metadata\.yaml: YAML alias '\*span'"):
-        bags.bag_info(bag)
-    meta.write_text(text + "# padding\n" * (bags.MAX_METADATA_BYTES // 10))
-    with pytest.raises(bags.BagError, match=r"metadata\.yaml: 1 MB is too large for a bag's metadata\.yaml"):
-        bags.bag_info(bag)
+    assert bag_reader.bag_info(SAMPLE_BAG).message_count == 3840  # the same bag without the alias reads
+    with pytest.raises(bag_messages.BagError, match=r"metadata\.yaml: YAML alias '\*span'"):
+        bag_reader.bag_info(bag)
+    meta.write_text(text + "# padding\n" * (bag_reader.MAX_METADATA_BYTES // 10))
+    with pytest.raises(bag_messages.BagError, match=r"metadata\.yaml: 1 MB is too large for a bag's metadata\.yaml"):
+        bag_reader.bag_info(bag)
 
 
 # --- 7, 10: where the commands write ------------------------------------------------------------------

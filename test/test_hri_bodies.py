@@ -182,7 +182,7 @@ def test_config_yaml_names_only_declared_parameters():
     from ros_harness import ROOT
 
     from gwr_predictor.nodes.hri_bodies import PARAMS
-    from gwr_predictor.nodes.node_base import COMMON_PARAMS
+    from gwr_predictor.nodes.pipeline_node import COMMON_PARAMS
 
     specs = {s.name: s for s in (*COMMON_PARAMS, *PARAMS)}
     values = yaml.safe_load((ROOT / "config" / "hri_bodies.yaml").read_text())["/**/hri_bodies"]["ros__parameters"]

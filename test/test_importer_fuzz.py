@@ -14,9 +14,10 @@ from mocap_files import write_bvh
 from test_importer_limits import bvh_text, pt_bytes
 from test_mocap import AMC, ASF
 
-from gwr_predictor import file_limits
-from gwr_predictor.data.mocap import ImportOptions, load_any_skeleton, load_clip
+from gwr_predictor.data.mocap import load_any_skeleton, load_clip
+from gwr_predictor.data.mocap_clip import ImportOptions
 from gwr_predictor.data.skeleton_files import SkeletonFileError, SkeletonSequence, load_skeleton, save_skeleton
+from gwr_predictor.files import limits
 
 # derandomize: the same examples on every run, so that CI is reproducible (explore more with a larger
 # max_examples locally)
@@ -45,8 +46,8 @@ def _loads_within_limits_or_refuses(path, loader=load_clip) -> None:
         assert "\n" not in str(exc).strip()
         return
     positions = result.positions
-    assert positions.ndim == 3 and positions.size <= file_limits.MAX_VALUES
-    assert positions.shape[0] <= file_limits.MAX_FRAMES and positions.shape[1] <= file_limits.MAX_JOINTS
+    assert positions.ndim == 3 and positions.size <= limits.MAX_VALUES
+    assert positions.shape[0] <= limits.MAX_FRAMES and positions.shape[1] <= limits.MAX_JOINTS
 
 
 def _bvh_template(tmp_path) -> bytes:

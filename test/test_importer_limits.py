@@ -12,13 +12,14 @@ import numpy as np
 import pytest
 from mocap_files import write_bvh
 
-from gwr_predictor import file_limits
 from gwr_predictor.data.asf_amc import load_amc
 from gwr_predictor.data.bvh import load_bvh
-from gwr_predictor.data.mocap import MocapError, load_any_skeleton, load_clip
+from gwr_predictor.data.mocap import load_any_skeleton, load_clip
+from gwr_predictor.data.mocap_clip import MocapError
 from gwr_predictor.data.skeleton_files import SkeletonFileError, load_skeleton
 from gwr_predictor.data.torch_files import load_tensor
 from gwr_predictor.errors import GwrPredictorError
+from gwr_predictor.files import limits
 
 
 def _ops(value: object) -> bytes:
@@ -95,7 +96,7 @@ def test_a_text_recording_over_the_limit_is_refused_before_reading(tmp_path):
     path = tmp_path / "huge.bvh"
     with path.open("wb") as fh:  # sparse: no disk space used
         fh.write(bvh_text(1, 1).encode())
-        fh.truncate(file_limits.MAX_TEXT_BYTES + 1)
+        fh.truncate(limits.MAX_TEXT_BYTES + 1)
     with pytest.raises(MocapError, match=r"huge\.bvh.*too large.*limit"):
         load_clip(path)
 
@@ -116,7 +117,7 @@ def _npz_bomb(path, inflated: int) -> None:
 
 def test_an_npz_zip_bomb_is_refused_by_load_any_skeleton_as_by_load_skeleton(tmp_path):
     path = tmp_path / "bomb.npz"
-    _npz_bomb(path, file_limits.MAX_RECORDING_BYTES + (8 << 20))
+    _npz_bomb(path, limits.MAX_RECORDING_BYTES + (8 << 20))
     assert path.stat().st_size < 1 << 20
     with pytest.raises(SkeletonFileError, match=r"bomb\.npz.*limit"):
         load_skeleton(path)

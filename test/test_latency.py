@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from gwr_predictor.commands.cli import main as cli_main
-from gwr_predictor.pipeline import bags, conventions
+from gwr_predictor.pipeline import bag_messages, bag_writer, conventions
 from gwr_predictor.pipeline.message_latency import (
     TopicSeries,
     command_hop,
@@ -18,7 +18,7 @@ from gwr_predictor.pipeline.message_latency import (
 )
 from gwr_predictor.robot.nao import ARM_JOINTS
 
-T = bags.TYPESTORE.types
+T = bag_messages.TYPESTORE.types
 DIAGNOSTICS = "diagnostic_msgs/msg/DiagnosticArray"
 TOPICS = {f"/{name}": msgtype for name, msgtype in conventions.TOPIC_TYPES.items()}
 SKEL_DELAY, EXTRACT_DELAY, LEARN_DELAY, COMP_DELAY, TRANSIT = 0.004, 0.003, 0.020, 0.001, 0.002
@@ -28,7 +28,7 @@ def diagnostics_msg(stamp: float, name: str, values: dict[str, int]):
     status = T["diagnostic_msgs/msg/DiagnosticStatus"](
         level=0, name=name, message="", hardware_id="",
         values=[T["diagnostic_msgs/msg/KeyValue"](key=k, value=str(v)) for k, v in values.items()])
-    header = T["std_msgs/msg/Header"](stamp=bags._stamp(stamp), frame_id="")
+    header = T["std_msgs/msg/Header"](stamp=bag_messages.time_msg(stamp), frame_id="")
     return T["diagnostic_msgs/msg/DiagnosticArray"](header=header, status=[status])
 
 
@@ -41,21 +41,22 @@ def write_run(path, n_groups: int = 30, lose_predictions: int = 0):
     skel_t = 100.0 + np.arange(3 * n_groups) / 30.0
     for t in skel_t:
         rows.append(("/skeleton", t + SKEL_DELAY,
-                     bags.multiarray_msg(conventions.pack_skeleton(t, np.zeros((15, 3))))))
+                     bag_messages.multiarray_msg(conventions.pack_skeleton(t, np.zeros((15, 3))))))
     n_pred = 0
     for g in range(n_groups):
         middle, third = skel_t[3 * g + 1], skel_t[3 * g + 2]
         angles_recv = third + SKEL_DELAY + EXTRACT_DELAY
-        rows.append(("/arm_angles", angles_recv, bags.joint_state_msg(ARM_JOINTS, np.zeros(8), middle)))
+        rows.append(("/arm_angles", angles_recv, bag_messages.joint_state_msg(ARM_JOINTS, np.zeros(8), middle)))
         pred_recv = angles_recv + LEARN_DELAY
         if g >= n_groups - lose_predictions:
             continue  # published but never recorded
         n_pred += 1
         packed = conventions.pack_predictions(middle, np.zeros((6, 8)))
-        rows.append(("/predictions", pred_recv, bags.multiarray_msg(packed)))
-        rows.append(("/predicted_angles", pred_recv, bags.joint_state_msg(ARM_JOINTS, np.zeros(8), middle + 0.6)))
+        rows.append(("/predictions", pred_recv, bag_messages.multiarray_msg(packed)))
+        rows.append(("/predicted_angles", pred_recv,
+                     bag_messages.joint_state_msg(ARM_JOINTS, np.zeros(8), middle + 0.6)))
         rows.append(("/joint_commands", pred_recv + COMP_DELAY + TRANSIT,
-                     bags.joint_state_msg(ARM_JOINTS, np.zeros(8), pred_recv + COMP_DELAY)))
+                     bag_messages.joint_state_msg(ARM_JOINTS, np.zeros(8), pred_recv + COMP_DELAY)))
     end = skel_t[-1] + 1.0
     final = {
         "/skeleton_source": {"frames.published": len(skel_t)},
@@ -70,7 +71,7 @@ def write_run(path, n_groups: int = 30, lose_predictions: int = 0):
         start = skel_t[0] - 0.5  # the first snapshot, before anything was published
         rows.append(("/diagnostics", start, diagnostics_msg(start, name, dict.fromkeys(values, 0))))
         rows.append(("/diagnostics", end, diagnostics_msg(end, name, values)))
-    with bags.BagWriter(path, TOPICS) as writer:
+    with bag_writer.BagWriter(path, TOPICS) as writer:
         for topic, recv, msg in sorted(rows, key=lambda r: r[1]):
             writer.write(topic, round(recv * ns), msg)
     return path
@@ -113,8 +114,9 @@ def test_lost_messages_are_counted_per_hop(tmp_path):
 
 def test_a_bag_without_final_counters_reports_unknown_published_counts(tmp_path):
     path = tmp_path / "bare"
-    with bags.BagWriter(path, {"/skeleton": bags.FLOAT64_MULTIARRAY}) as writer:
-        writer.write("/skeleton", 1_000_000_000, bags.multiarray_msg(conventions.pack_skeleton(0.5, np.zeros((15, 3)))))
+    with bag_writer.BagWriter(path, {"/skeleton": bag_messages.FLOAT64_MULTIARRAY}) as writer:
+        writer.write("/skeleton", 1_000_000_000,
+                     bag_messages.multiarray_msg(conventions.pack_skeleton(0.5, np.zeros((15, 3)))))
     report = latency_report(path)
     assert report.latencies["source -> skeleton"].p50 == pytest.approx(0.5)
     assert [(c.topic, c.published, c.recorded) for c in report.counts] == [("/skeleton", None, 1)]
@@ -155,10 +157,11 @@ def test_the_recorder_loss_counts_from_the_publishers_first_diagnostics(tmp_path
     path = tmp_path / "bag"
     rows = [(1.0 + 0.02 * k, k) for k in range(3)]  # 2 of the first 5 never reached the recorder
     rows += [(2.0 + 0.02 * k, k) for k in range(recorded_after)]
-    with bags.BagWriter(path, {"/joint_states": bags.JOINT_STATE, "/diagnostics": DIAGNOSTICS}) as writer:
+    with bag_writer.BagWriter(path, {"/joint_states": bag_messages.JOINT_STATE, "/diagnostics": DIAGNOSTICS}) as writer:
         writer.write("/diagnostics", 1_500_000_000, diagnostics_msg(1.5, "/nao_sim", {"states.published": 5}))
         for recv, _ in rows:
-            writer.write("/joint_states", round(recv * 1e9), bags.joint_state_msg(ARM_JOINTS, np.zeros(8), recv))
+            writer.write("/joint_states", round(recv * 1e9),
+                         bag_messages.joint_state_msg(ARM_JOINTS, np.zeros(8), recv))
         writer.write("/diagnostics", 3_000_000_000, diagnostics_msg(3.0, "/nao_sim", {"states.published": 12}))
     states = next(c for c in latency_report(path).counts if c.topic == "/joint_states")
     assert (states.published, states.published_early, states.recorded_after) == (12, 5, recorded_after)

@@ -12,7 +12,7 @@ from gwr_predictor.data.demonstrator import default_subjects, demonstrate_one
 from gwr_predictor.data.extraction import extract_angles, frame_angles
 from gwr_predictor.learning.checkpoint import set_aside
 from gwr_predictor.learning.params import hierarchy_parameter_specs
-from gwr_predictor.parameter_spec import ParameterError, ParamSpec
+from gwr_predictor.parameters.spec import ParameterError, ParamSpec
 from gwr_predictor.pipeline.conventions import ARM_JOINTS, SKELETON_JOINTS, split_stamp, stamp_seconds
 from gwr_predictor.pipeline.gates import ArmAnglesGate, RejectionCounter, SkeletonReorder, missing_frames
 from gwr_predictor.robot.compensator import DelayCompensator, recent_state

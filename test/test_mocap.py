@@ -17,7 +17,8 @@ from gwr_predictor.data.angles import skeleton_to_angles
 from gwr_predictor.data.asf_amc import load_amc
 from gwr_predictor.data.bvh import load_bvh
 from gwr_predictor.data.joint_maps import detect_preset, resolve_map
-from gwr_predictor.data.mocap import ImportOptions, MocapError, load_any_skeleton, load_clip, resample
+from gwr_predictor.data.mocap import load_any_skeleton, load_clip, resample
+from gwr_predictor.data.mocap_clip import ImportOptions, MocapError
 from gwr_predictor.data.smoothing import median_of_3
 from gwr_predictor.data.torch_files import load_tensor
 from gwr_predictor.pipeline.conventions import SKELETON_JOINTS

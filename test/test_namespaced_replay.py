@@ -26,7 +26,7 @@ from gwr_predictor.commands.cli import main as cli_main
 from gwr_predictor.data import hri_bodies
 from gwr_predictor.nodes import messages
 from gwr_predictor.nodes.messages import JointState
-from gwr_predictor.pipeline import bags
+from gwr_predictor.pipeline import bag_messages, bag_reader, bag_writer
 from gwr_predictor.robot.nao import ARM_JOINTS
 
 SCRIPTS = ROOT / "scripts"
@@ -35,14 +35,14 @@ BODY_FRAMES = 60  # 2 s of a tracked body at 30 fps
 
 
 def counts(bag: Path) -> dict[str, int]:
-    return {topic: n for topic, (_, n) in bags.bag_info(bag).topics.items() if n}
+    return {topic: n for topic, (_, n) in bag_reader.bag_info(bag).topics.items() if n}
 
 
 def person_bag(path: Path, namespace: str) -> Path:
     """The first SKELETON_FRAMES skeletons of the sample, recorded in `namespace`."""
     topic = f"{namespace}/skeleton"
-    with bags.BagWriter(path, {topic: bags.FLOAT64_MULTIARRAY}) as writer:
-        for i, message in enumerate(bags.read_bag(SAMPLE, ["/skeleton"], decode=False)):
+    with bag_writer.BagWriter(path, {topic: bag_messages.FLOAT64_MULTIARRAY}) as writer:
+        for i, message in enumerate(bag_reader.read_bag(SAMPLE, ["/skeleton"], decode=False)):
             if i == SKELETON_FRAMES:
                 break
             writer.write_raw(topic, message.timestamp_ns, message.raw)
@@ -122,11 +122,11 @@ def test_the_hri_input_is_recorded_and_replayed_through_hri_bodies(tmp_path, dom
 
     result = script("replay.sh", str(bag), "--hri", "--no-baseline", "--out", str(tmp_path / "replay"), env=env)
     assert result.returncode == 0, result.stderr[-3000:]
-    replayed = list(bags.read_bag(tmp_path / "replay" / "bag", ["/arm_angles"]))
+    replayed = list(bag_reader.read_bag(tmp_path / "replay" / "bag", ["/arm_angles"]))
     assert len(replayed) == BODY_FRAMES // 3
     # hri_bodies' median of every 3 frames of the recorded body, mapped to the Nao
     groups = human.reshape(-1, 3, 8)
     expected = hri_bodies.body_to_nao(np.median(groups, axis=1))[0]
-    got_angles = np.array([bags.joint_state_arrays(m.msg)[2] for m in replayed])
+    got_angles = np.array([bag_messages.joint_state_arrays(m.msg)[2] for m in replayed])
     np.testing.assert_allclose(got_angles, expected, atol=1e-9)
     assert counts(tmp_path / "replay" / "bag")["/predictions"] > 0

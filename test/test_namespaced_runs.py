@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from gwr_predictor.commands.cli import main as cli_main
-from gwr_predictor.pipeline import bags, namespaces
+from gwr_predictor.pipeline import bag_messages, bag_reader, bag_writer, namespaces
 from gwr_predictor.pipeline.errors import PipelineError
 from gwr_predictor.pipeline.message_latency import latency_report
 from gwr_predictor.pipeline.replay_plan import hri_input, replay_plan
@@ -26,30 +26,30 @@ SAMPLE = ROOT / "bags" / "demo_sample"
 DIAGNOSTICS = "/diagnostics"
 
 
-def moved(message: bags.BagMessage, namespace: str, extra: dict[str, dict[str, str]] | None = None
+def moved(message: bag_reader.BagMessage, namespace: str, extra: dict[str, dict[str, str]] | None = None
           ) -> tuple[str, bytes]:
     """(topic, CDR) of a recorded message as the pipeline in `namespace` records it: its topic below the
     namespace, or for /diagnostics (global) its status names; `extra` adds key/values to named statuses."""
     if message.topic != DIAGNOSTICS:
         return namespace + message.topic, message.raw
-    msg = bags.deserialize(message.raw, message.msgtype)
+    msg = bag_messages.deserialize(message.raw, message.msgtype)
     for status in msg.status:
         for key, value in (extra or {}).get(status.name, {}).items():
-            status.values.append(bags.TYPESTORE.types["diagnostic_msgs/msg/KeyValue"](key=key, value=value))
+            status.values.append(bag_messages.TYPESTORE.types["diagnostic_msgs/msg/KeyValue"](key=key, value=value))
         status.name = namespace + status.name
-    return DIAGNOSTICS, bags.serialize(msg, message.msgtype)
+    return DIAGNOSTICS, bag_messages.serialize(msg, message.msgtype)
 
 
 def namespaced_bag(path: Path, *pipelines: str, extra: dict[str, dict[str, dict[str, str]]] | None = None,
                    seconds: float | None = None) -> Path:
     """demo_sample as recorded by the pipelines in `pipelines` on one domain (one copy each, /diagnostics
     shared); `extra[namespace]` adds counters to that pipeline's statuses; `seconds` keeps only the start."""
-    info = bags.bag_info(SAMPLE)
-    topics = {DIAGNOSTICS: bags.DIAGNOSTIC_ARRAY}
+    info = bag_reader.bag_info(SAMPLE)
+    topics = {DIAGNOSTICS: bag_messages.DIAGNOSTIC_ARRAY}
     topics.update({ns + t: msgtype for ns in pipelines for t, (msgtype, _) in info.topics.items() if t != DIAGNOSTICS})
     end = None if seconds is None else info.start_ns + int(seconds * 1e9)
-    with bags.BagWriter(path, topics) as writer:
-        for message in bags.read_bag(SAMPLE, decode=False):
+    with bag_writer.BagWriter(path, topics) as writer:
+        for message in bag_reader.read_bag(SAMPLE, decode=False):
             if end is not None and message.timestamp_ns > end:
                 break
             for ns in pipelines:
@@ -127,7 +127,7 @@ def test_the_commands_take_namespace_and_write_into_a_bare_bag_directory(tmp_pat
     assert cli_main(["latency", str(bag), "--namespace", "robot1"]) == 0
     assert json.loads((bag / "latency.json").read_text())["namespace"] == "/robot1"
     assert "/robot1/arm_angles" in capsys.readouterr().out
-    assert bags.bag_info(bag).topics["/robot1/arm_angles"][1] > 0  # still a bag with its results in it
+    assert bag_reader.bag_info(bag).topics["/robot1/arm_angles"][1] > 0  # still a bag with its results in it
     assert cli_main(["render", str(bag), "--namespace", "robot1", "--seconds", "2:2.5", "--fps", "2",
                      "--scale", "0.2", "--no-progress", "-o", str(tmp_path / "v.gif")]) == 0
     assert (tmp_path / "v.gif").stat().st_size > 0
@@ -172,14 +172,14 @@ def test_replay_plan_renames_the_recorded_input_into_the_replays_namespace(tmp_p
 
 
 def test_replay_plan_of_the_hri_input_plays_what_this_machine_can_publish(tmp_path):
-    js, point, ids = bags.JOINT_STATE, "geometry_msgs/msg/PointStamped", "hri_msgs/msg/IdsList"
+    js, point, ids = bag_messages.JOINT_STATE, "geometry_msgs/msg/PointStamped", "hri_msgs/msg/IdsList"
     recorded = {"/humans/bodies/b1/joint_states": (js, 5), "/humans/bodies/b1/position": (point, 5),
                 "/humans/bodies/b2/joint_states": (js, 5), "/humans/bodies/tracked": (ids, 5),
                 "/humans/bodies/b3/joint_states": (js, 0), "/arm_angles": (js, 5)}
-    info = bags.BagInfo(tmp_path, "mcap", 30, 0, 1, recorded)
+    info = bag_reader.BagInfo(tmp_path, "mcap", 30, 0, 1, recorded)
     plan = hri_input(info, available=lambda msgtype: msgtype != ids)
     assert plan.topics == ("/humans/bodies/b1/joint_states", "/humans/bodies/b1/position",
                            "/humans/bodies/b2/joint_states") and plan.body == ""
-    one = bags.BagInfo(tmp_path, "mcap", 10, 0, 1, {k: v for k, v in recorded.items() if "b2" not in k})
+    one = bag_reader.BagInfo(tmp_path, "mcap", 10, 0, 1, {k: v for k, v in recorded.items() if "b2" not in k})
     plan = hri_input(one, available=lambda msgtype: True)
     assert plan.topics == ("/humans/bodies/b1/joint_states",) and plan.body == "b1"  # followed at once

@@ -26,7 +26,7 @@ from ros_harness import ROOT, Probe, allocate_domain_id, release_domain_id, ros_
 
 from gwr_predictor.nodes import messages
 from gwr_predictor.nodes.messages import JointState
-from gwr_predictor.pipeline import bags
+from gwr_predictor.pipeline import bag_messages, bag_reader
 from gwr_predictor.pipeline.message_latency import latency_report
 from gwr_predictor.pipeline.run_report import compute_report, read_run
 from gwr_predictor.robot.nao import ARM_JOINTS
@@ -167,8 +167,9 @@ def test_two_namespaced_pipelines_share_a_domain_without_crossing(tmp_path):
 def first_stamps(bag: Path, topic: str, n: int) -> list[float]:
     """Source stamps of the first `n` messages recorded on a skeleton or angles topic."""
     out = []
-    for m in bags.read_bag(bag, [topic]):
-        out.append(bags.joint_state_arrays(m.msg)[0] if m.msgtype == bags.JOINT_STATE else float(m.msg.data[0]))
+    for m in bag_reader.read_bag(bag, [topic]):
+        out.append(bag_messages.joint_state_arrays(m.msg)[0] if m.msgtype == bag_messages.JOINT_STATE
+                   else float(m.msg.data[0]))
         if len(out) == n:
             break
     return out

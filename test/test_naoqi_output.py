@@ -12,7 +12,7 @@ import pytest
 import rclpy
 
 from gwr_predictor.nodes import messages
-from gwr_predictor.parameter_spec import ParameterError
+from gwr_predictor.parameters.spec import ParameterError
 from gwr_predictor.robot import naoqi_output
 from gwr_predictor.robot.nao import ARM_JOINTS, limits_array
 from gwr_predictor.robot.naoqi_output import NaoqiOutputError, SafeArmCommands

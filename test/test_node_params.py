@@ -9,7 +9,8 @@ import yaml
 from ros_harness import ROOT
 
 from gwr_predictor.nodes.gwr_hierarchy import predictor_specs
-from gwr_predictor.nodes.node_base import COMMON_PARAMS, ParameterError
+from gwr_predictor.nodes.pipeline_node import COMMON_PARAMS
+from gwr_predictor.parameters.spec import ParameterError
 from gwr_predictor.pipeline.params_file import flatten
 from gwr_predictor.predictors.registry import learner_names
 

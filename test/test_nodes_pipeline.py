@@ -17,7 +17,7 @@ from gwr_predictor.learning.hierarchy import Hierarchy
 from gwr_predictor.learning.params import HierarchyParams
 from gwr_predictor.nodes import messages
 from gwr_predictor.nodes.messages import DiagnosticArray, Float64MultiArray, JointState
-from gwr_predictor.pipeline import bags
+from gwr_predictor.pipeline import bag_reader
 from gwr_predictor.pipeline.conventions import NEURON_KEYS, SKELETON_JOINTS, TOPIC_TYPES
 from gwr_predictor.pipeline.run_report import compute_report, read_run
 from gwr_predictor.predictors.registry import DEFAULT_PREDICTOR, load_predictor
@@ -123,7 +123,7 @@ def test_pipeline_flows_learns_moves_the_robot_and_records(ros, tmp_path):
     for proc in reversed(procs):
         code, killed = proc.stop()
         assert code == 0 and not killed, proc.output()
-    info = bags.bag_info(tmp_path / "bag")
+    info = bag_reader.bag_info(tmp_path / "bag")
     recorded = {t.lstrip("/"): n for t, (_, n) in info.topics.items()}
     assert set(recorded) == set(TOPIC_TYPES)
     assert all(n > 0 for n in recorded.values()), recorded

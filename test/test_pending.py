@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from gwr_predictor.evaluation.metrics import future_windows
-from gwr_predictor.pending import PendingPredictions, target_steps
+from gwr_predictor.learning.pending import PendingPredictions, target_steps
 
 
 def test_rows_come_back_at_the_step_they_target_and_only_once():

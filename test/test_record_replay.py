@@ -10,8 +10,8 @@ from rclpy.serialization import deserialize_message
 
 from gwr_predictor.nodes import messages
 from gwr_predictor.nodes.messages import JointState
-from gwr_predictor.pipeline import bags, conventions
-from gwr_predictor.pipeline.bags import parse_remaps, shift_stamp
+from gwr_predictor.pipeline import bag_messages, bag_reader, bag_writer, conventions
+from gwr_predictor.pipeline.bag_replay import parse_remaps, shift_stamp
 from gwr_predictor.robot.nao import ARM_JOINTS
 
 FAST = {"diagnostics_period_s": 0.5}
@@ -19,8 +19,8 @@ FAST = {"diagnostics_period_s": 0.5}
 
 def recorded_predictions(bag) -> dict[float, np.ndarray]:
     out = {}
-    for m in bags.read_bag(bag, ["/predictions"]):
-        stamp, names, preds = conventions.unpack_predictions(bags.packed_array(m.msg))
+    for m in bag_reader.read_bag(bag, ["/predictions"]):
+        stamp, names, preds = conventions.unpack_predictions(bag_messages.packed_array(m.msg))
         assert names == ARM_JOINTS
         out[stamp] = preds
     return out
@@ -58,7 +58,7 @@ def test_replayed_angles_reproduce_the_recorded_predictions_exactly(ros, tmp_pat
         code, killed = proc.stop(signal.SIGTERM)
         assert code == 0 and not killed, proc.output()
     recorded = recorded_predictions(tmp_path / "live")
-    angles = bags.bag_info(tmp_path / "live").topics["/arm_angles"][1]
+    angles = bag_reader.bag_info(tmp_path / "live").topics["/arm_angles"][1]
     assert len(recorded) > 60 and angles == len(recorded)  # ~87 frames; the default predicts on every one
 
     diagnostics.clear()
@@ -108,18 +108,20 @@ def test_player_remaps_are_parsed_and_checked():
 
 
 def test_restamping_moves_header_and_array_stamps_only():
-    state = bags.serialize(bags.joint_state_msg(ARM_JOINTS, np.arange(8.0), 10.25))  # bytes as on the wire
-    shifted = shift_stamp(state, bags.JOINT_STATE, 100.5)
+    # bytes as on the wire
+    state = bag_messages.serialize(bag_messages.joint_state_msg(ARM_JOINTS, np.arange(8.0), 10.25))
+    shifted = shift_stamp(state, bag_messages.JOINT_STATE, 100.5)
     assert len(shifted) == len(state)  # exact CDR size: a recorder can store it again
     moved = deserialize_message(shifted, JointState)
     assert messages.read_joint_state(moved)[0] == pytest.approx(110.75)
     np.testing.assert_array_equal(moved.position, np.arange(8.0))
-    preds = bags.serialize(bags.multiarray_msg(conventions.pack_predictions(10.25, np.ones((6, 8)))))
-    moved = deserialize_message(shift_stamp(preds, bags.FLOAT64_MULTIARRAY, -10.0), messages.Float64MultiArray)
+    preds = bag_messages.serialize(bag_messages.multiarray_msg(conventions.pack_predictions(10.25, np.ones((6, 8)))))
+    moved = deserialize_message(shift_stamp(preds, bag_messages.FLOAT64_MULTIARRAY, -10.0), messages.Float64MultiArray)
     stamp, _, values = messages.read_predictions(moved)
     assert stamp == pytest.approx(0.25)
     np.testing.assert_array_equal(values, np.ones((6, 8)))
-    assert bags.deserialize(shift_stamp(preds, bags.FLOAT64_MULTIARRAY, 1.0), bags.FLOAT64_MULTIARRAY).data[0] == 11.25
+    a_second_later = shift_stamp(preds, bag_messages.FLOAT64_MULTIARRAY, 1.0)
+    assert bag_messages.deserialize(a_second_later, bag_messages.FLOAT64_MULTIARRAY).data[0] == 11.25
 
 
 def write_synthetic_run(path, lag_s: float, mode: str = "none", interval_half: float = 0.0):
@@ -127,30 +129,31 @@ def write_synthetic_run(path, lag_s: float, mode: str = "none", interval_half: f
     predictions, and a robot (50 Hz) that follows the person `lag_s` late; with `interval_half` > 0 also
     an 80 % interval that many rad either side of a prediction, centred on it at even frames (the truth
     inside) and twice that above it at odd ones (the truth below it)."""
-    topics = {"/arm_angles": bags.JOINT_STATE, "/predictions": bags.FLOAT64_MULTIARRAY,
-              "/joint_states": bags.JOINT_STATE, "/diagnostics": "diagnostic_msgs/msg/DiagnosticArray"}
+    topics = {"/arm_angles": bag_messages.JOINT_STATE, "/predictions": bag_messages.FLOAT64_MULTIARRAY,
+              "/joint_states": bag_messages.JOINT_STATE, "/diagnostics": "diagnostic_msgs/msg/DiagnosticArray"}
     if interval_half:
-        topics["/prediction_interval"] = bags.FLOAT64_MULTIARRAY
+        topics["/prediction_interval"] = bag_messages.FLOAT64_MULTIARRAY
 
     def person(t):
         return 0.8 + 0.5 * np.sin(2 * np.pi * 0.4 * np.asarray(t)[..., None] + np.arange(8))
 
     t0 = 1000.0
-    with bags.BagWriter(path, topics) as writer:
+    with bag_writer.BagWriter(path, topics) as writer:
         for k in range(300):  # 30 s at 10 fps
             t = t0 + 0.1 * k
-            writer.write("/arm_angles", int(t * 1e9), bags.joint_state_msg(ARM_JOINTS, person(t), t))
+            writer.write("/arm_angles", int(t * 1e9), bag_messages.joint_state_msg(ARM_JOINTS, person(t), t))
             future = person(t + 0.1 * np.arange(1, 7))
             writer.write("/predictions", int(t * 1e9),
-                         bags.multiarray_msg(conventions.pack_predictions(t, future)))
+                         bag_messages.multiarray_msg(conventions.pack_predictions(t, future)))
             if interval_half:
                 centre = future + (k % 2) * 2 * interval_half
-                writer.write("/prediction_interval", int(t * 1e9), bags.multiarray_msg(conventions.pack_interval(
-                    t, centre - interval_half, centre + interval_half, 0.8)))
+                writer.write("/prediction_interval", int(t * 1e9),
+                             bag_messages.multiarray_msg(conventions.pack_interval(
+                                 t, centre - interval_half, centre + interval_half, 0.8)))
         for k in range(1500):  # 30 s at 50 Hz
             t = t0 + 0.02 * k
-            writer.write("/joint_states", int(t * 1e9), bags.joint_state_msg(ARM_JOINTS, person(t - lag_s), t))
-        types = bags.TYPESTORE.types
+            writer.write("/joint_states", int(t * 1e9), bag_messages.joint_state_msg(ARM_JOINTS, person(t - lag_s), t))
+        types = bag_messages.TYPESTORE.types
         status = types["diagnostic_msgs/msg/DiagnosticStatus"](
             level=0, name="/delay_compensator", message="", hardware_id="",
             values=[types["diagnostic_msgs/msg/KeyValue"](key="mode", value=mode)])

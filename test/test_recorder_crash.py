@@ -1,5 +1,5 @@
 """The recorder loses nothing it has flushed: Ctrl-C / SIGTERM close the bag whole; after a SIGKILL
-every message up to the last periodic flush is recovered by `bags.recover_bag`; a failing write
+every message up to the last periodic flush is recovered by `bag_recovery.recover_bag`; a failing write
 (full disk) stops it and it says the bag is incomplete instead of reporting it closed."""
 
 import signal
@@ -11,9 +11,10 @@ from fakes import FullDisk
 from ros_harness import allocate_domain_id
 
 from gwr_predictor.nodes import messages
+from gwr_predictor.nodes.exits import NodeFatalError
 from gwr_predictor.nodes.messages import JointState
-from gwr_predictor.nodes.node_base import NodeFatalError, stream_qos
-from gwr_predictor.pipeline import bags
+from gwr_predictor.nodes.qos import stream_qos
+from gwr_predictor.pipeline import bag_messages, bag_reader, bag_recovery
 from gwr_predictor.robot.nao import ARM_JOINTS
 
 RECORDER = {"diagnostics_period_s": 0.2, "topics": ["arm_angles"], "flush_period_s": 0.3}
@@ -33,7 +34,7 @@ def start_recorder(ros, path):
 
 
 def recorded_frames(path) -> list[int]:
-    return [round(100 * m.msg.position[0]) for m in bags.read_bag(path)]
+    return [round(100 * m.msg.position[0]) for m in bag_reader.read_bag(path)]
 
 
 def stat(diagnostics, key: str) -> int:
@@ -56,9 +57,9 @@ def test_sigkill_loses_only_what_was_not_flushed_and_recover_bag_restores_the_re
     ros.kill(recorder)
     assert recorder.popen.returncode == -signal.SIGKILL
 
-    with pytest.raises(bags.BagError, match="recover_bag"):
-        list(bags.read_bag(path))
-    info = bags.recover_bag(path)
+    with pytest.raises(bag_messages.BagError, match="recover_bag"):
+        list(bag_reader.read_bag(path))
+    info = bag_recovery.recover_bag(path)
     # everything up to the last flush survives; at most one flush period after it is lost
     assert on_disk <= info.message_count <= 60
     assert recorded_frames(path) == list(range(info.message_count))
@@ -77,14 +78,14 @@ def test_ctrl_c_and_sigterm_close_the_bag_whole(ros, tmp_path, sig):
     code, killed = recorder.stop(sig)
     assert code == 0 and not killed, recorder.output()
     assert "bag closed" in recorder.output() and "(25 messages)" in recorder.output()
-    assert bags.bag_info(path).message_count == 25  # metadata written: no recovery needed
+    assert bag_reader.bag_info(path).message_count == 25  # metadata written: no recovery needed
     assert recorded_frames(path) == list(range(25))
 
 
 @pytest.mark.ros
 def test_sigterm_right_after_a_burst_still_records_the_whole_burst(ros, tmp_path):
     """What was published before the stop is in the bag: the recorder takes the messages still queued
-    in its subscription before it closes the bag (`node_base._drain`), instead of dropping them."""
+    in its subscription before it closes the bag (`runner._drain`), instead of dropping them."""
     path = tmp_path / "bag"
     recorder, _, _ = start_recorder(ros, path)
     pub = ros.probe.publisher("/arm_angles", JointState, stream_qos(1000))  # deep enough to lose nothing
@@ -105,7 +106,7 @@ def test_a_full_disk_stops_the_recorder_and_the_bag_is_reported_incomplete(tmp_p
     rclpy.init(args=context_args, domain_id=allocate_domain_id())
     try:
         node = BagRecorderNode()
-        raw = bags.serialize(bags.joint_state_msg(ARM_JOINTS, np.zeros(8), 1.0))
+        raw = bag_messages.serialize(bag_messages.joint_state_msg(ARM_JOINTS, np.zeros(8), 1.0))
         node.on_message("/arm_angles", raw)
         node.flush()
         assert node.diagnostic_values()["messages.on_disk"] == 1
@@ -119,4 +120,4 @@ def test_a_full_disk_stops_the_recorder_and_the_bag_is_reported_incomplete(tmp_p
     finally:
         rclpy.try_shutdown()
     assert not (path / "metadata.yaml").exists()  # never passed off as a complete bag
-    assert bags.recover_bag(path).message_count == 1
+    assert bag_recovery.recover_bag(path).message_count == 1

@@ -18,7 +18,7 @@ from rosbags.rosbag2 import Reader
 
 from gwr_predictor.nodes import messages
 from gwr_predictor.nodes.bag_player import publisher_qos
-from gwr_predictor.pipeline import bags, conventions
+from gwr_predictor.pipeline import bag_messages, bag_qos, bag_reader, bag_writer, conventions
 from gwr_predictor.robot.nao import ARM_JOINTS
 
 FAST = {"diagnostics_period_s": 0.5}
@@ -36,16 +36,16 @@ def arm_pose(t: float) -> np.ndarray:
 def write_angles_bag(path, seconds: float = 6.0, period: float = 0.1) -> int:
     """/arm_angles at 10 Hz, stamped T0.., received 2 ms after each stamp (as a recorder stores them)."""
     frames = round(seconds / period)
-    with bags.BagWriter(path, {conventions.TOPIC_ANGLES: bags.JOINT_STATE}) as writer:
+    with bag_writer.BagWriter(path, {conventions.TOPIC_ANGLES: bag_messages.JOINT_STATE}) as writer:
         for k in range(frames):
             stamp = T0 + k * period
             writer.write(conventions.TOPIC_ANGLES, round((stamp + 0.002) * 1e9),
-                         bags.joint_state_msg(ARM_JOINTS, arm_pose(k * period), stamp))
+                         bag_messages.joint_state_msg(ARM_JOINTS, arm_pose(k * period), stamp))
     return frames
 
 
 def test_player_qos_follows_the_recording_and_defaults_for_old_bags():
-    latched = publisher_qos([bags.qos_profile(history="keep_last", depth=7, reliability="reliable",
+    latched = publisher_qos([bag_qos.qos_profile(history="keep_last", depth=7, reliability="reliable",
                                               durability="transient_local")])
     assert (latched.reliability, latched.durability, latched.depth) == (
         ReliabilityPolicy.RELIABLE, DurabilityPolicy.TRANSIENT_LOCAL, 7)
@@ -135,7 +135,7 @@ def test_replay_on_simulated_time_twice_as_fast_as_real_time(ros, tmp_path):
     # judged on the wall clock, every check would find the year-1970 stamps stale (about 60)
     assert int(comp.get("fallback.stale_predictions", "0")) <= 2, comp
     # the recorder on sim time: the bag's time line is the recorded one, also for what came before /clock
-    info = bags.bag_info(tmp_path / "replayed")
+    info = bag_reader.bag_info(tmp_path / "replayed")
     assert info.topics["/joint_commands"][1] == len(stamps)
     assert T0 * 1e9 <= info.start_ns and info.end_ns <= (T0 + frames * 0.1 + 1.0) * 1e9, info
     robot = diagnostics["/nao_sim"]  # every command accepted, none refused as a repeated stamp

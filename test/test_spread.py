@@ -15,11 +15,11 @@ from gwr_predictor.default_predictor.params import DefaultPredictorError
 from gwr_predictor.evaluation.metrics import IntervalStats, future_windows, interval_stats
 from gwr_predictor.evaluation.online import compare_online
 from gwr_predictor.learning.checkpoint import read_checkpoint, write_checkpoint
+from gwr_predictor.learning.protocol import Spreading
 from gwr_predictor.pipeline import conventions
 from gwr_predictor.pipeline.conventions import LayoutError
 from gwr_predictor.predictors.baselines import HoldLast
 from gwr_predictor.predictors.registry import DEFAULT_PREDICTOR, load_predictor, make_predictor
-from gwr_predictor.protocol import Spreading
 from gwr_predictor.robot.compensator import CompensatorError, CompensatorParams, DelayCompensator
 
 

@@ -15,7 +15,7 @@ from gwr_predictor.nodes.bag_recorder import PARAMS as RECORDER_PARAMS
 from gwr_predictor.nodes.messages import Float64MultiArray, JointState
 from gwr_predictor.nodes.skeleton_source import PARAMS as SOURCE_PARAMS
 from gwr_predictor.nodes.standard_messages import JointTrajectory, PoseArray
-from gwr_predictor.pipeline import bags, conventions
+from gwr_predictor.pipeline import bag_reader, conventions
 from gwr_predictor.pipeline.conventions import SKELETON_JOINTS
 from gwr_predictor.pipeline.markers import SKELETON_FRAME
 from gwr_predictor.robot.nao import ARM_JOINTS
@@ -110,7 +110,7 @@ def test_skeleton_source_publishes_a_stamped_pose_array_twin_of_every_skeleton_a
     code, killed = recorder.stop()
     assert code == 0 and not killed, recorder.output()
     recorded: dict[str, list] = {}
-    for m in bags.read_bag(tmp_path / "bag"):
+    for m in bag_reader.read_bag(tmp_path / "bag"):
         recorded.setdefault(m.topic, []).append(m.msg)
     assert len(recorded.get("/skeleton_poses", [])) > 0
     bag_skel = {conventions.split_stamp(float(m.data[0])) for m in recorded["/skeleton"]}

@@ -13,7 +13,7 @@ from gwr_predictor.data import k4abt
 from gwr_predictor.data.angles import skeleton_to_angles
 from gwr_predictor.nodes import messages, standard_messages
 from gwr_predictor.nodes.messages import DiagnosticArray, Float64MultiArray, JointState
-from gwr_predictor.nodes.node_base import status_qos
+from gwr_predictor.nodes.qos import status_qos
 from gwr_predictor.nodes.standard_messages import JointTrajectory, Marker, MarkerArray, String
 from gwr_predictor.pipeline.conventions import SKELETON_JOINTS
 from gwr_predictor.robot.nao import ARM_JOINTS, clip_to_limits

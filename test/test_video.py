@@ -7,7 +7,7 @@ from PIL import Image
 
 from gwr_predictor.commands.cli import main
 from gwr_predictor.data.demonstrator import default_subjects, demonstrate_one
-from gwr_predictor.pipeline import bags, conventions
+from gwr_predictor.pipeline import bag_messages, bag_writer, conventions
 from gwr_predictor.pipeline.video import (
     PERSON_ARM_RGB,
     PERSON_RGB,
@@ -41,30 +41,31 @@ def write_bag(path, person=swing, robots=None, modes=None, skeleton=True):
     each robot's joint states at 50 Hz from `robots[ns](t)`, each compensator's mode."""
     robots = {"": swing, "/uncompensated": swing} if robots is None else robots
     modes = {"": "fixed", "/uncompensated": "none"} if modes is None else modes
-    topics = {"/arm_angles": bags.JOINT_STATE}
+    topics = {"/arm_angles": bag_messages.JOINT_STATE}
     if skeleton:
-        topics["/skeleton"] = bags.FLOAT64_MULTIARRAY
+        topics["/skeleton"] = bag_messages.FLOAT64_MULTIARRAY
     for ns in robots:
-        topics[f"{ns}/joint_states"] = bags.JOINT_STATE
+        topics[f"{ns}/joint_states"] = bag_messages.JOINT_STATE
     for ns in modes:
         topics[f"{ns}/diagnostics"] = "diagnostic_msgs/msg/DiagnosticArray"
     seq = demonstrate_one("wave_both", default_subjects(1)[0], 1, noise=False)
-    types = bags.TYPESTORE.types
-    with bags.BagWriter(path, topics) as writer:
+    types = bag_messages.TYPESTORE.types
+    with bag_writer.BagWriter(path, topics) as writer:
         for k in range(round(SECONDS * 10) + 1):
             t = 0.1 * k
-            writer.write("/arm_angles", int((T0 + t) * 1e9), bags.joint_state_msg(ARM_JOINTS, person(t), T0 + t))
+            writer.write("/arm_angles", int((T0 + t) * 1e9),
+                         bag_messages.joint_state_msg(ARM_JOINTS, person(t), T0 + t))
         if skeleton:
             for k in range(round(SECONDS * 30) + 1):
                 t = k / 30.0
                 frame = seq.positions[k % len(seq.positions)]
                 writer.write("/skeleton", int((T0 + t) * 1e9),
-                             bags.multiarray_msg(conventions.pack_skeleton(T0 + t, frame)))
+                             bag_messages.multiarray_msg(conventions.pack_skeleton(T0 + t, frame)))
         for ns, fn in robots.items():
             for k in range(round(SECONDS * 50) + 1):
                 t = 0.02 * k
                 writer.write(f"{ns}/joint_states", int((T0 + t) * 1e9),
-                             bags.joint_state_msg(ARM_JOINTS, fn(t), T0 + t))
+                             bag_messages.joint_state_msg(ARM_JOINTS, fn(t), T0 + t))
         for ns, mode in modes.items():
             status = types["diagnostic_msgs/msg/DiagnosticStatus"](
                 level=0, name=f"{ns}/delay_compensator", message="", hardware_id="",

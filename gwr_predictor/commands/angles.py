@@ -14,6 +14,7 @@ from gwr_predictor.data.angles import clip_fractions
 from gwr_predictor.data.extraction import extract_angles
 from gwr_predictor.data.mocap import load_any_skeleton
 from gwr_predictor.data.skeleton_files import SkeletonFileError
+from gwr_predictor.pipeline.plotting import plot_angle_series
 from gwr_predictor.robot.nao import ARM_JOINTS
 
 
@@ -41,8 +42,6 @@ def run(args: argparse.Namespace) -> int:
     elif args.plot is None:
         write_angles_csv(sys.stdout, t, angles)
     if args.plot is not None:
-        from gwr_predictor.pipeline.plotting import plot_angle_series
-
         plot_angle_series(args.plot, {seq.name: (t, angles)}, title=f"{args.skeleton.name}: Nao arm angles")
     if not args.quiet:
         missing = int(np.isnan(angles[:, 0]).sum())

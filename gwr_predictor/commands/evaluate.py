@@ -24,13 +24,17 @@ import numpy as np
 
 from gwr_predictor.commands.import_options import add_import_options, import_options
 from gwr_predictor.commands.param_overrides import parse_overrides
-from gwr_predictor.data.mocap import ImportOptions, load_any_skeleton
+from gwr_predictor.data.angle_files import AngleFileError, load_angles_csv
+from gwr_predictor.data.extraction import extract_angles
+from gwr_predictor.data.mocap import load_any_skeleton
+from gwr_predictor.data.mocap_clip import ImportOptions
+from gwr_predictor.data.skeleton_files import SkeletonFileError
 from gwr_predictor.errors import GwrPredictorError
 from gwr_predictor.evaluation.online import EvaluationError, compare_online
 from gwr_predictor.evaluation.output import markdown_table, to_jsonable
 from gwr_predictor.learning.params import HierarchyParams
+from gwr_predictor.learning.protocol import Learner, Predictor
 from gwr_predictor.predictors import registry
-from gwr_predictor.protocol import Learner, Predictor
 from gwr_predictor.robot.nao import ARM_JOINTS
 
 DEFAULT_METHODS = ("hold", "const_velocity", "rls_ar", "hierarchy")
@@ -64,9 +68,6 @@ def default_method() -> str:
 
 def load_recording(path: Path, options: ImportOptions | None = None) -> np.ndarray:
     """Angles (T, 8) at 10 fps in ARM_JOINTS order from an angle CSV, a skeleton or a mocap file."""
-    from gwr_predictor.data.angle_files import AngleFileError, load_angles_csv
-    from gwr_predictor.data.skeleton_files import SkeletonFileError
-
     angle_error = None
     if path.suffix.lower() == ".csv":
         try:
@@ -83,8 +84,6 @@ def load_recording(path: Path, options: ImportOptions | None = None) -> np.ndarr
     except SkeletonFileError as exc:
         raise RecordingError(f"{path}: not an angle CSV ({angle_error}) nor a skeleton file ({exc})"
                              if angle_error else str(exc)) from exc
-    from gwr_predictor.data.extraction import extract_angles
-
     return extract_angles(seq.positions, seq.timestamps, seq.joint_names).angles
 
 

@@ -6,7 +6,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from gwr_predictor.data.mocap import UNITS, UP_AXES, ImportOptions
+from gwr_predictor.data.mocap_clip import UNITS, UP_AXES, ImportOptions
 
 
 def add_import_options(parser: argparse.ArgumentParser) -> None:

@@ -13,9 +13,9 @@ import sys
 from pathlib import Path
 
 from gwr_predictor.commands.run_folder import add_run_arguments, bag_and_folder
-from gwr_predictor.pipeline.bags import BagError
+from gwr_predictor.files.user_files import write_output
+from gwr_predictor.pipeline.bag_messages import BagError
 from gwr_predictor.pipeline.message_latency import latency_report
-from gwr_predictor.user_files import write_output
 
 
 def configure(parser: argparse.ArgumentParser) -> None:

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from gwr_predictor.parameter_spec import ParameterError
+from gwr_predictor.parameters.spec import ParameterError
 
 
 def parse_overrides(items: list[str]) -> dict[str, object]:

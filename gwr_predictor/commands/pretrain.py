@@ -19,11 +19,13 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from tqdm import tqdm
 
 from gwr_predictor.data.datasets import demo_angle_sequences
 from gwr_predictor.data.demonstrator import PATTERNS, DemonstratorError
 from gwr_predictor.default_predictor.gate import inner_model
 from gwr_predictor.learning.checkpoint import check_checkpoint_place
+from gwr_predictor.learning.protocol import Learner
 from gwr_predictor.pipeline.params_file import load_params_file
 from gwr_predictor.predictors.registry import (
     DEFAULT_PREDICTOR,
@@ -31,7 +33,6 @@ from gwr_predictor.predictors.registry import (
     make_predictor,
     settings_from_parameters,
 )
-from gwr_predictor.protocol import Learner
 
 NODE_NAME = "gwr_hierarchy"
 
@@ -117,8 +118,6 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _epoch(model: Any, seqs: list[Any], label: str, quiet: bool) -> None:
-    from tqdm import tqdm
-
     with tqdm(total=sum(len(s) for s in seqs), desc=label, unit="frame", disable=quiet, leave=False,
               mininterval=0.5) as bar:
         for seq in seqs:

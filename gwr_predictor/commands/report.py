@@ -13,9 +13,9 @@ from pathlib import Path
 
 from gwr_predictor.commands.run_folder import add_run_arguments, bag_and_folder
 from gwr_predictor.errors import GwrPredictorError
+from gwr_predictor.files.user_files import write_output
 from gwr_predictor.pipeline.errors import PipelineError
 from gwr_predictor.pipeline.run_report import compute_report, plot_run, read_run
-from gwr_predictor.user_files import write_output
 
 
 def configure(parser: argparse.ArgumentParser) -> None:

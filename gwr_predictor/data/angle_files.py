@@ -17,9 +17,9 @@ import numpy as np
 
 from gwr_predictor.data.errors import DataError
 from gwr_predictor.data.skeleton_files import parse_float_table
-from gwr_predictor.file_limits import MAX_CSV_BYTES, check_file_size
+from gwr_predictor.files.limits import MAX_CSV_BYTES, check_file_size
+from gwr_predictor.files.user_files import output_file
 from gwr_predictor.robot.nao import ARM_JOINTS, JOINT_LIMITS
-from gwr_predictor.user_files import output_file
 
 #: DataError, for an angle file that cannot be used; the message names the file, line and column.
 AngleFileError = DataError

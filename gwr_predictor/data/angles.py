@@ -38,7 +38,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from gwr_predictor.data.errors import DataError
-from gwr_predictor.pipeline.conventions import SKELETON_JOINTS
+from gwr_predictor.joints.skeleton import SKELETON_JOINTS
 from gwr_predictor.robot.nao import ARM_JOINTS, clip_to_limits, limits_array
 
 PITCH_SINGULAR_WIDTH = 0.35  # reach of the pitch bias in |(u_x, u_z)| = cos(roll): |roll| > 69.5 deg

@@ -20,8 +20,9 @@ from pathlib import Path
 
 import numpy as np
 
-from gwr_predictor import file_limits as limits
-from gwr_predictor.data.mocap import MocapClip, MocapError
+from gwr_predictor.data.bvh import rotation_matrices
+from gwr_predictor.data.mocap_clip import MocapClip, MocapError
+from gwr_predictor.files import limits
 
 INCH_M = 0.0254
 _DOF_AXIS = {"rx": "x", "ry": "y", "rz": "z"}
@@ -54,8 +55,6 @@ class AsfSkeleton:
 
 def _fixed_axis(angles_deg: np.ndarray, order: str, degrees: bool = True) -> np.ndarray:
     """(T, k) angles applied about fixed axes in `order` -> (T, 3, 3) R_order[-1] ... R_order[0]."""
-    from gwr_predictor.data.bvh import rotation_matrices
-
     a = np.asarray(angles_deg, dtype=np.float64)
     if not degrees:
         a = np.rad2deg(a)

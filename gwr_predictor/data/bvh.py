@@ -8,7 +8,7 @@ as R = R_1 @ R_2 @ R_3 (e.g. `Zrotation Xrotation Yrotation` -> Rz Rx Ry), angle
 joint's global rotation is its parent's times its own; its position is the parent's position plus
 the parent's global rotation times its local translation, which is the OFFSET, or the position
 channels when the joint has them (they replace the OFFSET). `End Site`s are kept as joints named
-`<parent>_end`. Units are whatever the file used (see `mocap.ImportOptions.units`); Y is up unless
+`<parent>_end`. Units are whatever the file used (see `mocap_clip.ImportOptions.units`); Y is up unless
 told otherwise. Positions of a joint are where its bone starts: `LeftArm` is the shoulder.
 """
 
@@ -22,8 +22,8 @@ from pathlib import Path
 
 import numpy as np
 
-from gwr_predictor.data.mocap import MocapClip, MocapError
-from gwr_predictor.file_limits import (
+from gwr_predictor.data.mocap_clip import MocapClip, MocapError
+from gwr_predictor.files.limits import (
     MAX_DEPTH,
     MAX_JOINTS,
     MAX_TEXT_BYTES,
@@ -73,7 +73,7 @@ def parse_bvh(path: Path) -> tuple[list[BvhJoint], np.ndarray, float]:
     """Joints, motion table (frames, channels) and frame time in seconds; errors name file and line.
 
     The file is streamed line by line and every declared size (file, joints, nesting, channels,
-    frames x channels) is checked against `file_limits` before the motion table is allocated."""
+    frames x channels) is checked against `files.limits` before the motion table is allocated."""
     check_file_size(path, MAX_TEXT_BYTES, "BVH file", MocapError)
     with path.open(errors="replace") as fh:
         lines = enumerate(fh, 1)

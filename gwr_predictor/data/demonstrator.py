@@ -28,7 +28,7 @@ import numpy as np
 
 from gwr_predictor.data.errors import DataError
 from gwr_predictor.data.skeleton_files import CAMERA_CONVENTION, SkeletonSequence
-from gwr_predictor.pipeline.conventions import SKELETON_FPS, SKELETON_JOINTS
+from gwr_predictor.joints.skeleton import SKELETON_FPS, SKELETON_JOINTS
 from gwr_predictor.robot.nao import rot_x, rot_y, rot_z
 
 __all__ = ["CAMERA_HEIGHT", "HUMAN_RANGES", "PATTERNS", "ArmAngles", "DemonstratorError", "SkeletonSequence",

@@ -16,7 +16,7 @@ import numpy as np
 
 from gwr_predictor.data.angles import skeleton_to_angles
 from gwr_predictor.data.smoothing import median_of_3
-from gwr_predictor.pipeline.conventions import SKELETON_JOINTS
+from gwr_predictor.joints.skeleton import SKELETON_JOINTS
 from gwr_predictor.robot.nao import clip_to_limits
 
 

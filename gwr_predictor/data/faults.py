@@ -12,7 +12,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from gwr_predictor.data.errors import DataError
-from gwr_predictor.pipeline.conventions import ANGLE_FPS
+from gwr_predictor.joints.skeleton import ANGLE_FPS
 
 #: One second of 10 fps frames, the chunk the paper removes.
 CHUNK_FRAMES = int(ANGLE_FPS)

@@ -31,7 +31,7 @@ import numpy as np
 
 from gwr_predictor.data.angles import arm_angles
 from gwr_predictor.data.errors import DataError
-from gwr_predictor.pipeline.conventions import MAX_JOINTS, MAX_NAME_CHARS
+from gwr_predictor.joints.names import MAX_JOINTS, MAX_NAME_CHARS
 from gwr_predictor.robot.nao import SIDES, clip_to_limits, rot_x, rot_y, rot_z
 
 #: REP-155's namespace of the bodies and its topics below it.

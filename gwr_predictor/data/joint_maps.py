@@ -31,10 +31,11 @@ from pathlib import Path
 
 import numpy as np
 
-from gwr_predictor.data.mocap import MocapError
-from gwr_predictor.file_limits import MAX_SKELETON_BYTES
-from gwr_predictor.pipeline.conventions import SKELETON_JOINTS
-from gwr_predictor.user_files import load_yaml, read_text
+from gwr_predictor.data.mocap_clip import MocapError
+from gwr_predictor.files.limits import MAX_SKELETON_BYTES
+from gwr_predictor.files.user_files import read_text
+from gwr_predictor.files.yaml_safe import load_yaml
+from gwr_predictor.joints.skeleton import SKELETON_JOINTS
 
 REQUIRED = ("left_shoulder", "left_elbow", "left_hand", "right_shoulder", "right_elbow", "right_hand",
             "left_hip", "right_hip")

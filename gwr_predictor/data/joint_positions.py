@@ -15,8 +15,9 @@ from pathlib import Path
 
 import numpy as np
 
-from gwr_predictor.data.mocap import ImportOptions, MocapClip, MocapError
-from gwr_predictor.file_limits import MAX_JOINTS, check_count, check_shape
+from gwr_predictor.data.joint_maps import read_map_file
+from gwr_predictor.data.mocap_clip import ImportOptions, MocapClip, MocapError
+from gwr_predictor.files.limits import MAX_JOINTS, check_count, check_shape
 
 POSITION_KEYS = ("positions", "joints", "joint_positions", "global_joint_positions")
 NAME_KEYS = ("joint_names", "names")
@@ -26,8 +27,6 @@ FPS_KEYS = ("fps", "framerate", "mocap_framerate", "frame_rate")
 def _names_from_options(path: Path, options: ImportOptions, n: int) -> tuple[str, ...]:
     names = options.joint_names
     if names is None and options.joint_map:
-        from gwr_predictor.data.joint_maps import read_map_file
-
         listed = read_map_file(options.joint_map).get("joint_names")
         if listed is not None:
             names = tuple(str(x) for x in listed)

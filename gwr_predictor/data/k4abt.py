@@ -7,7 +7,7 @@ camera's frame (x right, y down, z forward as seen from the sensor), stamp = cap
 
 This module is the ROS-free half: given the marker ids and positions of one message it groups
 them per body, picks the body nearest to the sensor (the person facing the robot, not someone
-walking past behind) and maps its joints to `conventions.SKELETON_JOINTS` in the skeleton camera
+walking past behind) and maps its joints to `joints.skeleton.SKELETON_JOINTS` in the skeleton camera
 convention (x towards the person's right = sensor's left, y up, z into the scene), i.e. rotated
 by 180 degrees about the optical axis. A proper rotation: the arm angles do not depend on it, but
 the skeleton topic and its markers keep one convention whatever the tracker.
@@ -24,7 +24,7 @@ from typing import NamedTuple
 import numpy as np
 
 from gwr_predictor.data.errors import DataError
-from gwr_predictor.pipeline.conventions import SKELETON_JOINTS
+from gwr_predictor.joints.skeleton import SKELETON_JOINTS
 
 #: The 32 joints of the Azure Kinect Body Tracking SDK, in index order (k4abt_joint_id_t).
 K4ABT_JOINTS: tuple[str, ...] = (

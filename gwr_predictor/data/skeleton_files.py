@@ -31,7 +31,7 @@ from pathlib import Path
 import numpy as np
 
 from gwr_predictor.data.errors import DataError
-from gwr_predictor.file_limits import (
+from gwr_predictor.files.limits import (
     MAX_CSV_BYTES,
     MAX_FRAMES,
     MAX_JOINTS,
@@ -40,8 +40,8 @@ from gwr_predictor.file_limits import (
     check_count,
     check_file_size,
 )
-from gwr_predictor.pipeline.conventions import SKELETON_JOINTS
-from gwr_predictor.user_files import output_file
+from gwr_predictor.files.user_files import output_file
+from gwr_predictor.joints.skeleton import SKELETON_JOINTS
 
 CAMERA_CONVENTION = "openni-rh"
 CAMERA_CONVENTION_TEXT = ("metres; x towards the person's right (sensor's left), y up, "

@@ -22,8 +22,8 @@ from typing import Any
 
 import numpy as np
 
-from gwr_predictor.data.mocap import ImportOptions, MocapClip, MocapError
-from gwr_predictor.file_limits import MAX_RECORDING_BYTES, MAX_VALUES, check_archive, check_count
+from gwr_predictor.data.mocap_clip import ImportOptions, MocapClip, MocapError
+from gwr_predictor.files.limits import MAX_RECORDING_BYTES, MAX_VALUES, check_archive, check_count
 
 STORAGE_DTYPES = {"FloatStorage": np.float32, "DoubleStorage": np.float64, "HalfStorage": np.float16,
                   "LongStorage": np.int64, "IntStorage": np.int32, "ShortStorage": np.int16,

@@ -33,9 +33,9 @@ from gwr_predictor.default_predictor.memory import TrajectoryMemory
 from gwr_predictor.default_predictor.params import DefaultPredictorError
 from gwr_predictor.learning.checkpoint import CheckpointError
 from gwr_predictor.learning.params import DEFAULT_HORIZON, MAX_HORIZON
+from gwr_predictor.learning.pending import PendingPredictions
 from gwr_predictor.learning.persistence import Checkpointed, Persist, params_from_json, sub
-from gwr_predictor.parameter_spec import ParamSpec, check_fields
-from gwr_predictor.pending import PendingPredictions
+from gwr_predictor.parameters.spec import ParamSpec, check_fields
 from gwr_predictor.predictors.baselines import observation
 
 EXPERTS_SPECS = {spec.name: spec for spec in (

@@ -46,7 +46,7 @@ from gwr_predictor.default_predictor.params import DefaultPredictorError
 from gwr_predictor.learning.checkpoint import CheckpointError
 from gwr_predictor.learning.params import DEFAULT_HORIZON, MAX_HORIZON
 from gwr_predictor.learning.persistence import Checkpointed, Persist, params_from_json, require_finite
-from gwr_predictor.parameter_spec import ParamSpec, check_fields
+from gwr_predictor.parameters.spec import ParamSpec, check_fields
 from gwr_predictor.predictors.baselines import observation
 
 #: `longest_lag` of a memory saved before it was a setting (its key held the changes over 1, 2 and 4 frames).

@@ -8,7 +8,7 @@ from typing import Any
 
 from gwr_predictor.errors import GwrPredictorError
 from gwr_predictor.learning.params import DEFAULT_HORIZON, MAX_HORIZON, GWRParams
-from gwr_predictor.parameter_spec import ParamSpec, check_fields
+from gwr_predictor.parameters.spec import ParamSpec, check_fields
 
 
 class DefaultPredictorError(GwrPredictorError, ValueError):

@@ -50,7 +50,7 @@ from gwr_predictor.default_predictor.params import DefaultPredictorError
 from gwr_predictor.default_predictor.spread import Spread, SpreadParams, spread_params
 from gwr_predictor.learning.checkpoint import CheckpointError
 from gwr_predictor.learning.persistence import Checkpointed, Persist, params_from_json, sub
-from gwr_predictor.parameter_spec import ParamSpec, check_fields
+from gwr_predictor.parameters.spec import ParamSpec, check_fields
 
 #: The member whose memory judges recognition.
 MEMORY = "memory"

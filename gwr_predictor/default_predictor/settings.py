@@ -36,7 +36,7 @@ from gwr_predictor.default_predictor.params import (
 from gwr_predictor.default_predictor.recognition import RECOGNITION_SPECS, RecognitionParams
 from gwr_predictor.default_predictor.spread import SPREAD_SPECS, SpreadParams
 from gwr_predictor.learning.params import GWR_SPECS
-from gwr_predictor.parameter_spec import ParamSpec
+from gwr_predictor.parameters.spec import ParamSpec
 
 #: Set by the node (or `make_default`'s arguments), not by the predictor's settings.
 FROM_THE_DATA = ("horizon", "n_joints", "joints")

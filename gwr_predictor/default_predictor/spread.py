@@ -41,9 +41,9 @@ import numpy as np
 
 from gwr_predictor.default_predictor.params import DefaultPredictorError
 from gwr_predictor.learning.params import DEFAULT_HORIZON, MAX_HORIZON
+from gwr_predictor.learning.pending import PendingPredictions
 from gwr_predictor.learning.persistence import Checkpointed, Persist, params_from_json
-from gwr_predictor.parameter_spec import ParamSpec, check_fields
-from gwr_predictor.pending import PendingPredictions
+from gwr_predictor.parameters.spec import ParamSpec, check_fields
 from gwr_predictor.predictors.baselines import observation
 
 SPREAD_SPECS = {spec.name: spec for spec in (

@@ -13,7 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from gwr_predictor.evaluation.errors import EvaluationError
-from gwr_predictor.pending import target_steps
+from gwr_predictor.learning.pending import target_steps
 
 #: EvaluationError, for arrays whose shapes or contents cannot be scored; the message names what differs.
 MetricsError = EvaluationError

@@ -22,8 +22,8 @@ from tqdm import tqdm
 
 from gwr_predictor.evaluation.errors import EvaluationError
 from gwr_predictor.evaluation.metrics import HorizonStats, IntervalStats, future_windows, horizon_stats, interval_stats
+from gwr_predictor.learning.protocol import Predictor, Spreading
 from gwr_predictor.pipeline.conventions import DEFAULT_HORIZON
-from gwr_predictor.protocol import Predictor, Spreading
 
 
 @dataclass(frozen=True)

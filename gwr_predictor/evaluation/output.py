@@ -8,6 +8,7 @@ they stay small (PNG, modest dpi) and matplotlib never keeps figures open.
 
 from __future__ import annotations
 
+import io
 import json
 import math
 import platform
@@ -19,8 +20,8 @@ from typing import Any
 
 import numpy as np
 
-from gwr_predictor import json_safe, user_files
 from gwr_predictor.evaluation.errors import EvaluationError
+from gwr_predictor.files import json_safe, user_files
 
 #: EvaluationError, for an output that cannot be written; the message names the file.
 ExperimentOutputError = EvaluationError
@@ -76,8 +77,6 @@ def markdown_table(headers: Sequence[str], rows: Sequence[Sequence[Any]], digits
 def save_figure(fig: Any, out: Path, name: str, dpi: int = 80) -> str:
     """Save a matplotlib figure as `<out>/<name>.png` (a 64-colour palette PNG, a few times smaller
     than full colour and plenty for line plots), close it, return the file name."""
-    import io
-
     import matplotlib.pyplot as plt
     from PIL import Image
 

@@ -1,8 +1,9 @@
 """The paper's learner (Sec. III-B..D), readable top-down: params -> gwr -> predictive_gwr -> hierarchy.
 
 `scaling` maps radians to the units the layers measure distances in; `checkpoint` is the one
-versioned file format every learner saves to. What a learner refuses (an input, a checkpoint) is a
-`LearningError` (`errors.py`).
+versioned file format every learner saves to; `protocol` is what every predictor of the package
+follows (`Predictor`), `pending` how its predictions wait for the frame they target. What a learner
+refuses (an input, a checkpoint) is a `LearningError` (`errors.py`).
 """
 
 from gwr_predictor._exports import lazy_exports
@@ -18,6 +19,10 @@ _EXPORTS = {
     "Hierarchy": "hierarchy",
     "FlatPredictor": "hierarchy",
     "ErrorTracker": "online_loop",
+    "PendingPredictions": "pending",
+    "Predictor": "protocol",
+    "Learner": "protocol",
+    "Spreading": "protocol",
     "InputScaling": "scaling",
     "CheckpointError": "checkpoint",
     "read_checkpoint": "checkpoint",

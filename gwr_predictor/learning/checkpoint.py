@@ -21,6 +21,7 @@ import json
 import os
 import re
 import tempfile
+import time
 import zipfile
 from collections.abc import Iterable, Mapping
 from pathlib import Path
@@ -29,9 +30,8 @@ from typing import Any, NoReturn
 import numpy as np
 
 from gwr_predictor.errors import GwrPredictorError
-from gwr_predictor.file_limits import MAX_CHECKPOINT_BYTES, MAX_NETWORK_NEURONS, check_zip_directory, npy_header
-from gwr_predictor.learning.errors import LearningError
-from gwr_predictor.user_files import (
+from gwr_predictor.files.limits import MAX_CHECKPOINT_BYTES, MAX_NETWORK_NEURONS, check_zip_directory, npy_header
+from gwr_predictor.files.user_files import (
     check_folder,
     final_target,
     fsync_folder,
@@ -40,6 +40,7 @@ from gwr_predictor.user_files import (
     open_to_read,
     regular_file_size,
 )
+from gwr_predictor.learning.errors import LearningError
 
 MAGIC = "gwr_predictor.checkpoint"
 #: The one format this build reads and writes; older files are refused with a clear message (their
@@ -280,7 +281,7 @@ def check_network_sizes(path: Path, shapes: Mapping[str, tuple[int, ...]]) -> No
             neurons = (shapes[f"{prefix}weights"] or (0,))[0]
             if neurons > MAX_NETWORK_NEURONS:
                 raise CheckpointError(f"{path}: network {prefix.rstrip('.') or 'gwr'!r} declares {neurons:,} neurons, "
-                                      f"over the limit of {MAX_NETWORK_NEURONS:,} (gwr_predictor.file_limits); "
+                                      f"over the limit of {MAX_NETWORK_NEURONS:,} (gwr_predictor.files.limits); "
                                       "refused before reading", source=path)
 
 
@@ -340,8 +341,6 @@ def set_aside(path: str | Path, when: str | None = None) -> Path:
     (never deleted, never overwritten) so a fresh model can start; returns where it went. OSError
     if it cannot be moved: then the caller must not start, or it would overwrite the file. Through a
     symlink it is the target that moves (beside itself): the link stays, and saves recreate the target."""
-    import time
-
     path = destination(path)
     aside = path.with_name(f"{path.name}.corrupt-{when or time.strftime('%Y%m%d-%H%M%S')}")
     os.replace(path, aside)

@@ -12,8 +12,8 @@ from typing import Any, ClassVar
 import numpy as np
 
 from gwr_predictor.learning.gwr import InputError
+from gwr_predictor.learning.pending import PendingPredictions
 from gwr_predictor.learning.persistence import Persist, Persistent
-from gwr_predictor.pending import PendingPredictions
 
 #: The largest angle (rad, either sign) a learner learns from: no joint angle in radians comes near. A
 #: frame with a larger one is a fault (a driver's garbage, an unset field), taken as a missing sample:

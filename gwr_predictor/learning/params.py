@@ -14,8 +14,8 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
-from gwr_predictor.file_limits import MAX_NETWORK_NEURONS
-from gwr_predictor.parameter_spec import ParameterError, ParamSpec, check_fields
+from gwr_predictor.files.limits import MAX_NETWORK_NEURONS
+from gwr_predictor.parameters.spec import ParameterError, ParamSpec, check_fields
 
 #: Edge ages are stored as int16, so the age limit stays well inside its range.
 MAX_EDGE_AGE_LIMIT = 30000

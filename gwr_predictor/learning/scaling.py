@@ -19,7 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from gwr_predictor.arm_joints import ARM_JOINT_LIMITS, ARM_JOINTS
+from gwr_predictor.joints.arm import ARM_JOINT_LIMITS, ARM_JOINTS
 
 
 @dataclass(frozen=True)

@@ -1,5 +1,9 @@
 """What the ROS pipeline shares without ROS: message conventions, input gates, bags, run reports, latency, plots,
 videos. Its one error class is `PipelineError` (`errors.py`; `reason` tells a too-large message apart).
+
+Bags, one module per job: `bag_messages` (the type store, message objects, CDR), `bag_qos` (offered and
+replay QoS), `bag_writer`, `bag_reader` (messages and summary), `bag_recovery` (after a crash), `bag_replay`
+(what the player does to a recorded message).
 """
 
 from gwr_predictor._exports import lazy_exports
@@ -18,12 +22,14 @@ _EXPORTS = {
     "RejectionCounter": "gates",
     "SkeletonReorder": "gates",
     "missing_frames": "gates",
-    "BagWriter": "bags",
-    "BagError": "bags",
-    "BagMessage": "bags",
-    "read_bag": "bags",
-    "bag_info": "bags",
-    "recover_bag": "bags",
+    "BagWriter": "bag_writer",
+    "BagError": "bag_messages",
+    "BagMessage": "bag_reader",
+    "read_bag": "bag_reader",
+    "bag_info": "bag_reader",
+    "BagInfo": "bag_reader",
+    "recover_bag": "bag_recovery",
+    "replay_qos": "bag_qos",
     "latency_report": "message_latency",
     "LatencyReport": "message_latency",
     "compute_report": "run_report",
@@ -36,7 +42,7 @@ _EXPORTS = {
     "read_video_run": "video",
     "render_video": "video",
     "FrameRenderer": "video",
-    "VideoError": "video",
+    "VideoError": "video_files",
     "VideoWriter": "video_files",
 }
 __all__ = sorted(_EXPORTS)

@@ -11,7 +11,7 @@ jump: the node logs and counts it and carries on from the new reading.
 
 from __future__ import annotations
 
-from gwr_predictor.parameter_spec import ParamSpec
+from gwr_predictor.parameters.spec import ParamSpec
 
 #: The bound, declared once; nodes that simulate or stamp on their clock declare this parameter.
 CLOCK_JUMP_SPEC = ParamSpec(

@@ -22,10 +22,15 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from gwr_predictor.joints.arm import ARM_JOINTS
+from gwr_predictor.joints.names import MAX_JOINTS as MAX_JOINTS
+from gwr_predictor.joints.names import MAX_NAME_CHARS as MAX_NAME_CHARS
+from gwr_predictor.joints.skeleton import ANGLE_FPS as ANGLE_FPS
+from gwr_predictor.joints.skeleton import SKELETON_FPS as SKELETON_FPS
+from gwr_predictor.joints.skeleton import SKELETON_JOINTS as SKELETON_JOINTS
 from gwr_predictor.learning.params import DEFAULT_HORIZON as DEFAULT_HORIZON
 from gwr_predictor.learning.params import MAX_HORIZON
 from gwr_predictor.pipeline.errors import PipelineError
-from gwr_predictor.robot.nao import ARM_JOINTS
 
 # --- topics (relative names, so a namespace or remapping moves the whole pipeline) -------------
 TOPIC_SKELETON = "skeleton"  # Float64MultiArray, skeleton layout, 30 fps
@@ -84,23 +89,12 @@ OPTIONAL_TOPIC_TYPES: dict[str, str] = {
     TOPIC_BODY_TRACKING: "visualization_msgs/msg/MarkerArray",
 }
 
-# --- skeleton joints (OpenNI/NITE, 15 joints) --------------------------------------------------
-SKELETON_JOINTS: tuple[str, ...] = (
-    "head", "neck", "torso",
-    "left_shoulder", "left_elbow", "left_hand",
-    "right_shoulder", "right_elbow", "right_hand",
-    "left_hip", "left_knee", "left_foot",
-    "right_hip", "right_knee", "right_foot",
-)
-
-SKELETON_FPS = 30.0
-ANGLE_FPS = 10.0
+# --- skeleton joints (OpenNI/NITE, 15 joints): SKELETON_JOINTS, SKELETON_FPS, ANGLE_FPS -------
+# declared in `gwr_predictor.joints.skeleton`, where the data's sources read them too.
 
 # --- bounds on what a message may make a node allocate (checked where the message is unpacked) ---
-#: Joint names in one skeleton, prediction or joint state (a full-body tracker sends about 30).
-MAX_JOINTS = 256
-#: Characters in one joint name.
-MAX_NAME_CHARS = 128
+# MAX_JOINTS (joint names in one skeleton, prediction or joint state) and MAX_NAME_CHARS (characters in
+# one joint name) are declared in `gwr_predictor.joints.names`, where a tracker's joint states meet them too.
 #: Markers in one body-tracking MarkerArray (32 joints x 6 bodies is 192).
 MAX_MARKERS = 4096
 #: MAX_HORIZON (rows of a prediction) comes from the learner's own limit, `learning.params`.

@@ -16,7 +16,7 @@ import os
 import struct
 from typing import IO
 
-from gwr_predictor.user_files import PathLike, open_to_read
+from gwr_predictor.files.user_files import PathLike, open_to_read
 
 MAGIC = b"\x89MCAP0\r\n"
 #: A chunk's uncompressed size: rosbag2 writes chunks of 768 kB, rosbags about 1 MB.

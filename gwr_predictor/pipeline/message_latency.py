@@ -36,8 +36,8 @@ from typing import Any
 
 import numpy as np
 
-from gwr_predictor.json_safe import to_jsonable
-from gwr_predictor.pipeline import bags, conventions, namespaces
+from gwr_predictor.files.json_safe import to_jsonable
+from gwr_predictor.pipeline import bag_messages, bag_reader, conventions, namespaces
 
 #: Percentiles reported for every latency.
 PERCENTILES = (50, 90, 99)
@@ -178,12 +178,12 @@ class LatencyReport:
 
 
 def _source_stamp(msg: Any, msgtype: str) -> float:
-    if msgtype == bags.FLOAT64_MULTIARRAY:
+    if msgtype == bag_messages.FLOAT64_MULTIARRAY:
         return float(msg.data[0]) if msg.layout.data_offset >= 1 and len(msg.data) >= 1 else float("nan")
     if hasattr(msg, "markers"):  # MarkerArray: the stamp is in each marker
-        return bags.stamp_seconds(msg.markers[0].header.stamp) if len(msg.markers) else float("nan")
+        return bag_messages.stamp_seconds(msg.markers[0].header.stamp) if len(msg.markers) else float("nan")
     header = getattr(msg, "header", None)  # std_msgs/String (robot_description) has none
-    return bags.stamp_seconds(header.stamp) if header is not None else float("nan")
+    return bag_messages.stamp_seconds(header.stamp) if header is not None else float("nan")
 
 
 #: {node name: [(receive s, {key: value}, instance id), ...]} of the /diagnostics statuses in a bag,
@@ -198,12 +198,12 @@ def read_series(bag: str | os.PathLike[str]
     """({topic: TopicSeries}, every /diagnostics status per node, duration s, {topic: undecodable
     messages skipped}) of a pipeline bag; BagError if metadata.yaml disagrees with the file."""
     bag = Path(bag)
-    info = bags.bag_info(bag)
+    info = bag_reader.bag_info(bag)
     rows: dict[str, tuple[list[float], list[float]]] = {}
     diagnostics: DiagnosticsHistory = {}
     undecodable: dict[str, int] = {}
     read: dict[str, int] = {}
-    for m in bags.read_bag(bag, undecodable=undecodable):
+    for m in bag_reader.read_bag(bag, undecodable=undecodable):
         read[m.topic] = read.get(m.topic, 0) + 1
         if m.msg is None:
             continue
@@ -217,7 +217,7 @@ def read_series(bag: str | os.PathLike[str]
         recv, stamps = rows.setdefault(m.topic, ([], []))
         recv.append(m.timestamp_ns * 1e-9)
         stamps.append(_source_stamp(m.msg, m.msgtype))
-    bags.check_counts(info, {t: read.get(t, 0) + undecodable.get(t, 0) for t in set(read) | set(undecodable)})
+    bag_reader.check_counts(info, {t: read.get(t, 0) + undecodable.get(t, 0) for t in set(read) | set(undecodable)})
     series = {t: TopicSeries(np.asarray(r), np.asarray(s)) for t, (r, s) in rows.items()}
     return series, diagnostics, info.duration_s, undecodable
 
@@ -430,7 +430,7 @@ def _fq(name: str) -> str:
 
 def latency_report(bag: str | os.PathLike[str], namespace: str | None = None) -> LatencyReport:
     """Read a pipeline bag and compute latencies and message counts of the pipeline in `namespace` (by
-    default the bag's only one). Raises bags.BagError."""
+    default the bag's only one). Raises bag_messages.BagError."""
     series, diagnostics, duration, undecodable = read_series(bag)
     pipeline = namespaces.choose_pipeline(series, namespace, bag)
     report = LatencyReport(Path(bag), duration, compute_latencies(series, pipeline=pipeline),

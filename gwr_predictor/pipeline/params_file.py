@@ -14,8 +14,8 @@ from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
+from gwr_predictor.files.yaml_safe import load_yaml
 from gwr_predictor.pipeline.errors import PipelineError
-from gwr_predictor.user_files import load_yaml
 
 #: A params file is settings, never data: larger than this is not one.
 MAX_PARAMS_FILE_BYTES = 1 << 20
@@ -45,7 +45,7 @@ def params_files(argv: Sequence[str]) -> list[Path]:
 
 def load_params_file(path: Path) -> dict[str, dict[str, Any]]:
     """{node name pattern: {parameter: value}} of a ROS 2 params file, or ParamsFileError (the file
-    read and parsed by `user_files.load_yaml`: a regular file, size-limited, without YAML aliases)."""
+    read and parsed by `files.yaml_safe.load_yaml`: a regular file, size-limited, without YAML aliases)."""
     doc = load_yaml(path, MAX_PARAMS_FILE_BYTES, "params file", ParamsFileError)
     if not isinstance(doc, dict) or not doc:
         raise ParamsFileError(f"params file {path}: expected '<node name>: {{ros__parameters: {{...}}}}' "

@@ -12,9 +12,9 @@ from pathlib import Path
 
 import numpy as np
 
+from gwr_predictor.files.user_files import replacing
 from gwr_predictor.pipeline.errors import PipelineError
 from gwr_predictor.robot.nao import ARM_JOINTS, JOINT_LIMITS
-from gwr_predictor.user_files import replacing
 
 #: PipelineError, for a series whose shape does not fit the joint names; the message names the series.
 PlotError = PipelineError

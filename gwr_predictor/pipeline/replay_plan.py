@@ -24,7 +24,7 @@ from dataclasses import dataclass
 
 from gwr_predictor.data import hri_bodies
 from gwr_predictor.errors import GwrPredictorError
-from gwr_predictor.pipeline import bags, conventions, namespaces
+from gwr_predictor.pipeline import bag_reader, conventions, namespaces
 from gwr_predictor.pipeline.errors import PipelineError
 
 INPUTS = (conventions.TOPIC_SKELETON, conventions.TOPIC_ANGLES)
@@ -70,7 +70,7 @@ def pipeline_input(recorded: Sequence[str], topic: str | None, namespace: str, w
     return ReplayPlan(base, (topic,), (f"{topic}:={played}",) if played != topic else ())
 
 
-def hri_input(info: bags.BagInfo, available: Callable[[str], bool] = type_available,
+def hri_input(info: bag_reader.BagInfo, available: Callable[[str], bool] = type_available,
               bodies_namespace: str = hri_bodies.BODIES_NAMESPACE) -> ReplayPlan:
     """Every recorded topic below the bodies namespace whose type this machine has (hri_msgs' IdsList
     only where hri_msgs is installed), unchanged: REP-155 topics are absolute."""
@@ -89,8 +89,8 @@ def hri_input(info: bags.BagInfo, available: Callable[[str], bool] = type_availa
 
 
 def replay_plan(bag: str, topic: str | None = None, hri: bool = False, namespace: str = "") -> ReplayPlan:
-    """The plan for `bag` (see the module docstring). Raises PipelineError / bags.BagError."""
-    info = bags.bag_info(bag)
+    """The plan for `bag` (see the module docstring). Raises PipelineError / BagError (`bag_messages`)."""
+    info = bag_reader.bag_info(bag)
     if hri:
         return hri_input(info)
     recorded = sorted(t for t, (_, n) in info.topics.items() if n)

@@ -1,7 +1,7 @@
 """What a recorded pipeline run shows: prediction error at the horizon, robot lag with and without
 compensation, neurons per layer, message counts; plus the plot of person vs prediction vs robot.
 
-Pure library code over a bag recorded by the bag_recorder node (read with `gwr_predictor.pipeline.bags`).
+Pure library code over a bag recorded by the bag_recorder node (read with `gwr_predictor.pipeline.bag_reader`).
 Definitions (all times are the stamps inside the messages, one clock):
 
 - prediction MAE at step k: for every /predictions message made at frame t, |P(t+k) - x| over the
@@ -29,8 +29,8 @@ from typing import Any
 
 import numpy as np
 
-from gwr_predictor.json_safe import to_jsonable
-from gwr_predictor.pipeline import bags, conventions, namespaces
+from gwr_predictor.files.json_safe import to_jsonable
+from gwr_predictor.pipeline import bag_messages, bag_reader, conventions, namespaces, plotting
 from gwr_predictor.pipeline.conventions import LayoutError
 from gwr_predictor.pipeline.errors import PipelineError
 from gwr_predictor.robot.nao import ARM_JOINTS
@@ -131,7 +131,7 @@ class PipelineReport:
 
 
 def _arm_vector(msg: Any) -> tuple[float, np.ndarray] | None:
-    stamp, names, positions = bags.joint_state_arrays(msg)
+    stamp, names, positions = bag_messages.joint_state_arrays(msg)
     index = {n: i for i, n in enumerate(names)}
     if any(n not in index for n in ARM_JOINTS) or positions.size != len(names):
         return None
@@ -176,9 +176,9 @@ def _counter(value: str) -> int | None:
 
 def read_run(bag: str | Path, namespace: str | None = None) -> RunData:
     """Read the topics a report needs from a pipeline bag: the pipeline in `namespace` (e.g. "/robot1"), by
-    default the bag's only one. Raises bags.BagError / BagSummaryError."""
+    default the bag's only one. Raises bag_messages.BagError / BagSummaryError."""
     bag = Path(bag)
-    info = bags.bag_info(bag)
+    info = bag_reader.bag_info(bag)
     pipeline = namespaces.choose_pipeline([t for t, (_, n) in info.topics.items() if n], namespace, bag)
     person: list[tuple[float, np.ndarray]] = []
     pred_t: list[float] = []
@@ -195,7 +195,7 @@ def read_run(bag: str | Path, namespace: str | None = None) -> RunData:
     undecodable: dict[str, int] = {}
     read: dict[str, int] = {}
     wrong: dict[str, tuple[str, str]] = {}
-    for m in bags.read_bag(bag, undecodable=undecodable):
+    for m in bag_reader.read_bag(bag, undecodable=undecodable):
         read[m.topic] = read.get(m.topic, 0) + 1
         expected = expected_type(m.topic, pipeline)
         if expected is not None and m.msgtype != expected:
@@ -209,7 +209,7 @@ def read_run(bag: str | Path, namespace: str | None = None) -> RunData:
                 person.append(row)
         elif m.topic == preds_topic:
             try:
-                stamp, names, p = conventions.unpack_predictions(bags.packed_array(m.msg))
+                stamp, names, p = conventions.unpack_predictions(bag_messages.packed_array(m.msg))
             except LayoutError:
                 continue
             if names == ARM_JOINTS and (not preds or p.shape == preds[0].shape):
@@ -217,7 +217,7 @@ def read_run(bag: str | Path, namespace: str | None = None) -> RunData:
                 preds.append(p)
         elif m.topic == interval_topic:
             try:
-                stamp, names, share, lower, upper = conventions.unpack_interval(bags.packed_array(m.msg))
+                stamp, names, share, lower, upper = conventions.unpack_interval(bag_messages.packed_array(m.msg))
             except LayoutError:
                 continue
             if names == ARM_JOINTS and (not intervals or lower.shape == intervals[0][2].shape[1:]):
@@ -236,7 +236,7 @@ def read_run(bag: str | Path, namespace: str | None = None) -> RunData:
     for name, values in diagnostics.items():
         if name.endswith("/delay_compensator") and "mode" in values:
             modes[name[: -len("/delay_compensator")]] = values["mode"]
-    bags.check_counts(info, {t: read.get(t, 0) + undecodable.get(t, 0) for t in set(read) | set(undecodable)})
+    bag_reader.check_counts(info, {t: read.get(t, 0) + undecodable.get(t, 0) for t in set(read) | set(undecodable)})
     if angles_topic in wrong:
         raise BagSummaryError(f"{bag}: {wrong_type_text(angles_topic, *wrong[angles_topic])}; "
                               "the report cannot read the person's angles")
@@ -387,8 +387,6 @@ def compute_report(run: RunData, period: float = 1.0 / conventions.ANGLE_FPS, dt
 def plot_run(run: RunData, path: str | Path, seconds: float = 20.0, period: float = 1.0 / conventions.ANGLE_FPS
              ) -> Path:
     """PNG of the last `seconds`: person, h-step prediction (at the time it predicts), each robot."""
-    from gwr_predictor.pipeline.plotting import plot_angle_series
-
     end = run.person.t[-1]
     start = end - seconds
 
@@ -413,8 +411,8 @@ def plot_run(run: RunData, path: str | Path, seconds: float = 20.0, period: floa
         label = f"robot {ns or '/'} ({run.modes.get(ns, '?')})"
         series[label] = window(robot.t, robot.values)
     name = run.bag.parent.name if run.bag.name == "bag" else run.bag.name  # the run folder's name
-    return plot_angle_series(path, series, title=f"{name}: person, prediction and robots, last {seconds:.0f} s",
-                             bands=bands)
+    return plotting.plot_angle_series(path, series,
+                                      title=f"{name}: person, prediction and robots, last {seconds:.0f} s", bands=bands)
 
 
 def _break_gaps(series: Series, max_gap_s: float = conventions.MAX_GAP_S) -> np.ndarray:

@@ -27,6 +27,7 @@ from gwr_predictor.errors import GwrPredictorError
 from gwr_predictor.pipeline.errors import PipelineError
 from gwr_predictor.pipeline.markers import ROBOT_FRAME
 from gwr_predictor.pipeline.markers import SKELETON_FRAME as CAMERA_FRAME
+from gwr_predictor.robot.urdf import default_urdf_path
 
 #: the uncompensated pair's namespace, inside the pipeline's; its TF frames carry this prefix
 BASELINE_NAMESPACE = "uncompensated"
@@ -133,8 +134,6 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--out", type=Path, required=True, help="folder for the nodes' parameter files")
     parser.add_argument("--no-baseline", action="store_true")
     args = parser.parse_args(argv)
-    from gwr_predictor.robot.urdf import default_urdf_path
-
     try:
         urdf = Path(default_urdf_path()).read_text(encoding="utf-8")
         nodes = tf_nodes(urdf, "/" + args.namespace.strip("/"), baseline=not args.no_baseline)

@@ -28,10 +28,11 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from gwr_predictor.pipeline import bags, conventions, namespaces
+from gwr_predictor.data.angles import AngleExtractionError, torso_frame
+from gwr_predictor.pipeline import bag_messages, bag_reader, conventions, namespaces
 from gwr_predictor.pipeline.conventions import LayoutError
-from gwr_predictor.pipeline.errors import PipelineError
 from gwr_predictor.pipeline.run_report import RunData, Series, read_run, resample, wrong_type_text
+from gwr_predictor.pipeline.video_files import VideoError, open_video
 from gwr_predictor.robot.nao import SIDES, UPPER_ARM_LENGTH, forward_kinematics
 from gwr_predictor.robot.pybullet_nao import Camera, NaoSimulator
 from gwr_predictor.robot.tracking import LagError, estimate_lag
@@ -55,11 +56,6 @@ _BONES = (("head", "neck"), ("neck", "torso"), ("left_shoulder", "right_shoulder
           ("right_hip", "right_knee"), ("right_knee", "right_foot"))
 _ARM_BONES = (("left_shoulder", "left_elbow"), ("left_elbow", "left_hand"), ("right_shoulder", "right_elbow"),
               ("right_elbow", "right_hand"))
-
-
-#: PipelineError, for a run that cannot be rendered (missing topics, bad time span or size); the message names the
-#: cause.
-VideoError = PipelineError
 
 
 @dataclass
@@ -97,11 +93,11 @@ def _read_skeleton(bag: Path, pipeline: str = "") -> tuple[np.ndarray, np.ndarra
     frames: list[np.ndarray] = []
     names: tuple[str, ...] = ()
     expected = conventions.TOPIC_TYPES[conventions.TOPIC_SKELETON]
-    for m in bags.read_bag(bag, topics=[namespaces.in_pipeline(pipeline, conventions.TOPIC_SKELETON)]):
+    for m in bag_reader.read_bag(bag, topics=[namespaces.in_pipeline(pipeline, conventions.TOPIC_SKELETON)]):
         if m.msg is None or m.msgtype != expected:
             continue  # another type: read_run reported it
         try:
-            stamp, these, pos = conventions.unpack_skeleton(bags.packed_array(m.msg))
+            stamp, these, pos = conventions.unpack_skeleton(bag_messages.packed_array(m.msg))
         except LayoutError:
             continue  # a malformed frame is skipped here as the angle extractor rejects it live
         if not names:
@@ -136,7 +132,7 @@ def video_run(run: RunData, skeleton: tuple[np.ndarray, np.ndarray, tuple[str, .
 
 def read_video_run(bag: str | Path, namespace: str | None = None) -> VideoRun:
     """Read what a video needs from a pipeline bag (the pipeline in `namespace`, by default the bag's only
-    one). Raises bags.BagError / VideoError."""
+    one). Raises bag_messages.BagError / VideoError."""
     bag = Path(bag)
     run = read_run(bag, namespace)
     return video_run(run, _read_skeleton(bag, run.namespace))
@@ -257,8 +253,6 @@ def person_points(skeleton: np.ndarray, names: tuple[str, ...]) -> np.ndarray | 
     scaled so that the upper arm is the Nao's, and the mid-shoulder put at the Nao's shoulders.
     None when the torso frame cannot be built (missing shoulders or hips).
     """
-    from gwr_predictor.data.angles import AngleExtractionError, torso_frame
-
     try:
         rot, valid = torso_frame(skeleton, names)
     except AngleExtractionError:
@@ -479,8 +473,6 @@ def render_video(run: VideoRun, path: str | Path, *, span: str | None = None, fp
     The format follows the suffix (video_files.open_video); `progress(n)` is called after every
     frame with the number written so far, `progress_total(n)` once with the frame count.
     """
-    from gwr_predictor.pipeline.video_files import open_video
-
     if not (0.5 <= fps <= 60.0):
         raise VideoError(f"fps must be within 0.5..60, got {fps!r}")
     start, end = parse_span(span, run.duration_s)

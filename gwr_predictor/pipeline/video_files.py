@@ -18,13 +18,17 @@ from typing import Any
 
 import numpy as np
 
-from gwr_predictor.pipeline.video import VideoError
-from gwr_predictor.user_files import PendingFile
+from gwr_predictor.files.user_files import PendingFile
+from gwr_predictor.pipeline.errors import PipelineError
 
 FORMATS = (".mp4", ".gif")
 MP4_CRF = 28  # H.264 quality: flat colours and few moving pixels compress far below 10 MB a minute
 GIF_COLOURS = 64
 GIF_MAX_FRAMES = 4000  # frames are held in memory until close: bounded
+
+#: PipelineError, for a run that cannot be rendered (missing topics, bad time span or size) or a video that cannot be
+#: written (`video` raises it too); the message names the cause.
+VideoError = PipelineError
 
 
 def mp4_available() -> bool:

@@ -31,7 +31,7 @@ import numpy as np
 
 from gwr_predictor.learning.persistence import Checkpointed, Persist
 from gwr_predictor.learning.rls import RecursiveLeastSquares, window_features
-from gwr_predictor.parameter_spec import ParamSpec, check_fields
+from gwr_predictor.parameters.spec import ParamSpec, check_fields
 from gwr_predictor.pipeline.conventions import DEFAULT_HORIZON, MAX_HORIZON
 from gwr_predictor.predictors.baselines import N_JOINTS, observation
 from gwr_predictor.predictors.registry import PredictorError

@@ -22,8 +22,8 @@ from dataclasses import dataclass
 from typing import Any
 
 from gwr_predictor.errors import GwrPredictorError
-from gwr_predictor.parameter_spec import ParamSpec
-from gwr_predictor.protocol import Predictor
+from gwr_predictor.learning.protocol import Predictor
+from gwr_predictor.parameters.spec import ParamSpec
 
 #: (settings, seed) -> a fresh predictor; settings are None (the defaults), a flat mapping of the
 #: predictor's own parameters (`Entry.settings()`, plus `horizon` and `n_joints`) or, for the

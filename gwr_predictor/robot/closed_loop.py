@@ -20,7 +20,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from gwr_predictor.protocol import Predictor, Spreading
+from gwr_predictor.learning.protocol import Predictor, Spreading
 from gwr_predictor.robot.compensator import CompensatorParams, DelayCompensator, Mode
 from gwr_predictor.robot.delayed_arm import RobotError, RobotParams, SimulatedRobot
 from gwr_predictor.robot.nao import ARM_JOINTS

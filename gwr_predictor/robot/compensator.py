@@ -54,7 +54,7 @@ from typing import Literal, NamedTuple
 
 import numpy as np
 
-from gwr_predictor.parameter_spec import ParamSpec, check_fields
+from gwr_predictor.parameters.spec import ParamSpec, check_fields
 from gwr_predictor.robot.errors import RobotError
 from gwr_predictor.robot.nao import ARM_JOINTS
 

@@ -22,8 +22,9 @@ from typing import Any, Literal
 
 import numpy as np
 
-from gwr_predictor.parameter_spec import ParameterError, ParamSpec
+from gwr_predictor.parameters.spec import ParameterError, ParamSpec
 from gwr_predictor.robot.nao import ARM_JOINTS, VELOCITY_LIMITS, RobotError, clip_to_limits
+from gwr_predictor.robot.pybullet_nao import NaoSimulator  # pybullet itself only when a simulator starts
 
 BACKENDS = ("kinematic", "pybullet")
 
@@ -232,8 +233,6 @@ class SimulatedRobot:
         if p.backend == "pybullet":
             self._sim, self._owns_sim = simulator, simulator is None
             if self._sim is None:
-                from gwr_predictor.robot.pybullet_nao import NaoSimulator  # pybullet only when asked for
-
                 self._sim = NaoSimulator(time_step=p.dt / math.ceil(p.dt * 240.0 - 1e-9))  # <= 1/240 s
             self._sim.reset(start)
             self._latency = DelayLine(p.latency_s, initial=start.copy())

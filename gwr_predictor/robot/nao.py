@@ -2,7 +2,7 @@
 
 Frames: torso origin, x forward, y left, z up. Angles in radians. The 8 joints the learner sees
 are `ARM_JOINTS` (no wrist: skeleton trackers do not measure it; their names and limits are
-`gwr_predictor.arm_joints`, re-exported here); the robot also has `WristYaw`.
+`gwr_predictor.joints.arm`, re-exported here); the robot also has `WristYaw`.
 """
 
 from __future__ import annotations
@@ -11,7 +11,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from gwr_predictor.arm_joints import ARM_JOINT_LIMITS, ARM_JOINT_SUFFIXES, ARM_JOINTS, SIDES
+from gwr_predictor.joints.arm import ARM_JOINT_LIMITS, ARM_JOINT_SUFFIXES, ARM_JOINTS, SIDES
 from gwr_predictor.robot.errors import RobotError
 
 #: All 10 actuated arm joints of the robot model.

@@ -15,10 +15,10 @@ from pathlib import Path
 
 import numpy as np
 
+from gwr_predictor.files.user_files import output_file
 from gwr_predictor.robot.errors import RobotError
 from gwr_predictor.robot.nao import ARM_JOINTS, ROBOT_ARM_JOINTS, SIDES, VELOCITY_LIMITS, ArmPoints, clip_to_limits
 from gwr_predictor.robot.urdf import ELBOW_LINKS, HAND_LINKS, SHOULDER_LINKS, WRIST_LINKS, default_urdf_path
-from gwr_predictor.user_files import output_file
 
 #: RobotError, for a simulator that cannot start or is used wrongly; the message names the cause.
 SimulatorError = RobotError

@@ -17,8 +17,8 @@ from typing import Any
 import numpy as np
 
 from gwr_predictor.learning.params import HierarchyParams
+from gwr_predictor.learning.protocol import Predictor
 from gwr_predictor.predictors import registry
-from gwr_predictor.protocol import Predictor
 
 HIERARCHY = "hierarchy"
 FLAT = "pgwr_flat"

@@ -26,7 +26,7 @@ import numpy as np
 
 from gwr_predictor.evaluation.online import train_online
 from gwr_predictor.evaluation.output import ExperimentOutput, figure, markdown_table, save_figure
-from gwr_predictor.protocol import Predictor
+from gwr_predictor.learning.protocol import Predictor
 from gwr_predictor.robot.closed_loop import run_closed_loop
 from research.experiments import common
 from research.experiments.splits import make_splits

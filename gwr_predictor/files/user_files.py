@@ -5,8 +5,7 @@ Reading: only regular files are read. A FIFO, a device, a socket or a folder is 
 are opened with O_NONBLOCK, so opening a FIFO never waits for a writer, and checked on the open
 descriptor (fstat) before a byte is read; the size limit is checked there too, and a file that grows
 while it is read is cut at the limit and refused. O_NOFOLLOW where a link must not be followed.
-YAML: aliases are refused (rcl refuses them in params files too) and the nesting is bounded, while
-the parser's events stream past, so that an alias bomb of a few hundred bytes never expands.
+YAML files are read through these rules and parsed by `yaml_safe`.
 Writing: the chosen path must not be a symlink, FIFO, device or folder; the new file is written as a
 temporary file beside it and renamed over it (a crash leaves the old file or the new one, a link at
 the path is never followed); a folder that cannot be created or written to is a one-line error before
@@ -28,9 +27,6 @@ from pathlib import Path
 from typing import IO, Any
 
 PathLike = str | os.PathLike[str]
-
-#: Nesting of a YAML document (params files nest about 5 deep, a bag's metadata.yaml 6).
-MAX_YAML_DEPTH = 64
 
 _KINDS = ((stat.S_ISDIR, "a folder"), (stat.S_ISFIFO, "a FIFO (named pipe)"), (stat.S_ISCHR, "a character device"),
           (stat.S_ISBLK, "a block device"), (stat.S_ISSOCK, "a socket"), (stat.S_ISLNK, "a symlink"))
@@ -116,46 +112,6 @@ def read_text(path: PathLike, limit: int | None, what: str, error: type[Exceptio
         return read_bytes(path, limit, what, error).decode()
     except UnicodeDecodeError as exc:
         raise error(f"{path}: not UTF-8 text ({what}): {exc.reason} at byte {exc.start}") from None
-
-
-# --- YAML ----------------------------------------------------------------------------------------
-
-
-def load_yaml(path: PathLike, limit: int, what: str, error: type[Exception]) -> Any:
-    """The YAML document of the regular file at `path` (at most `limit` bytes), built only after every
-    event was checked: no alias, nesting at most `MAX_YAML_DEPTH`. `error` naming the file, and the line
-    for a syntax error, otherwise."""
-    return parse_yaml(read_text(path, limit, what, error), str(path), what, error)
-
-
-def parse_yaml(text: str, where: str, what: str, error: type[Exception]) -> Any:
-    """`load_yaml` of text already read (`where` names it in messages)."""
-    import yaml
-
-    loader = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
-    depth = 0
-    try:
-        for event in yaml.parse(text, Loader=loader):
-            if isinstance(event, yaml.AliasEvent):
-                raise error(f"{where}: YAML alias '*{event.anchor}'{_line(event)}: aliases are not accepted in a "
-                            f"{what} (a few of them can expand to gigabytes); write the values out")
-            if isinstance(event, yaml.CollectionStartEvent):
-                depth += 1
-                if depth > MAX_YAML_DEPTH:
-                    raise error(f"{where}: YAML nested more than {MAX_YAML_DEPTH} deep{_line(event)}; "
-                                f"refused as a {what}")
-            elif isinstance(event, yaml.CollectionEndEvent):
-                depth -= 1
-        return yaml.load(text, Loader=loader)
-    except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        at = f" at line {mark.line + 1}, column {mark.column + 1}" if mark is not None else ""
-        raise error(f"{where}: not valid YAML{at}: {getattr(exc, 'problem', None) or exc}") from None
-
-
-def _line(event: Any) -> str:
-    mark = getattr(event, "start_mark", None)
-    return f" at line {mark.line + 1}" if mark is not None else ""
 
 
 # --- symlinks ------------------------------------------------------------------------------------

@@ -24,7 +24,7 @@ from typing import IO
 
 import numpy as np
 
-from gwr_predictor.user_files import human_size, regular_file_size
+from gwr_predictor.files.user_files import human_size, regular_file_size
 
 #: A binary recording (`.npz` members inflated, `.npy`, `.pt`): over 6 hours at 30 fps of 15 joints.
 MAX_RECORDING_BYTES = 256 << 20
@@ -69,7 +69,7 @@ def check_count(path: str | os.PathLike[str], count: int, limit: int, what: str,
     """`count` (of frames, joints, values... that `path` declares) unless it exceeds `limit`."""
     if count > limit:
         raise error(f"{path}: {count:,} {what} exceed the limit of {limit:,} "
-                    "(gwr_predictor.file_limits); refused before reading")
+                    "(gwr_predictor.files.limits); refused before reading")
     return count
 
 
@@ -86,7 +86,7 @@ def check_resampled(path: str | os.PathLike[str], duration_s: float, fps: float,
     frames = duration_s * fps + 1.0
     if not np.isfinite(frames) or frames > MAX_FRAMES:
         raise error(f"{path}: {duration_s:.6g} s at {fps:g} fps are {frames:,.0f} frames, over the limit of "
-                    f"{MAX_FRAMES:,} (gwr_predictor.file_limits; a wrong frame time?); refused before resampling")
+                    f"{MAX_FRAMES:,} (gwr_predictor.files.limits; a wrong frame time?); refused before resampling")
     return int(frames)
 
 

@@ -1,8 +1,8 @@
 """The 8 arm angles every part exchanges (a learner's frame, a JointState's names) and the range of each.
 
-At the top level because data, pipeline, robot and the learner all read them, and the learner imports
-none of the others: it draws its first random neurons inside these ranges. `robot.nao` adds the rest
-of the robot's facts (wrists, velocities, kinematics) and re-exports these names.
+In `joints`, below the other subpackages, because data, pipeline, robot and the learner all read them,
+and the learner imports none of the others: it draws its first random neurons inside these ranges.
+`robot.nao` adds the rest of the robot's facts (wrists, velocities, kinematics) and re-exports these names.
 """
 
 from __future__ import annotations

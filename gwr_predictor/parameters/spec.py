@@ -1,7 +1,7 @@
 """One parameter declared once: type, default, allowed values, description, and whether it may change live.
 
 The learning dataclasses validate their fields with these specs, the nodes turn them into ROS
-ParameterDescriptors (`gwr_predictor.nodes.node_base`), and both produce the same error message,
+ParameterDescriptors (`gwr_predictor.nodes.ros_parameters`), and both produce the same error message,
 which names the parameter and what is allowed. No ROS here.
 
 A spec exposes `lo` / `hi` (with `lo_open` / `hi_open`) so that a descriptor can carry a
