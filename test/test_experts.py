@@ -186,7 +186,7 @@ def test_a_full_memory_continues_bit_for_bit_from_its_checkpoint(tmp_path):
     header, arrays = read_checkpoint(tmp_path / "m.npz", TrajectoryMemory.kind)
     write_checkpoint(tmp_path / "former.npz", TrajectoryMemory.kind, header,
                      {k: v for k, v in arrays.items() if k != "used"})
-    with pytest.raises(CheckpointError, match="missing arrays.*used"):
+    with pytest.raises(CheckpointError, match=r"missing arrays.*used"):
         TrajectoryMemory.load(tmp_path / "former.npz")
 
 
