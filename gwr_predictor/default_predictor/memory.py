@@ -158,6 +158,7 @@ class TrajectoryMemory(Checkpointed):
         self._key_weights = np.concatenate([np.ones(p.n_joints),
                                             np.full(len(self._lags) * p.n_joints, p.velocity_weight)])
         self._grid = np.arange(1, p.horizon + 1, dtype=float)
+        self._diag_k = np.arange(max(p.k, p.fit_k))  # the diagonal of a fit's neighbour-by-neighbour system
         self._future = p.stored_future  # the last stored step a read-out may reach
         # allocated once at capacity (the system maps the pages as snippets come): nothing grows while learning
         size = p.capacity
@@ -369,8 +370,7 @@ class TrajectoryMemory(Checkpointed):
         stored = self.keys[nearest, p.n_joints:]  # (k, lags * J) changes
         power = np.einsum("kd,kd->k", stored, stored)
         ratio = np.where(power > 1e-8, (stored @ key[p.n_joints:]) / np.maximum(power, 1e-8), 1.0)
-        np.clip(ratio, p.min_ratio, p.max_ratio, out=ratio)
-        ratio[ratio != ratio] = 1.0  # NaN (inf / inf of absurd input): the stored speed
+        np.clip(ratio, p.min_ratio, p.max_ratio, out=ratio)  # finite: no stored or present angle beyond 100 rad
         at = np.minimum(ratio[:, None] * self._grid, self._future)  # (k, horizon) stored steps to read
         lo = at.astype(int)
         hi = np.minimum(lo + 1, self._future)
@@ -382,15 +382,25 @@ class TrajectoryMemory(Checkpointed):
         """The neighbours' futures (k, horizon, J) as a linear function of their keys' (weighted) offsets
         from the present key, by weighted ridge regression, read at offset 0: neighbours on different sides
         of the present motion (another size, another speed) are interpolated between instead of averaged.
-        Only where the motion is familiar: far from every neighbour the line would extrapolate."""
+        Only where the motion is familiar: far from every neighbour the line would extrapolate.
+
+        With X the neighbours' centred offsets (k, d), W their weights and lambda the ridge (`ridge` x the
+        mean of diag(X'WX)), the fit's slope is (X'WX + lambda I)^-1 X'W Y, and only its value at the
+        present key is needed: mean_y - mean_x (X'WX + lambda I)^-1 X'W Y, which by the push-through
+        identity is mean_y - (W^1/2 u)' Y with (W^1/2 X X' W^1/2 + lambda I) u = W^1/2 X mean_x': one k x k
+        system with one right-hand side instead of a d x d one with horizon x J."""
         futures = read.reshape(len(w), -1)
         mean_x, mean_y = w @ offsets, w @ futures
         x = offsets - mean_x
-        wx = x * w[:, None]
-        scatter = wx.T @ x
-        scatter[np.diag_indices_from(scatter)] += self.params.ridge * np.trace(scatter) / len(scatter) + 1e-12
-        slope = np.linalg.solve(scatter, wx.T @ (futures - mean_y))
-        return (mean_y - mean_x @ slope).reshape(read.shape[1:])
+        root = np.sqrt(w)
+        xs = x * root[:, None]
+        gram = xs @ xs.T  # W^1/2 X X' W^1/2; its trace is X'WX's
+        gram[self._diag_k[:len(w)], self._diag_k[:len(w)]] += (self.params.ridge * np.trace(gram) / x.shape[1]
+                                                                + 1e-12)
+        u = np.linalg.solve(gram, xs @ mean_x)
+        u *= root
+        futures = futures - mean_y
+        return (mean_y - u @ futures).reshape(read.shape[1:])
 
     def errors(self) -> dict[str, Any]:
         return {"snippets": self.size, "snippets_replaced": self.replaced, "motion_rms_rad": self.motion_rms}
