@@ -11,7 +11,7 @@ Below it, one class per subpackage, in its `errors.py` (or its central module): 
 `RecordingError`, the nodes' `NodeFatalError`; and `parameters.spec.ParameterError` for a setting out
 of its range. A case a caller must tell apart is an attribute of the class, not a class of its own
 (`PipelineError.reason == "too_large"`, `LearningError.kind_mismatch`, `.locked`, `.source`). Older
-names (`SkeletonFileError`, `CheckpointError`, `BagError`, ...) are module aliases of their
+names (`DataError`, `CheckpointError`, `BagError`, ...) are module aliases of their
 subpackage's class. The classes keep the built-in bases callers catch (ValueError; RuntimeError too
 where the bags, videos, simulator and experiment outputs raised one).
 """

@@ -17,6 +17,7 @@ from __future__ import annotations
 import numpy as np
 
 from gwr_predictor.data import k4abt
+from gwr_predictor.data.errors import DataError
 from gwr_predictor.data.extraction import frame_angles
 from gwr_predictor.data.skeleton_files import MAX_PLAUSIBLE_METRES
 from gwr_predictor.data.smoothing import MedianOf3
@@ -75,7 +76,7 @@ class AngleExtractorNode(PipelineNode):
             return
         try:
             body = k4abt.nearest_body(ids, xyz)
-        except k4abt.K4abtError as exc:
+        except DataError as exc:
             self.counters.reject("body_tracking.layout", str(exc))
             return
         if body is None:

@@ -19,6 +19,7 @@ import numpy as np
 from geometry_msgs.msg import PointStamped
 
 from gwr_predictor.data import hri_bodies
+from gwr_predictor.data.errors import DataError
 from gwr_predictor.data.smoothing import MedianOf3
 from gwr_predictor.parameters.spec import ParameterError, ParamSpec
 from gwr_predictor.pipeline import conventions
@@ -158,7 +159,7 @@ class HriBodiesNode(PipelineNode):
         try:
             hri_bodies.check_frame(msg.header.frame_id, body)
             human = hri_bodies.body_arm_joints(names, positions, body)
-        except hri_bodies.HriBodiesError as exc:
+        except DataError as exc:
             self.counters.reject(f"joint_states.{exc.reason}", str(exc))
             return
         previous = self.stamps.last

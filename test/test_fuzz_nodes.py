@@ -23,7 +23,8 @@ from hypothesis import strategies as st
 from ros_harness import in_process
 
 from gwr_predictor.data.demonstrator import default_subjects, demonstrate_one
-from gwr_predictor.data.skeleton_files import SkeletonFileError, load_skeleton
+from gwr_predictor.data.errors import DataError
+from gwr_predictor.data.skeleton_files import load_skeleton
 from gwr_predictor.learning.checkpoint import CheckpointError, read_checkpoint
 from gwr_predictor.nodes import messages
 from gwr_predictor.nodes.messages import Float64MultiArray, JointState, MultiArrayDimension
@@ -199,7 +200,7 @@ def test_skeleton_and_checkpoint_readers_raise_only_their_own_errors(tmp_path, d
     path.write_bytes(data)
     try:
         load_skeleton(path)
-    except SkeletonFileError:
+    except DataError:
         pass
     try:
         read_checkpoint(path, "Hierarchy")

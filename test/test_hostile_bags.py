@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 
 from gwr_predictor.commands.cli import main as cli_main
-from gwr_predictor.data.skeleton_files import SkeletonFileError, load_skeleton
+from gwr_predictor.data.errors import DataError
+from gwr_predictor.data.skeleton_files import load_skeleton
 from gwr_predictor.files import limits
 from gwr_predictor.learning.checkpoint import CheckpointError, read_checkpoint
 from gwr_predictor.pipeline import bag_messages, bag_reader, bag_recovery, bag_writer
@@ -125,12 +126,12 @@ def test_files_that_cannot_be_recordings_are_refused_before_reading(tmp_path, mo
         zf.writestr("positions.npy", b"\0" * (8 << 20))  # 8 MB of zeros: a few KB on disk
     assert bomb.stat().st_size < 100_000
     monkeypatch.setattr("gwr_predictor.data.skeleton_files.MAX_RECORDING_BYTES", 4 << 20)
-    with pytest.raises(SkeletonFileError, match=r"bomb.npz: its arrays inflate to 8 MB.*refused before reading"):
+    with pytest.raises(DataError, match=r"bomb.npz: its arrays inflate to 8 MB.*refused before reading"):
         load_skeleton(bomb)
     big_csv = tmp_path / "big.csv"
     big_csv.write_bytes(b"t" * (3 << 20))
     monkeypatch.setattr("gwr_predictor.data.skeleton_files.MAX_CSV_BYTES", 2 << 20)
-    with pytest.raises(SkeletonFileError, match=r"big.csv: 3 MB is too large"):
+    with pytest.raises(DataError, match=r"big.csv: 3 MB is too large"):
         load_skeleton(big_csv)
     monkeypatch.setattr("gwr_predictor.learning.checkpoint.MAX_CHECKPOINT_BYTES", 4 << 20)
     with pytest.raises(CheckpointError, match="inflate to 8 MB"):

@@ -24,11 +24,11 @@ import numpy as np
 
 from gwr_predictor.commands.import_options import add_import_options, import_options
 from gwr_predictor.commands.param_overrides import parse_overrides
-from gwr_predictor.data.angle_files import AngleFileError, load_angles_csv
+from gwr_predictor.data.angle_files import load_angles_csv
+from gwr_predictor.data.errors import DataError
 from gwr_predictor.data.extraction import extract_angles
 from gwr_predictor.data.mocap import load_any_skeleton
 from gwr_predictor.data.mocap_clip import ImportOptions
-from gwr_predictor.data.skeleton_files import SkeletonFileError
 from gwr_predictor.errors import GwrPredictorError
 from gwr_predictor.evaluation.online import EvaluationError, compare_online
 from gwr_predictor.evaluation.output import markdown_table, to_jsonable
@@ -72,7 +72,7 @@ def load_recording(path: Path, options: ImportOptions | None = None) -> np.ndarr
     if path.suffix.lower() == ".csv":
         try:
             _, angles, names = load_angles_csv(path)
-        except AngleFileError as exc:
+        except DataError as exc:
             angle_error = exc
         else:
             missing = [n for n in ARM_JOINTS if n not in names]
@@ -81,7 +81,7 @@ def load_recording(path: Path, options: ImportOptions | None = None) -> np.ndarr
             return angles[:, [names.index(n) for n in ARM_JOINTS]]
     try:
         seq = load_any_skeleton(path, options)
-    except SkeletonFileError as exc:
+    except DataError as exc:
         raise RecordingError(f"{path}: not an angle CSV ({angle_error}) nor a skeleton file ({exc})"
                              if angle_error else str(exc)) from exc
     return extract_angles(seq.positions, seq.timestamps, seq.joint_names).angles

@@ -28,7 +28,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from gwr_predictor.data.angles import AngleExtractionError, torso_frame
+from gwr_predictor.data.angles import torso_frame
+from gwr_predictor.data.errors import DataError
 from gwr_predictor.pipeline import bag_messages, bag_reader, conventions, namespaces
 from gwr_predictor.pipeline.conventions import LayoutError
 from gwr_predictor.pipeline.run_report import RunData, Series, read_run, resample, wrong_type_text
@@ -255,7 +256,7 @@ def person_points(skeleton: np.ndarray, names: tuple[str, ...]) -> np.ndarray | 
     """
     try:
         rot, valid = torso_frame(skeleton, names)
-    except AngleExtractionError:
+    except DataError:
         return None
     if not bool(valid):
         return None
