@@ -43,6 +43,7 @@ from gwr_predictor.pipeline.conventions import LayoutError
 from gwr_predictor.pipeline.gates import absurd_predictions
 from gwr_predictor.pipeline.trajectory import command_trajectory
 from gwr_predictor.robot import compensator, naoqi_output
+from gwr_predictor.robot.errors import RobotError
 from gwr_predictor.robot.nao import ARM_JOINTS
 
 from . import messages, standard_messages
@@ -120,7 +121,7 @@ class DelayCompensatorNode(PipelineNode):
         p = self.params
         try:
             msg_type = naoqi_output.message_type()
-        except naoqi_output.NaoqiOutputError as exc:
+        except RobotError as exc:
             raise NodeFatalError(str(exc)) from None
         warning = naoqi_output.speed_warning(p["naoqi_speed"], p["max_joint_speed"])
         if warning is not None:
@@ -129,7 +130,7 @@ class DelayCompensatorNode(PipelineNode):
                 naoqi_output.SafeArmCommands(p["max_joint_speed"], p["max_step_s"]))
 
     def make_compensator(self, mode: str, delay_s: float) -> compensator.DelayCompensator:
-        """The library compensator for `mode` and `delay_s` (CompensatorError if they do not fit)."""
+        """The library compensator for `mode` and `delay_s` (RobotError if they do not fit)."""
         p = self.params
         return compensator.DelayCompensator(params=compensator.CompensatorParams(
             mode, delay_s, p["frame_period_s"], p["stale_after_s"], guard_decay=p["guard_decay"],
@@ -140,7 +141,7 @@ class DelayCompensatorNode(PipelineNode):
             mode, delay = (value, self.params["delay_s"]) if name == "mode" else (self.params["mode"], value)
             try:
                 self.make_compensator(mode, delay)
-            except compensator.CompensatorError as exc:
+            except RobotError as exc:
                 raise ParameterError(f"parameter '{name}': {exc}") from None
 
     def on_live_parameter(self, name: str, value: Any) -> None:

@@ -27,9 +27,10 @@ from gwr_predictor.parameters.spec import ParameterError, ParamSpec
 from gwr_predictor.pipeline import conventions
 from gwr_predictor.pipeline.clock_jumps import CLOCK_JUMP_SPEC, RobotTimeBase
 from gwr_predictor.pipeline.gates import ArmAnglesGate
-from gwr_predictor.robot.delayed_arm import ROBOT_SPECS, RobotError, SimulatedRobot, sine_delay
+from gwr_predictor.robot.delayed_arm import ROBOT_SPECS, SimulatedRobot, sine_delay
+from gwr_predictor.robot.errors import RobotError
 from gwr_predictor.robot.nao import ROBOT_ARM_JOINTS, robot_arm_positions
-from gwr_predictor.robot.pybullet_nao import NaoSimulator, SimulatorError, save_png
+from gwr_predictor.robot.pybullet_nao import NaoSimulator, save_png
 from gwr_predictor.robot.urdf import default_urdf_path
 
 from . import messages, standard_messages
@@ -70,12 +71,12 @@ class NaoSimNode(PipelineNode):
             try:
                 try:
                     self.sim = NaoSimulator(gui=p["gui"], time_step=step)
-                except SimulatorError as exc:
+                except RobotError as exc:
                     if not p["gui"]:
                         raise
                     self.get_logger().warning(f"parameter 'gui': {exc}; running headless instead")
                     self.sim = NaoSimulator(gui=False, time_step=step)
-            except SimulatorError as exc:
+            except RobotError as exc:
                 raise NodeFatalError(f"cannot start the PyBullet simulator: {exc}") from None
         try:
             self.robot = SimulatedRobot(p["delay_s"], p["latency_s"], p["control_period_s"], p["backend"],

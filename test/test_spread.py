@@ -20,7 +20,8 @@ from gwr_predictor.pipeline import conventions
 from gwr_predictor.pipeline.conventions import LayoutError
 from gwr_predictor.predictors.baselines import HoldLast
 from gwr_predictor.predictors.registry import DEFAULT_PREDICTOR, load_predictor, make_predictor
-from gwr_predictor.robot.compensator import CompensatorError, CompensatorParams, DelayCompensator
+from gwr_predictor.robot.compensator import CompensatorParams, DelayCompensator
+from gwr_predictor.robot.errors import RobotError
 
 
 def _walk(n: int = 3000, seed: int = 0) -> np.ndarray:
@@ -234,5 +235,5 @@ def test_spread_shrink_pulls_a_command_towards_the_observation_by_how_wide_its_i
     keep = d**2 / (d**2 + 4.0 * half[2] ** 2)
     np.testing.assert_allclose(command(4.0), keep * d)
     assert command(4.0)[0] == d[0] and np.all(command(4.0)[1:] < d[1:])  # only the unsure joints are pulled
-    with pytest.raises(CompensatorError, match="interval"):
+    with pytest.raises(RobotError, match="interval"):
         command(1.0, (half[:2], half[:2]))

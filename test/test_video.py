@@ -16,8 +16,9 @@ from gwr_predictor.pipeline.video import (
     parse_span,
     read_video_run,
 )
+from gwr_predictor.robot.errors import RobotError
 from gwr_predictor.robot.nao import ARM_JOINTS
-from gwr_predictor.robot.pybullet_nao import NaoSimulator, SimulatorError
+from gwr_predictor.robot.pybullet_nao import NaoSimulator
 
 ARMS_DOWN = np.array([1.4, 0.15, -1.2, -0.4, 1.4, -0.15, 1.2, 0.4])
 ARMS_UP = np.array([-1.2, 0.3, -1.0, -0.3, -1.2, -0.3, 1.0, 0.3])
@@ -196,7 +197,7 @@ def test_render_command_writes_an_mp4_and_a_gif(tmp_path, capsys):
 
 def test_gui_without_a_display_is_refused_with_the_reason(monkeypatch):
     monkeypatch.delenv("DISPLAY", raising=False)
-    with pytest.raises(SimulatorError, match="DISPLAY is not set"):
+    with pytest.raises(RobotError, match="DISPLAY is not set"):
         NaoSimulator(gui=True)
 
 

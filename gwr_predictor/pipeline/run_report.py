@@ -33,8 +33,9 @@ from gwr_predictor.files.json_safe import to_jsonable
 from gwr_predictor.pipeline import bag_messages, bag_reader, conventions, namespaces, plotting
 from gwr_predictor.pipeline.conventions import LayoutError
 from gwr_predictor.pipeline.errors import PipelineError
+from gwr_predictor.robot.errors import RobotError
 from gwr_predictor.robot.nao import ARM_JOINTS
-from gwr_predictor.robot.tracking import LagError, estimate_lag, tracking_error
+from gwr_predictor.robot.tracking import estimate_lag, tracking_error
 
 #: PipelineError, for a bag that cannot be summarised (missing topics, too little data); the message names it.
 BagSummaryError = PipelineError
@@ -358,7 +359,7 @@ def robot_summary(run: RunData, ns: str, dt: float, max_lag_s: float, max_gap_s:
     try:
         result["lag_s"] = estimate_lag(person, follower, dt, max_lag_s)
         result["tracking_mae_rad"] = tracking_error(person, follower)["mae"]
-    except LagError:
+    except RobotError:
         pass
     return result
 

@@ -34,9 +34,10 @@ from gwr_predictor.pipeline import bag_messages, bag_reader, conventions, namesp
 from gwr_predictor.pipeline.conventions import LayoutError
 from gwr_predictor.pipeline.run_report import RunData, Series, read_run, resample, wrong_type_text
 from gwr_predictor.pipeline.video_files import VideoError, open_video
+from gwr_predictor.robot.errors import RobotError
 from gwr_predictor.robot.nao import SIDES, UPPER_ARM_LENGTH, forward_kinematics
 from gwr_predictor.robot.pybullet_nao import Camera, NaoSimulator
-from gwr_predictor.robot.tracking import LagError, estimate_lag
+from gwr_predictor.robot.tracking import estimate_lag
 
 if TYPE_CHECKING:
     from PIL.Image import Image as PILImage
@@ -193,7 +194,7 @@ def _metrics(person: Series, robot: Series, start: float, end: float) -> _Metric
         if a.shape[0] > 2 * round(MAX_LAG_S / METRIC_DT) + 3:
             try:
                 lag[i] = estimate_lag(a, b, METRIC_DT, MAX_LAG_S)
-            except LagError:
+            except RobotError:
                 pass
     return _Metrics(grid, error, lag_t, lag)
 
