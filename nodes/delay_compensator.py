@@ -39,7 +39,7 @@ import numpy as np
 from gwr_predictor.parameters.spec import ParameterError, ParamSpec
 from gwr_predictor.pipeline import conventions
 from gwr_predictor.pipeline.clock_jumps import CLOCK_JUMP_SPEC, ClockJumpWatch, CommandStamps
-from gwr_predictor.pipeline.conventions import LayoutError
+from gwr_predictor.pipeline.errors import PipelineError
 from gwr_predictor.pipeline.gates import absurd_predictions
 from gwr_predictor.pipeline.trajectory import command_trajectory
 from gwr_predictor.robot import compensator, naoqi_output
@@ -217,8 +217,8 @@ class DelayCompensatorNode(PipelineNode):
             stamp, names, preds = messages.read_predictions(msg)
             if names != ARM_JOINTS:
                 preds = preds[:, [names.index(n) for n in ARM_JOINTS]]
-        except ValueError as exc:  # a LayoutError (too large ones counted apart) or an arm joint missing
-            too_large = isinstance(exc, LayoutError) and exc.reason == "too_large"
+        except ValueError as exc:  # a PipelineError (too large ones counted apart) or an arm joint missing
+            too_large = isinstance(exc, PipelineError) and exc.reason == "too_large"
             self.counters.reject("predictions.too_large" if too_large else "predictions.layout", str(exc))
             return None
         if not np.all(np.isfinite(preds)):
@@ -237,7 +237,7 @@ class DelayCompensatorNode(PipelineNode):
         try:
             stamp, names, _, lower, upper = messages.read_interval(msg)
             order = [names.index(n) for n in ARM_JOINTS]
-        except ValueError as exc:  # a LayoutError or an arm joint missing
+        except ValueError as exc:  # a PipelineError or an arm joint missing
             self.counters.reject("prediction_interval.layout", str(exc))
             return
         if not (np.isfinite(lower).all() and np.isfinite(upper).all()):

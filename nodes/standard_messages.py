@@ -19,6 +19,7 @@ from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 from visualization_msgs.msg import Marker, MarkerArray
 
 from gwr_predictor.pipeline import conventions
+from gwr_predictor.pipeline.errors import PipelineError
 from gwr_predictor.pipeline.markers import Figure
 from gwr_predictor.pipeline.trajectory import Trajectory
 
@@ -75,7 +76,7 @@ def figure_markers(stamp: float, frame_id: str, ns: str, figure: Figure,
 def read_body_markers(msg: MarkerArray) -> tuple[float | None, str, np.ndarray, np.ndarray]:
     """A body-tracking MarkerArray -> (stamp of its first joint marker or None, its frame, ids (n,),
     positions (n, 3)). Only ADD markers count: DELETE / DELETEALL markers carry no joint. More than
-    `conventions.MAX_MARKERS` markers raise LayoutError (reason `too_large`) before any is read."""
+    `conventions.MAX_MARKERS` markers raise PipelineError (reason `too_large`) before any is read."""
     conventions.check_size("markers", len(msg.markers), conventions.MAX_MARKERS)
     adds = [m for m in msg.markers if m.action == Marker.ADD]
     if not adds:
@@ -106,7 +107,7 @@ def pose_array(stamp: float, frame_id: str, positions: np.ndarray) -> PoseArray:
     (a tracker gives no joint orientation), NaN position for an untracked joint."""
     positions = np.asarray(positions, dtype=np.float64)
     if positions.ndim != 2 or positions.shape[1] != 3:
-        raise conventions.LayoutError(f"skeleton positions must be (joints, 3), got {positions.shape}")
+        raise PipelineError(f"skeleton positions must be (joints, 3), got {positions.shape}")
     msg = PoseArray()
     msg.header.stamp = to_time(stamp)
     msg.header.frame_id = frame_id
@@ -121,7 +122,7 @@ def pose_array(stamp: float, frame_id: str, positions: np.ndarray) -> PoseArray:
 
 def read_pose_array(msg: PoseArray) -> tuple[float, str, np.ndarray]:
     """PoseArray -> (stamp s, frame_id, positions (n, 3)); more than `conventions.MAX_JOINTS` poses raise
-    LayoutError (reason `too_large`) before any is read."""
+    PipelineError (reason `too_large`) before any is read."""
     conventions.check_size("poses", len(msg.poses), conventions.MAX_JOINTS)
     xyz = np.array([(p.position.x, p.position.y, p.position.z) for p in msg.poses], dtype=np.float64)
     return from_time(msg.header.stamp), msg.header.frame_id, xyz.reshape(-1, 3)

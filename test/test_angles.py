@@ -14,7 +14,8 @@ from gwr_predictor.data.errors import DataError
 from gwr_predictor.data.skeleton_files import save_skeleton
 from gwr_predictor.data.smoothing import median_of_3
 from gwr_predictor.pipeline.conventions import SKELETON_JOINTS
-from gwr_predictor.pipeline.plotting import PlotError, plot_angle_series
+from gwr_predictor.pipeline.errors import PipelineError
+from gwr_predictor.pipeline.plotting import plot_angle_series
 from gwr_predictor.robot.nao import (
     ARM_JOINTS,
     ELBOW_OFFSET,
@@ -288,7 +289,7 @@ def test_plot_writes_a_png_with_all_series(tmp_path):
     path = plot_angle_series(tmp_path / "p.png", {"person": (t, a), "prediction": (t + 0.6, a)},
                              title="x", marks={"rep 2": 1.5})
     assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and path.stat().st_size > 10_000
-    with pytest.raises(PlotError, match="series 'bad'"):
+    with pytest.raises(PipelineError, match="series 'bad'"):
         plot_angle_series(tmp_path / "q.png", {"bad": (t, a[:, :7])})
 
 

@@ -29,7 +29,8 @@ from gwr_predictor.learning.checkpoint import CheckpointError, read_checkpoint
 from gwr_predictor.nodes import messages
 from gwr_predictor.nodes.messages import Float64MultiArray, JointState, MultiArrayDimension
 from gwr_predictor.pipeline import stamps
-from gwr_predictor.pipeline.params_file import ParamsFileError, load_params_file
+from gwr_predictor.pipeline.errors import PipelineError
+from gwr_predictor.pipeline.params_file import load_params_file
 from gwr_predictor.robot.nao import ARM_JOINTS
 
 pytestmark = pytest.mark.ros
@@ -218,7 +219,7 @@ def test_params_files_are_accepted_or_refused_with_a_params_file_error(tmp_path,
     path.write_text(text)
     try:
         sections = load_params_file(path)
-    except ParamsFileError as exc:
+    except PipelineError as exc:
         assert str(path) in str(exc)
     else:
         assert all(isinstance(v, dict) for v in sections.values())

@@ -13,7 +13,8 @@ from gwr_predictor.commands.cli import main as cli_main
 from gwr_predictor.data import k4abt
 from gwr_predictor.data.demonstrator import default_subjects, demonstrate_one
 from gwr_predictor.pipeline import bag_messages, bag_recovery, bag_writer, conventions
-from gwr_predictor.pipeline.run_report import BagSummaryError, read_run
+from gwr_predictor.pipeline.errors import PipelineError
+from gwr_predictor.pipeline.run_report import read_run
 from gwr_predictor.robot.nao import ARM_JOINTS
 
 T = bag_messages.TYPESTORE.types
@@ -98,7 +99,7 @@ def render(bag: Path, out: Path) -> int:
 
 def test_report_and_render_refuse_arm_angles_of_another_type_in_one_line(tmp_path, capsys):
     bag = run_bag(tmp_path / "bag", wrong=("/arm_angles",))
-    with pytest.raises(BagSummaryError, match="/arm_angles"):
+    with pytest.raises(PipelineError, match="/arm_angles"):
         read_run(bag)
     assert cli_main(["report", str(bag), "--out", str(tmp_path)]) == 1
     line = one_line_error(capsys.readouterr().err)

@@ -31,7 +31,8 @@ from gwr_predictor.commands import cli
 from gwr_predictor.files.limits import MAX_NETWORK_NEURONS
 from gwr_predictor.learning.checkpoint import CheckpointError, CheckpointLock, check_checkpoint_place
 from gwr_predictor.pipeline import bag_messages, bag_reader
-from gwr_predictor.pipeline.params_file import ParamsFileError, check_params_files
+from gwr_predictor.pipeline.errors import PipelineError
+from gwr_predictor.pipeline.params_file import check_params_files
 from gwr_predictor.pipeline.video_files import default_suffix
 from gwr_predictor.predictors.registry import make_predictor
 
@@ -206,8 +207,8 @@ def alias_bomb(path: Path, levels: int = 9, width: int = 9) -> Path:
 def test_a_yaml_alias_bomb_is_refused_before_it_expands(tmp_path):
     bomb = alias_bomb(tmp_path / "bomb.yaml")
     assert bomb.stat().st_size < 1200
-    output = refusal("from gwr_predictor.pipeline.params_file import ParamsFileError, check_params_files",
-                     f"check_params_files(['node', '--ros-args', '--params-file', {str(bomb)!r}])", "ParamsFileError")
+    output = refusal("from gwr_predictor.pipeline.params_file import PipelineError, check_params_files",
+                     f"check_params_files(['node', '--ros-args', '--params-file', {str(bomb)!r}])", "PipelineError")
     assert "alias '*l0'" in output, output
     code, output = command("pretrain", "--params-file", bomb, "-o", tmp_path / "model.npz", "--quiet")
     one_line_error(code, output, "bomb.yaml", "alias")
@@ -237,7 +238,7 @@ def test_pretrain_checks_its_params_file_as_the_nodes_do(tmp_path, kind):
     code, output = command("pretrain", "--params-file", params, "-o", tmp_path / "model.npz", "--quiet",
                            timeout=20)
     one_line_error(code, output, str(params), needle)
-    with pytest.raises(ParamsFileError, match=needle):
+    with pytest.raises(PipelineError, match=needle):
         check_params_files(["node", "--ros-args", "--params-file", str(params)])
 
 

@@ -17,7 +17,7 @@ from gwr_predictor.evaluation.online import compare_online
 from gwr_predictor.learning.checkpoint import read_checkpoint, write_checkpoint
 from gwr_predictor.learning.protocol import Spreading
 from gwr_predictor.pipeline import conventions
-from gwr_predictor.pipeline.conventions import LayoutError
+from gwr_predictor.pipeline.errors import PipelineError
 from gwr_predictor.predictors.baselines import HoldLast
 from gwr_predictor.predictors.registry import DEFAULT_PREDICTOR, load_predictor, make_predictor
 from gwr_predictor.robot.compensator import CompensatorParams, DelayCompensator
@@ -212,9 +212,9 @@ def test_the_interval_travels_with_its_share_and_bad_layouts_are_refused():
            replace(packed, dims=packed.dims[1:]),
            replace(packed, data=packed.data[:-1])]
     for b in bad:
-        with pytest.raises(LayoutError):
+        with pytest.raises(PipelineError):
             conventions.unpack_interval(b)
-    with pytest.raises(LayoutError, match="share"):
+    with pytest.raises(PipelineError, match="share"):
         conventions.pack_interval(0.0, lower, upper, 1.0)
 
 

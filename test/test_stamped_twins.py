@@ -17,6 +17,7 @@ from gwr_predictor.nodes.skeleton_source import PARAMS as SOURCE_PARAMS
 from gwr_predictor.nodes.standard_messages import JointTrajectory, PoseArray
 from gwr_predictor.pipeline import bag_reader, conventions
 from gwr_predictor.pipeline.conventions import SKELETON_JOINTS
+from gwr_predictor.pipeline.errors import PipelineError
 from gwr_predictor.pipeline.markers import SKELETON_FRAME
 from gwr_predictor.robot.nao import ARM_JOINTS
 
@@ -51,7 +52,7 @@ def test_pose_array_round_trip_keeps_nan_for_untracked_joints_and_refuses_oversi
     assert stamp == 12.25 and frame_id == "kinect"
     np.testing.assert_array_equal(back, positions)  # NaN where NaN (assert_array_equal treats NaN as equal)
     msg.poses = msg.poses * (conventions.MAX_JOINTS // 15 + 1)
-    with pytest.raises(conventions.LayoutError) as too_large:
+    with pytest.raises(PipelineError) as too_large:
         standard_messages.read_pose_array(msg)
     assert too_large.value.reason == "too_large"
 

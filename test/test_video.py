@@ -8,14 +8,8 @@ from PIL import Image
 from gwr_predictor.commands.cli import main
 from gwr_predictor.data.demonstrator import default_subjects, demonstrate_one
 from gwr_predictor.pipeline import bag_messages, bag_writer, conventions
-from gwr_predictor.pipeline.video import (
-    PERSON_ARM_RGB,
-    PERSON_RGB,
-    FrameRenderer,
-    VideoError,
-    parse_span,
-    read_video_run,
-)
+from gwr_predictor.pipeline.errors import PipelineError
+from gwr_predictor.pipeline.video import PERSON_ARM_RGB, PERSON_RGB, FrameRenderer, parse_span, read_video_run
 from gwr_predictor.robot.errors import RobotError
 from gwr_predictor.robot.nao import ARM_JOINTS
 from gwr_predictor.robot.pybullet_nao import NaoSimulator
@@ -152,7 +146,7 @@ def test_the_captions_follow_the_lag(tmp_path):
 
 def test_a_bag_without_robot_topics_is_a_clear_error(tmp_path, capsys):
     bag = write_bag(tmp_path / "bag", robots={}, modes={})
-    with pytest.raises(VideoError, match=r"bag: no robot in the bag \(no <namespace>/joint_states.*arm_angles"):
+    with pytest.raises(PipelineError, match=r"bag: no robot in the bag \(no <namespace>/joint_states.*arm_angles"):
         read_video_run(bag)
     assert main(["render", str(bag), "-o", str(tmp_path / "v.gif"), "--no-progress"]) == 1
     assert "no robot in the bag" in capsys.readouterr().err
@@ -165,7 +159,7 @@ def test_span_parsing():
     assert parse_span("10:30", 60.0) == (10.0, 30.0)
     assert parse_span(":-5", 60.0) == (0.0, 55.0)
     for bad in ("5", "a:b", "30:10", "70:80"):
-        with pytest.raises(VideoError, match="--seconds"):
+        with pytest.raises(PipelineError, match="--seconds"):
             parse_span(bad, 60.0)
 
 

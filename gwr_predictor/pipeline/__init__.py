@@ -14,7 +14,6 @@ _EXPORTS = {
     "unpack_skeleton": "conventions",
     "pack_predictions": "conventions",
     "unpack_predictions": "conventions",
-    "LayoutError": "conventions",
     "split_stamp": "conventions",
     "stamp_seconds": "conventions",
     "select_joints": "conventions",
@@ -36,13 +35,10 @@ _EXPORTS = {
     "read_run": "run_report",
     "plot_run": "run_report",
     "PipelineReport": "run_report",
-    "BagSummaryError": "run_report",
     "plot_angle_series": "plotting",
-    "PlotError": "plotting",
     "read_video_run": "video",
     "render_video": "video",
     "FrameRenderer": "video",
-    "VideoError": "video_files",
     "VideoWriter": "video_files",
 }
 __all__ = sorted(_EXPORTS)

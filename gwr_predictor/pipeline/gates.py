@@ -19,7 +19,8 @@ from typing import Any
 import numpy as np
 
 from gwr_predictor.pipeline import stamps
-from gwr_predictor.pipeline.conventions import SKELETON_JOINTS, LayoutError, select_joints
+from gwr_predictor.pipeline.conventions import SKELETON_JOINTS, select_joints
+from gwr_predictor.pipeline.errors import PipelineError
 from gwr_predictor.robot.nao import ARM_JOINTS, limits_array
 
 # --- counters and throttled warnings ---------------------------------------------------------------
@@ -94,7 +95,6 @@ def check_stamp(counters: RejectionCounter, check: stamps.StampCheck, input_name
     return False
 
 
-
 class ArmAnglesGate:
     """Checks one JointState input stream of the arm joints and returns (stamp, angles) or None.
 
@@ -135,9 +135,9 @@ class ArmAnglesGate:
         try:
             positions = np.asarray(positions, dtype=np.float64)
             if positions.size != len(names):
-                raise LayoutError(f"{len(names)} joint names but {positions.size} positions")
+                raise PipelineError(f"{len(names)} joint names but {positions.size} positions")
             angles = select_joints(names, positions, self._names)
-        except LayoutError as exc:
+        except PipelineError as exc:
             if exc.reason == "too_large":
                 self._reject("too_large", str(exc))
             else:
