@@ -32,7 +32,8 @@ from rclpy.event_handler import SubscriptionEventCallbacks
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 
 from gwr_predictor.parameters.spec import ParameterError, ParamSpec
-from gwr_predictor.pipeline import bag_messages, bag_qos, bag_writer, conventions
+from gwr_predictor.pipeline import bag_qos, bag_writer, conventions
+from gwr_predictor.pipeline.errors import PipelineError
 
 from . import messages, standard_messages
 from .exits import NodeFatalError
@@ -104,7 +105,7 @@ class BagRecorderNode(PipelineNode):
         self.failure: str | None = None
         try:
             self.writer.open()
-        except bag_messages.BagError as exc:
+        except PipelineError as exc:
             raise NodeFatalError(str(exc)) from None
         self.recorded: dict[str, Any] = {}  # topic -> its subscription
         self.matched: set[str] = set()
@@ -147,7 +148,7 @@ class BagRecorderNode(PipelineNode):
                     raise ValueError(f"published with {len(types)} types {types}")
                 messages.message_class(types[0])
                 self.writer.add_topic(topic, types[0])
-            except (ValueError, bag_messages.BagError) as exc:
+            except (ValueError, PipelineError) as exc:
                 self.not_recordable.add(topic)
                 self.counters.count("topics.not_recordable")
                 self.get_logger().warning(f"not recording {topic}: {exc}")
@@ -176,7 +177,7 @@ class BagRecorderNode(PipelineNode):
         try:
             self.write_held(stamp)
             self.writer.write_raw(topic, stamp, raw)
-        except bag_messages.BagError as exc:
+        except PipelineError as exc:
             self.stop_recording(exc)
 
     def drain_progress(self) -> int:
@@ -197,11 +198,11 @@ class BagRecorderNode(PipelineNode):
             if self.before_clock and self.get_clock().now().nanoseconds:
                 self.write_held(self.get_clock().now().nanoseconds)
             self.writer.flush()
-        except bag_messages.BagError as exc:
+        except PipelineError as exc:
             self.stop_recording(exc)
         self.on_disk = self.writer.total_written
 
-    def stop_recording(self, exc: bag_messages.BagError) -> None:
+    def stop_recording(self, exc: PipelineError) -> None:
         """A failed write or flush (full disk, I/O error): stop the node, exit code 1, never a
         bag reported as complete (the shutdown hook says it is not)."""
         self.failure = str(exc)
@@ -224,7 +225,7 @@ class BagRecorderNode(PipelineNode):
                                           "stamped 0 in the bag")
                 self.write_held(0)
             self.writer.close()
-        except bag_messages.BagError as exc:
+        except PipelineError as exc:
             raise NodeFatalError(str(exc)) from None
         total = self.writer.total_written
         self.get_logger().info(f"bag closed: {self.writer.path} ({total} messages)")

@@ -13,6 +13,7 @@ from gwr_predictor.data.skeleton_files import load_skeleton
 from gwr_predictor.files import limits
 from gwr_predictor.learning.checkpoint import CheckpointError, read_checkpoint
 from gwr_predictor.pipeline import bag_messages, bag_reader, bag_recovery, bag_writer
+from gwr_predictor.pipeline.errors import PipelineError
 from gwr_predictor.pipeline.message_latency import latency_report
 from gwr_predictor.pipeline.run_report import read_run
 from gwr_predictor.robot.nao import ARM_JOINTS
@@ -45,7 +46,7 @@ def angles_bag(path, n: int = 20, garbage_at: tuple[int, ...] = (), flush_every:
 
 def test_undecodable_messages_are_skipped_counted_and_reported(tmp_path, capsys):
     path = angles_bag(tmp_path / "bag", garbage_at=(3, 11))
-    with pytest.raises(bag_messages.BagError, match=r"cannot decode .*/arm_angles"):
+    with pytest.raises(PipelineError, match=r"cannot decode .*/arm_angles"):
         list(bag_reader.read_bag(path))  # strict by default
     skipped: dict[str, int] = {}
     assert len(list(bag_reader.read_bag(path, undecodable=skipped))) == 18
@@ -64,7 +65,7 @@ def test_a_metadata_yaml_that_lies_makes_latency_and_report_fail(tmp_path, capsy
     meta.write_text(text.replace("message_count: 20", "message_count: 25"))
     assert cli_main(["latency", str(path), "--out", str(tmp_path)]) == 1
     assert "metadata.yaml does not match" in capsys.readouterr().err
-    with pytest.raises(bag_messages.BagError, match="metadata 25, file 20"):
+    with pytest.raises(PipelineError, match="metadata 25, file 20"):
         read_run(path)
 
 
@@ -73,7 +74,7 @@ def test_a_truncated_mcap_with_metadata_is_recovered_and_its_metadata_rewritten(
     mcap = next(path.glob("*.mcap"))
     data = mcap.read_bytes()
     mcap.write_bytes(data[: len(data) * 2 // 3])  # a disk that filled up, a copy cut short
-    with pytest.raises(bag_messages.BagError):
+    with pytest.raises(PipelineError):
         list(bag_reader.read_bag(path))
     info = bag_recovery.recover_bag(path)
     assert 10 <= info.message_count < 40 and info.message_count % 10 == 0

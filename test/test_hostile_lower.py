@@ -270,7 +270,7 @@ def test_recover_bag_on_a_full_disk_is_one_bag_error_and_leaves_the_bag_as_it_wa
     bag = crashed_bag(tmp_path / "bag")
     before = sorted(p.name for p in bag.iterdir())
     monkeypatch.setattr(target, name, replacement)
-    with pytest.raises(bag_messages.BagError) as caught:
+    with pytest.raises(PipelineError) as caught:
         bag_recovery.recover_bag(bag)
     message = str(caught.value)
     assert "\n" not in message and message.startswith(str(bag)) and "No space left on device" in message
@@ -291,7 +291,7 @@ def test_recover_bag_that_cannot_move_the_result_into_place_says_where_it_is(tmp
         return real_rename(self, target)
 
     monkeypatch.setattr(Path, "rename", rename)
-    with pytest.raises(bag_messages.BagError) as caught:
+    with pytest.raises(PipelineError) as caught:
         bag_recovery.recover_bag(bag)
     message = str(caught.value)
     assert "\n" not in message and "No space left on device" in message

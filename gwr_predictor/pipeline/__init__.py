@@ -22,7 +22,6 @@ _EXPORTS = {
     "SkeletonReorder": "gates",
     "missing_frames": "gates",
     "BagWriter": "bag_writer",
-    "BagError": "bag_messages",
     "BagMessage": "bag_reader",
     "read_bag": "bag_reader",
     "bag_info": "bag_reader",

@@ -196,7 +196,7 @@ RESTART_GRACE_S = 0.5
 def read_series(bag: str | os.PathLike[str]
                 ) -> tuple[dict[str, TopicSeries], DiagnosticsHistory, float, dict[str, int]]:
     """({topic: TopicSeries}, every /diagnostics status per node, duration s, {topic: undecodable
-    messages skipped}) of a pipeline bag; BagError if metadata.yaml disagrees with the file."""
+    messages skipped}) of a pipeline bag; PipelineError if metadata.yaml disagrees with the file."""
     bag = Path(bag)
     info = bag_reader.bag_info(bag)
     rows: dict[str, tuple[list[float], list[float]]] = {}
@@ -430,7 +430,7 @@ def _fq(name: str) -> str:
 
 def latency_report(bag: str | os.PathLike[str], namespace: str | None = None) -> LatencyReport:
     """Read a pipeline bag and compute latencies and message counts of the pipeline in `namespace` (by
-    default the bag's only one). Raises bag_messages.BagError."""
+    default the bag's only one). Raises PipelineError."""
     series, diagnostics, duration, undecodable = read_series(bag)
     pipeline = namespaces.choose_pipeline(series, namespace, bag)
     report = LatencyReport(Path(bag), duration, compute_latencies(series, pipeline=pipeline),

@@ -173,7 +173,7 @@ def _counter(value: str) -> int | None:
 
 def read_run(bag: str | Path, namespace: str | None = None) -> RunData:
     """Read the topics a report needs from a pipeline bag: the pipeline in `namespace` (e.g. "/robot1"), by
-    default the bag's only one. Raises bag_messages.BagError / PipelineError."""
+    default the bag's only one. Raises PipelineError / PipelineError."""
     bag = Path(bag)
     info = bag_reader.bag_info(bag)
     pipeline = namespaces.choose_pipeline([t for t, (_, n) in info.topics.items() if n], namespace, bag)

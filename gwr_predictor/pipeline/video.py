@@ -133,7 +133,7 @@ def video_run(run: RunData, skeleton: tuple[np.ndarray, np.ndarray, tuple[str, .
 
 def read_video_run(bag: str | Path, namespace: str | None = None) -> VideoRun:
     """Read what a video needs from a pipeline bag (the pipeline in `namespace`, by default the bag's only
-    one). Raises bag_messages.BagError / PipelineError."""
+    one). Raises PipelineError / PipelineError."""
     bag = Path(bag)
     run = read_run(bag, namespace)
     return video_run(run, _read_skeleton(bag, run.namespace))
