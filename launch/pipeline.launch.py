@@ -155,7 +155,8 @@ def pipeline_nodes(context, *_args, **_kwargs) -> list:
     simulated, output, robot_remaps, tree = robot_output(arg, namespace)
     os.makedirs(out, exist_ok=True)
     if os.path.exists(os.path.join(out, "bag")):
-        raise RuntimeError(f"{out}/bag exists already: choose another out:=")
+        raise LaunchArgumentError(f"launch argument out:={arg['out']!r}: {out}/bag exists already; choose another "
+                                  "out:=")
     if arg["checkpoint"]:
         shutil.copyfile(arg["checkpoint"], os.path.join(out, "model.npz"))
 

@@ -61,7 +61,7 @@ def below(topic: str, namespaces: list[str]) -> bool:
 
 
 def topic_types(resolve: Callable[[str], str], names: list[str]) -> dict[str, str]:
-    """{resolved topic: type} for the `topics` parameter; ValueError naming a bad entry."""
+    """{resolved topic: type} for the `topics` parameter; PipelineError naming a bad entry."""
     resolved: dict[str, str] = {}
     for entry in names:
         name, _, msgtype = entry.partition("@")
@@ -69,11 +69,11 @@ def topic_types(resolve: Callable[[str], str], names: list[str]) -> dict[str, st
             last = name.rstrip("/").rsplit("/", 1)[-1]
             msgtype = conventions.TOPIC_TYPES.get(last, conventions.OPTIONAL_TOPIC_TYPES.get(last, ""))
         if not msgtype:
-            raise ValueError(f"topic {entry!r}: unknown type; give it as 'name@pkg/msg/Type'")
+            raise PipelineError(f"topic {entry!r}: unknown type; give it as 'name@pkg/msg/Type'")
         try:
             messages.message_class(msgtype)
-        except ValueError as exc:
-            raise ValueError(f"topic {entry!r}: {exc}") from None
+        except PipelineError as exc:
+            raise PipelineError(f"topic {entry!r}: {exc}") from None
         resolved[resolve(name)] = msgtype
     return resolved
 
@@ -96,7 +96,7 @@ class BagRecorderNode(PipelineNode):
         path = Path(p["path"] or time.strftime("recording_%Y%m%d_%H%M%S"))
         try:
             topics = topic_types(self.resolve_topic_name, p["topics"])
-        except ValueError as exc:
+        except PipelineError as exc:
             raise ParameterError(f"parameter 'topics': {exc}") from None
         if not topics:
             raise ParameterError("parameter 'topics' is empty: nothing to record")
@@ -145,10 +145,10 @@ class BagRecorderNode(PipelineNode):
                 continue
             try:
                 if len(types) != 1:
-                    raise ValueError(f"published with {len(types)} types {types}")
+                    raise PipelineError(f"published with {len(types)} types {types}")
                 messages.message_class(types[0])
                 self.writer.add_topic(topic, types[0])
-            except (ValueError, PipelineError) as exc:
+            except PipelineError as exc:
                 self.not_recordable.add(topic)
                 self.counters.count("topics.not_recordable")
                 self.get_logger().warning(f"not recording {topic}: {exc}")

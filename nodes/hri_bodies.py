@@ -23,6 +23,7 @@ from gwr_predictor.data.errors import DataError
 from gwr_predictor.data.smoothing import MedianOf3
 from gwr_predictor.parameters.spec import ParameterError, ParamSpec
 from gwr_predictor.pipeline import conventions
+from gwr_predictor.pipeline.errors import PipelineError
 from gwr_predictor.robot.nao import ARM_JOINTS
 
 from . import messages
@@ -86,7 +87,7 @@ class HriBodiesNode(PipelineNode):
         """hri_msgs/IdsList if installed (the one optional import of this node), else None."""
         try:
             return messages.message_class(hri_bodies.IDS_LIST_TYPE)
-        except ValueError:
+        except PipelineError:
             return None
 
     def discover(self) -> None:

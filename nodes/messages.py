@@ -155,8 +155,8 @@ def message_class(type_name: str) -> type:
     """'sensor_msgs/msg/JointState' -> the message class (for typed or raw publishers/subscriptions)."""
     package, _, name = type_name.partition("/msg/")
     if not package or not name:
-        raise ValueError(f"message type must look like 'pkg/msg/Type', got {type_name!r}")
+        raise PipelineError(f"message type must look like 'pkg/msg/Type', got {type_name!r}")
     try:
         return getattr(importlib.import_module(f"{package}.msg"), name)
     except (ImportError, AttributeError) as exc:
-        raise ValueError(f"unknown message type {type_name!r}: {exc}") from None
+        raise PipelineError(f"unknown message type {type_name!r}: {exc}") from None

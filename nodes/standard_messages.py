@@ -31,7 +31,7 @@ __all__ = ["JointTrajectory", "Marker", "MarkerArray", "PoseArray", "String"]
 def to_duration(seconds: float) -> Duration:
     """Seconds (finite, >= 0) -> builtin_interfaces/Duration."""
     if not math.isfinite(seconds) or seconds < 0.0:
-        raise ValueError(f"duration must be finite and >= 0, got {seconds}")
+        raise PipelineError(f"duration must be finite and >= 0, got {seconds}")
     stamp = to_time(seconds)
     return Duration(sec=stamp.sec, nanosec=stamp.nanosec)
 
@@ -134,7 +134,7 @@ def read_pose_array(msg: PoseArray) -> tuple[float, str, np.ndarray]:
 def joint_trajectory(stamp: float, names: Sequence[str], trajectory: Trajectory) -> JointTrajectory:
     """A library trajectory -> trajectory_msgs/JointTrajectory (positions only; stamp 0 = start on arrival)."""
     if trajectory.positions.shape[1] != len(names):
-        raise ValueError(f"{len(names)} joint names but trajectory points of {trajectory.positions.shape[1]}")
+        raise PipelineError(f"{len(names)} joint names but trajectory points of {trajectory.positions.shape[1]}")
     msg = JointTrajectory()
     msg.header.stamp = to_time(stamp)
     msg.joint_names = list(names)
@@ -144,11 +144,11 @@ def joint_trajectory(stamp: float, names: Sequence[str], trajectory: Trajectory)
 
 
 def read_joint_trajectory(msg: JointTrajectory) -> tuple[float, tuple[str, ...], Trajectory]:
-    """JointTrajectory -> (stamp s, names, Trajectory); points whose size differs raise ValueError."""
+    """JointTrajectory -> (stamp s, names, Trajectory); points whose size differs raise PipelineError."""
     names = tuple(msg.joint_names)
     rows = [np.asarray(p.positions, dtype=np.float64) for p in msg.points]
     if any(r.size != len(names) for r in rows):
-        raise ValueError(f"trajectory points must have {len(names)} positions")
+        raise PipelineError(f"trajectory points must have {len(names)} positions")
     times = np.array([from_duration(p.time_from_start) for p in msg.points])
     positions = np.stack(rows) if rows else np.zeros((0, len(names)))
     return from_time(msg.header.stamp), names, Trajectory(times, positions)

@@ -23,7 +23,6 @@ from tqdm import tqdm
 
 from gwr_predictor.data.datasets import demo_angle_sequences
 from gwr_predictor.data.demonstrator import PATTERNS
-from gwr_predictor.data.errors import DataError
 from gwr_predictor.default_predictor.gate import inner_model
 from gwr_predictor.learning.checkpoint import check_checkpoint_place
 from gwr_predictor.learning.protocol import Learner
@@ -75,7 +74,7 @@ def run(args: argparse.Namespace) -> int:
         flat = node_parameters(args.params_file) if args.params_file else {}
         seed = args.seed if args.seed is not None else int(flat.get("seed", 0))
         seqs = demo_angle_sequences(args.patterns or None, args.subjects, args.repetitions, args.data_seed)
-    except (ValueError, DataError) as exc:
+    except ValueError as exc:  # the place (LearningError), the params file (PipelineError), the data (DataError)
         print(f"error: {exc}", file=sys.stderr)
         return 2
     if args.epochs < 1:
