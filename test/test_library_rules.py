@@ -127,6 +127,15 @@ def test_arm_angles_gate_rejects_huge_and_non_finite_angles_without_numeric_warn
     assert counters.get("rejected.arm_angles.non_finite") == 1
 
 
+def test_arm_angles_gate_counts_each_layout_fault_under_its_reason():
+    counters = RejectionCounter(_Log())
+    gate = ArmAnglesGate(counters, "arm_angles", check_stamps=False)
+    assert gate.accept(1.0, ARM_JOINTS[:-1], np.zeros(7)) is None
+    assert gate.accept(1.0, ARM_JOINTS + ARM_JOINTS[:1], np.zeros(9)) is None
+    assert gate.accept(1.0, ARM_JOINTS, np.zeros(7)) is None
+    assert counters.snapshot() == {"rejected.arm_angles.missing_joints": 1, "rejected.arm_angles.layout": 2}
+
+
 def test_arm_angles_gate_without_a_limit_rule_passes_commands_on_unclipped():
     """nao_sim's commands: the robot's input clips them (once), so the gate neither rejects nor clips."""
     counters = RejectionCounter(_Log())

@@ -72,10 +72,12 @@ def test_joint_state_round_trip_and_selection_in_any_order():
 
 
 def test_joint_selection_names_missing_and_duplicated_joints():
-    with pytest.raises(PipelineError, match="missing joints \\['RElbowRoll'\\]"):
+    with pytest.raises(PipelineError, match="missing joints \\['RElbowRoll'\\]") as missing:
         messages.select_joints(ARM_JOINTS[:-1], np.zeros(7), ARM_JOINTS)
-    with pytest.raises(PipelineError, match="appears twice"):
+    assert missing.value.reason == "missing_joints"  # what the rejection counters read, not the message
+    with pytest.raises(PipelineError, match="appears twice") as twice:
         messages.select_joints(ARM_JOINTS + ARM_JOINTS[:1], np.zeros(9), ARM_JOINTS)
+    assert twice.value.reason == ""
 
 
 def test_joint_state_with_fewer_positions_than_names_is_refused():

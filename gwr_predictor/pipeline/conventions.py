@@ -301,12 +301,12 @@ def stamp_seconds(stamp: object) -> float:
 def select_joints(names: Sequence[str], positions: np.ndarray, wanted: Sequence[str]) -> np.ndarray:
     """Positions of `wanted` in that order, from a message with `names` in any order.
 
-    Raises PipelineError naming the missing joints or a duplicated name; extra joints are ignored
-    (a full-body JointState carries more than the arms).
+    Raises PipelineError naming the missing joints (reason `missing_joints`) or a duplicated name; extra
+    joints are ignored (a full-body JointState carries more than the arms).
     """
     check_joint_names(names)
     index = {name: i for i, name in enumerate(names)}
     missing = [n for n in wanted if n not in index]
     if missing:
-        raise PipelineError(f"missing joints {missing}")
+        raise PipelineError(f"missing joints {missing}", reason="missing_joints")
     return np.asarray([positions[index[n]] for n in wanted], dtype=np.float64)

@@ -12,9 +12,10 @@ class PipelineError(GwrPredictorError, ValueError, RuntimeError):
     RuntimeError (what bags and videos raised before the package had its own classes), so callers that
     catch either keep working.
 
-    `reason`: `too_large` for a message over a declared bound (`conventions.MAX_*`), refused before
-    anything is sized by it and counted as `<input>.too_large` rather than `<input>.layout`; empty
-    otherwise.
+    `reason`, for the rejection counters: `too_large` for a message over a declared bound
+    (`conventions.MAX_*`), refused before anything is sized by it and counted as `<input>.too_large`
+    rather than `<input>.layout`; `missing_joints` for a message without a joint the reader needs
+    (`<input>.missing_joints`); empty otherwise.
     """
 
     def __init__(self, message: str, reason: str = "") -> None:

@@ -138,10 +138,7 @@ class ArmAnglesGate:
                 raise PipelineError(f"{len(names)} joint names but {positions.size} positions")
             angles = select_joints(names, positions, self._names)
         except PipelineError as exc:
-            if exc.reason == "too_large":
-                self._reject("too_large", str(exc))
-            else:
-                self._reject("missing_joints" if "missing joints" in str(exc) else "layout", str(exc))
+            self._reject(exc.reason if exc.reason in ("too_large", "missing_joints") else "layout", str(exc))
             return None
         if not np.all(np.isfinite(angles)):
             self._reject("non_finite", f"non-finite angles {np.array2string(angles, precision=3, separator=', ')}")
