@@ -25,7 +25,7 @@ from gwr_predictor.parameters.spec import ParamSpec
 from gwr_predictor.pipeline import conventions
 from gwr_predictor.pipeline.conventions import SKELETON_JOINTS
 from gwr_predictor.pipeline.errors import PipelineError
-from gwr_predictor.pipeline.gates import SkeletonReorder
+from gwr_predictor.pipeline.input_rules import SkeletonReorder
 from gwr_predictor.pipeline.markers import SKELETON_FRAME, skeleton_figure
 from gwr_predictor.robot.nao import ARM_JOINTS
 

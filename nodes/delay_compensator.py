@@ -40,7 +40,7 @@ from gwr_predictor.parameters.spec import ParameterError, ParamSpec
 from gwr_predictor.pipeline import conventions
 from gwr_predictor.pipeline.clock_jumps import CLOCK_JUMP_SPEC, ClockJumpWatch, CommandStamps
 from gwr_predictor.pipeline.errors import PipelineError
-from gwr_predictor.pipeline.gates import absurd_predictions
+from gwr_predictor.pipeline.input_rules import absurd_predictions
 from gwr_predictor.pipeline.trajectory import command_trajectory
 from gwr_predictor.robot import compensator, naoqi_output
 from gwr_predictor.robot.errors import RobotError
@@ -82,8 +82,8 @@ class DelayCompensatorNode(PipelineNode):
         super().__init__(self.NODE_NAME, PARAMS)
         p = self.params
         self.compensator = self.make_compensator(p["mode"], p["delay_s"])
-        self.observations = self.arm_gate("arm_angles")
-        self.robot_states = self.arm_gate("joint_states", check_stamps=False)
+        self.observations = self.arm_check("arm_angles")
+        self.robot_states = self.arm_check("joint_states", check_stamps=False)
         self.observation: np.ndarray | None = None
         self.predictions: np.ndarray | None = None
         self.pred_stamp: float | None = None
@@ -165,7 +165,7 @@ class DelayCompensatorNode(PipelineNode):
             "clock_jumps.back", f"node clock jumped back by {-jump:.3f} s to {now:.3f} s (a looping replay?): "
             "command stamps, predictions and stamp rules start over on the new time line")
         self.compensator = self.make_compensator(self.params["mode"], self.params["delay_s"])
-        self.observations = self.arm_gate("arm_angles")
+        self.observations = self.arm_check("arm_angles")
         self.predictions, self.pred_stamp, self.interval = None, None, None
         self.pred_stamps.reset()
         self.robot_state, self.robot_state_time = None, -np.inf

@@ -56,7 +56,7 @@ from gwr_predictor.learning.protocol import Spreading
 from gwr_predictor.learning.saver import CheckpointSaver
 from gwr_predictor.parameters.spec import ParameterError, ParamSpec
 from gwr_predictor.pipeline import conventions
-from gwr_predictor.pipeline.gates import missing_frames
+from gwr_predictor.pipeline.input_rules import missing_frames
 from gwr_predictor.pipeline.markers import ROBOT_FRAME, arm_figure
 from gwr_predictor.pipeline.trajectory import prediction_trajectory
 from gwr_predictor.predictors import registry
@@ -116,7 +116,7 @@ class GwrHierarchyNode(PipelineNode):
             raise
         self.gwr = inner_model(self.model)  # the GWR learner (behind the gate, if any)
         self.horizon = self.model.horizon
-        self.gate = self.arm_gate("arm_angles")
+        self.angles = self.arm_check("arm_angles")
         self.step_times: list[float] = []
         self.step_max = 0.0
         self.pred_pub = self.create_publisher(messages.Float64MultiArray, conventions.TOPIC_PREDICTIONS, stream_qos())
@@ -218,8 +218,8 @@ class GwrHierarchyNode(PipelineNode):
 
     def on_angles(self, msg: messages.JointState) -> None:
         """One frame: bridge a short gap with missing samples or end the sequence, learn, predict, publish."""
-        last = self.gate.last_stamp
-        accepted = self.gate.accept(*messages.joint_state_fields(msg))
+        last = self.angles.last_stamp
+        accepted = self.angles.accept(*messages.joint_state_fields(msg))
         if accepted is None:
             return
         stamp, angles = accepted

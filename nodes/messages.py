@@ -106,7 +106,7 @@ def joint_state(stamp: float, names: Sequence[str], positions: np.ndarray, frame
 
 
 def joint_state_fields(msg: JointState) -> tuple[float, tuple[str, ...], np.ndarray]:
-    """JointState -> (stamp s, names, positions), unchecked (an input gate checks them)."""
+    """JointState -> (stamp s, names, positions), unchecked (an input check checks them: `pipeline.input_rules`)."""
     return from_time(msg.header.stamp), tuple(msg.name), np.asarray(msg.position, dtype=np.float64)
 
 

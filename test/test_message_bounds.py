@@ -9,7 +9,7 @@ import pytest
 from gwr_predictor.learning.params import MAX_HORIZON, HierarchyParams
 from gwr_predictor.pipeline import conventions
 from gwr_predictor.pipeline.errors import PipelineError
-from gwr_predictor.pipeline.gates import ArmAnglesGate, RejectionCounter
+from gwr_predictor.pipeline.input_rules import ArmAnglesCheck, RejectionCounter
 from gwr_predictor.predictors.registry import make_predictor
 from gwr_predictor.robot.compensator import DelayCompensator
 from gwr_predictor.robot.nao import ARM_JOINTS
@@ -76,21 +76,21 @@ def test_joint_names_are_bounded_and_unique_in_every_layout():
 
 def test_a_joint_state_with_too_many_names_is_counted_as_too_large():
     counters = RejectionCounter(_Quiet())
-    gate = ArmAnglesGate(counters, "arm_angles", check_stamps=False)
+    check = ArmAnglesCheck(counters, "arm_angles", check_stamps=False)
     names = [*ARM_JOINTS, *(f"extra{i}" for i in range(conventions.MAX_JOINTS))]
-    assert gate.accept(1.0, names, np.concatenate([POSE, np.zeros(conventions.MAX_JOINTS)])) is None
+    assert check.accept(1.0, names, np.concatenate([POSE, np.zeros(conventions.MAX_JOINTS)])) is None
     assert counters.snapshot() == {"rejected.arm_angles.too_large": 1}
-    assert gate.accept(1.1, list(ARM_JOINTS), POSE) is not None
+    assert check.accept(1.1, list(ARM_JOINTS), POSE) is not None
 
 
-def test_the_gate_counts_too_large_layout_and_missing_joints_apart():
+def test_the_input_check_counts_too_large_layout_and_missing_joints_apart():
     counters = RejectionCounter(_Quiet())
-    gate = ArmAnglesGate(counters, "arm_angles", check_stamps=False)
-    assert gate.accept(1.0, [*ARM_JOINTS, *(f"x{i}" for i in range(conventions.MAX_JOINTS))],
+    check = ArmAnglesCheck(counters, "arm_angles", check_stamps=False)
+    assert check.accept(1.0, [*ARM_JOINTS, *(f"x{i}" for i in range(conventions.MAX_JOINTS))],
                        np.zeros(8 + conventions.MAX_JOINTS)) is None
-    assert gate.accept(1.1, [*ARM_JOINTS, "LShoulderPitch"], np.zeros(9)) is None  # a name twice
-    assert gate.accept(1.2, list(ARM_JOINTS), np.zeros(7)) is None  # 8 names, 7 positions
-    assert gate.accept(1.3, list(ARM_JOINTS[:7]), np.zeros(7)) is None
+    assert check.accept(1.1, [*ARM_JOINTS, "LShoulderPitch"], np.zeros(9)) is None  # a name twice
+    assert check.accept(1.2, list(ARM_JOINTS), np.zeros(7)) is None  # 8 names, 7 positions
+    assert check.accept(1.3, list(ARM_JOINTS[:7]), np.zeros(7)) is None
     assert counters.snapshot() == {"rejected.arm_angles.too_large": 1, "rejected.arm_angles.layout": 2,
                                    "rejected.arm_angles.missing_joints": 1}
 

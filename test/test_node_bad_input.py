@@ -186,12 +186,12 @@ class FakeLogger:
 
 
 def test_rejections_are_counted_per_reason_and_warned_at_most_once_per_period(monkeypatch):
-    from gwr_predictor.pipeline import gates
+    from gwr_predictor.pipeline import input_rules
 
     clock = [100.0]
-    monkeypatch.setattr(gates.time, "monotonic", lambda: clock[0])
+    monkeypatch.setattr(input_rules.time, "monotonic", lambda: clock[0])
     log = FakeLogger()
-    counter = gates.RejectionCounter(log, throttle_s=5.0)
+    counter = input_rules.RejectionCounter(log, throttle_s=5.0)
     for _ in range(4):
         counter.reject("skeleton.layout", "bad dims")
     counter.reject("skeleton.stamp", "went back")

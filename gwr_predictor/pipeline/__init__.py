@@ -1,4 +1,4 @@
-"""What the ROS pipeline shares without ROS: message conventions, input gates, bags, run reports, latency, plots,
+"""What the ROS pipeline shares without ROS: message conventions, input rules, bags, run reports, latency, plots,
 videos. Its one error class is `PipelineError` (`errors.py`; `reason` tells a too-large message apart).
 
 Bags, one module per job: `bag_messages` (the type store, message objects, CDR), `bag_qos` (offered and
@@ -17,10 +17,10 @@ _EXPORTS = {
     "split_stamp": "conventions",
     "stamp_seconds": "conventions",
     "select_joints": "conventions",
-    "ArmAnglesGate": "gates",
-    "RejectionCounter": "gates",
-    "SkeletonReorder": "gates",
-    "missing_frames": "gates",
+    "ArmAnglesCheck": "input_rules",
+    "RejectionCounter": "input_rules",
+    "SkeletonReorder": "input_rules",
+    "missing_frames": "input_rules",
     "BagWriter": "bag_writer",
     "BagMessage": "bag_reader",
     "read_bag": "bag_reader",

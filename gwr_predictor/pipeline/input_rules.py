@@ -4,7 +4,7 @@
   once per `throttle_s` per reason, so a flood of bad input cannot flood the log.
 - `missing_frames`: the gap rule, how many frames a stamp gap stands for (or a new sequence);
 - `SkeletonReorder`: skeleton joints in any order -> `SKELETON_JOINTS` order;
-- `ArmAnglesGate`: checks one stream of arm joint angles (layout, missing joints, non-finite values,
+- `ArmAnglesCheck`: checks one stream of arm joint angles (layout, missing joints, non-finite values,
   stamps, joint limits) and counts every rejection under its reason.
 Nodes convert the message (`gwr_predictor.nodes.messages.joint_state_fields`) and pass the fields.
 """
@@ -74,7 +74,7 @@ class RejectionCounter:
         return dict(sorted(self._counts.items()))
 
 
-# --- input gates ---------------------------------------------------------------------------------
+# --- input checks --------------------------------------------------------------------------------
 
 
 def check_stamp(counters: RejectionCounter, check: stamps.StampCheck, input_name: str, stamp: float,
@@ -95,7 +95,7 @@ def check_stamp(counters: RejectionCounter, check: stamps.StampCheck, input_name
     return False
 
 
-class ArmAnglesGate:
+class ArmAnglesCheck:
     """Checks one JointState input stream of the arm joints and returns (stamp, angles) or None.
 
     Rules, each counted as `rejected.<input>.<reason>` (with a throttled warning):
@@ -109,7 +109,7 @@ class ArmAnglesGate:
     - angles beyond the joint limits by more than `limit_margin` rad: `out_of_limits`; closer
       ones are clipped to the limits and counted as `<input>.clipped` (a repair, not a rejection).
       This is the clip of observed angles (arm_angles, joint_states). With `limit_margin=None`
-      the gate applies no limit rule and returns the angles unclipped: nao_sim's robot commands,
+      the check applies no limit rule and returns the angles unclipped: nao_sim's robot commands,
       which the robot's input (`SimulatedRobot.command`) clips, once, whatever their source; they
       are the predictor's poses, which may overshoot a limit by any amount and must reach the
       robot as the offline closed loop's do.
