@@ -12,7 +12,7 @@ from gwr_predictor.predictors.registry import learner_names
 
 ROOT = Path(__file__).resolve().parents[1]
 DOC = ROOT / "docs" / "pipeline.md"
-NODES = ["skeleton_source", "angle_extractor", "gwr_hierarchy", "delay_compensator", "nao_sim", "bag_recorder",
+NODES = ["skeleton_source", "angle_extractor", "arm_predictor", "delay_compensator", "nao_sim", "bag_recorder",
          "bag_player", "hri_bodies"]
 
 
@@ -38,10 +38,10 @@ def test_the_documented_parameters_are_the_declared_ones(node):
 @pytest.mark.parametrize("predictor", learner_names())
 def test_each_product_predictors_settings_are_documented(predictor):
     """The learner declares the chosen predictor's own settings: one table per product predictor."""
-    from gwr_predictor.nodes.gwr_hierarchy import predictor_specs
+    from gwr_predictor.nodes.arm_predictor import predictor_specs
 
     expected = markdown_table(predictor_specs(predictor))
-    heading = f"gwr_hierarchy: predictor {predictor}"
+    heading = f"arm_predictor: predictor {predictor}"
     assert documented_table(heading) == expected, f"replace the table under '#### {heading}' with:\n{expected}"
 
 

@@ -45,12 +45,12 @@ POISON = 1e6  # seconds ahead of now
 @pytest.fixture(scope="module")
 def nodes():
     from gwr_predictor.nodes.angle_extractor import AngleExtractorNode
+    from gwr_predictor.nodes.arm_predictor import ArmPredictorNode
     from gwr_predictor.nodes.delay_compensator import DelayCompensatorNode
-    from gwr_predictor.nodes.gwr_hierarchy import GwrHierarchyNode
     from gwr_predictor.nodes.nao_sim import NaoSimNode
 
     with in_process(["-p", "nao_sim:backend:=kinematic", "-p", "stop_if_duplicate:=false"],
-                    extractor=AngleExtractorNode, learner=GwrHierarchyNode, compensator=DelayCompensatorNode,
+                    extractor=AngleExtractorNode, learner=ArmPredictorNode, compensator=DelayCompensatorNode,
                     robot=NaoSimNode) as built:
         sent: list = []
         built["compensator"].command_pub.publish = sent.append  # capture the commands
@@ -135,7 +135,7 @@ def test_angle_extractor_survives_any_skeletons_and_is_not_silenced(nodes, msgs)
 @given(st.lists(joint_states(), max_size=8))
 @example([genuine_joint_state(time.time() + POISON)])
 @example([JointState()])
-def test_gwr_hierarchy_survives_any_angles_and_keeps_learning(nodes, msgs):
+def test_arm_predictor_survives_any_angles_and_keeps_learning(nodes, msgs):
     node = nodes["learner"]
     before = total_inputs(node, "arm_angles", "frames.learned")
     for msg in msgs:

@@ -96,8 +96,8 @@ def restart_bag(path, concurrent: bool):
             rows.append((t, "/arm_angles", bag_messages.joint_state_msg(ARM_JOINTS, np.zeros(8), t)))
         rows.append((11.4 + base, "/diagnostics",
                      diagnostics_msg(0, "/angle_extractor", {"angles.published": 10}, inst)))
-    rows.append((9.0, "/diagnostics", diagnostics_msg(0, "/gwr_hierarchy", {"frames.learned": 0}, "L")))
-    rows.append((20.0, "/diagnostics", diagnostics_msg(0, "/gwr_hierarchy", {"frames.learned": 20}, "L")))
+    rows.append((9.0, "/diagnostics", diagnostics_msg(0, "/arm_predictor", {"frames.learned": 0}, "L")))
+    rows.append((20.0, "/diagnostics", diagnostics_msg(0, "/arm_predictor", {"frames.learned": 20}, "L")))
     with bag_writer.BagWriter(path, {"/arm_angles": bag_messages.JOINT_STATE, "/diagnostics": DIAGNOSTICS}) as writer:
         for t, topic, msg in sorted(rows, key=lambda r: r[0]):
             writer.write(topic, round(t * 1e9), msg)
@@ -106,7 +106,7 @@ def restart_bag(path, concurrent: bool):
 
 def test_a_restarted_node_counts_with_every_instance_and_loses_nothing(tmp_path):
     report = latency_report(restart_bag(tmp_path / "bag", concurrent=False))
-    hop = next(c for c in report.counts if c.topic == "/arm_angles" and c.consumer == "gwr_hierarchy")
+    hop = next(c for c in report.counts if c.topic == "/arm_angles" and c.consumer == "arm_predictor")
     assert (hop.published, hop.recorded, hop.consumed, hop.instances) == (20, 20, 20, 2)
     assert (hop.lost_recorder, hop.lost_consumer) == (0, 0)
     assert report.total_lost == 0
@@ -115,7 +115,7 @@ def test_a_restarted_node_counts_with_every_instance_and_loses_nothing(tmp_path)
 
 def test_two_instances_at_once_are_named_and_no_consumer_loss_is_invented(tmp_path):
     report = latency_report(restart_bag(tmp_path / "bag", concurrent=True))
-    hop = next(c for c in report.counts if c.topic == "/arm_angles" and c.consumer == "gwr_hierarchy")
+    hop = next(c for c in report.counts if c.topic == "/arm_angles" and c.consumer == "arm_predictor")
     assert hop.concurrent and hop.lost_consumer is None
     assert hop.published == 20 and hop.lost_recorder == 0
     assert any("two instances of a node ran at once" in line for line in report.summary_lines())

@@ -81,7 +81,7 @@ def run_bag(path: Path, wrong: tuple[str, ...] = (), diag_values: dict[str, str]
             put(writer, f"{ns}/diagnostics", T0 + 1,
                 lambda ns=ns, v=values: diagnostics(T0 + 1, f"{ns}/delay_compensator", v))
         put(writer, "/learner_status", T0 + 1,
-            lambda: diagnostics(T0 + 1, "gwr_hierarchy", {conventions.NEURON_KEYS["gwr1"]: "12"}))
+            lambda: diagnostics(T0 + 1, "arm_predictor", {conventions.NEURON_KEYS["gwr1"]: "12"}))
     return path
 
 

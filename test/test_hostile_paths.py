@@ -130,7 +130,7 @@ def test_the_learner_counts_a_memory_error_in_a_frame_goes_on_and_keeps_what_it_
     from ros_harness import allocate_domain_id, release_domain_id
 
     from gwr_predictor.default_predictor.gate import inner_model
-    from gwr_predictor.nodes.gwr_hierarchy import GwrHierarchyNode
+    from gwr_predictor.nodes.arm_predictor import ArmPredictorNode
     from gwr_predictor.predictors.registry import load_predictor
 
     checkpoint = tmp_path / "model.npz"
@@ -138,7 +138,7 @@ def test_the_learner_counts_a_memory_error_in_a_frame_goes_on_and_keeps_what_it_
     rclpy.init(args=["--ros-args", "-p", f"checkpoint:={checkpoint}", "-p", "predictor:=hierarchy"],
                domain_id=domain)
     try:
-        node = GwrHierarchyNode()
+        node = ArmPredictorNode()
         now = time.time() - 10.0
         rng = np.random.default_rng(0)
         pose = np.array([1.2, 0.2, -1.0, -0.5, 1.2, -0.2, 1.0, 0.5])
@@ -198,7 +198,7 @@ def alias_bomb(path: Path, levels: int = 9, width: int = 9) -> Path:
     def mapping(value: str) -> str:
         return "{" + ", ".join(f"k{i}: {value}" for i in range(width)) + "}"
 
-    lines = ["gwr_hierarchy:", "  ros__parameters:", f"    l0: &l0 {mapping('lol')}"]
+    lines = ["arm_predictor:", "  ros__parameters:", f"    l0: &l0 {mapping('lol')}"]
     lines += [f"    l{k}: &l{k} {mapping(f'*l{k - 1}')}" for k in range(1, levels)]
     path.write_text("\n".join(lines) + "\n")
     return path
@@ -217,7 +217,7 @@ def test_a_yaml_alias_bomb_is_refused_before_it_expands(tmp_path):
 
 
 @pytest.mark.ros
-@pytest.mark.parametrize("node", ["gwr_hierarchy", "hri_bodies"])
+@pytest.mark.parametrize("node", ["arm_predictor", "hri_bodies"])
 def test_nodes_refuse_a_yaml_alias_bomb_at_once(ros, tmp_path, node):
     bomb = alias_bomb(tmp_path / "bomb.yaml")
     start = time.monotonic()
@@ -235,7 +235,7 @@ def test_pretrain_checks_its_params_file_as_the_nodes_do(tmp_path, kind):
         params, needle = Path("/dev/zero"), "character device"
     else:
         params, needle = tmp_path / "params.yaml", "too large"
-        params.write_text("gwr_hierarchy:\n  ros__parameters:\n    seed: 1\n" + "# padding\n" * 150_000)
+        params.write_text("arm_predictor:\n  ros__parameters:\n    seed: 1\n" + "# padding\n" * 150_000)
     code, output = command("pretrain", "--params-file", params, "-o", tmp_path / "model.npz", "--quiet",
                            timeout=20)
     one_line_error(code, output, str(params), needle)

@@ -127,9 +127,9 @@ def test_predicted_trajectory_is_on_by_default_and_carries_every_prediction_at_i
     preds = probe.subscribe("/predictions", Float64MultiArray)
     trajectories = probe.subscribe("/predicted_trajectory", JointTrajectory)
     horizon, period = 4, 0.05
-    learner = ros.start("gwr_hierarchy", params={**FAST, "checkpoint_interval_s": 0.0, "horizon": horizon,
+    learner = ros.start("arm_predictor", params={**FAST, "checkpoint_interval_s": 0.0, "horizon": horizon,
                                                  "frame_period_s": period})
-    ros.wait_for_node(diagnostics, "/gwr_hierarchy", timeout=60)
+    ros.wait_for_node(diagnostics, "/arm_predictor", timeout=60)
     pub = probe.publisher("/arm_angles", JointState)
     probe.wait_for_subscribers(pub)
     n = 24

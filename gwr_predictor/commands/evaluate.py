@@ -58,7 +58,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
 
 
 def default_method() -> str:
-    """The predictor the gwr_hierarchy node runs by default (its key in evaluate's `mae_rad`)."""
+    """The predictor the arm_predictor node runs by default (its key in evaluate's `mae_rad`)."""
     return registry.default_name()
 
 

@@ -1,7 +1,7 @@
 """Every message convention of the pipeline in one place: topics, joint names, array layouts.
 
 Nodes and tests import from here, so that a rename happens once. The pipeline flows one way:
-skeleton -> angles -> hierarchy -> predictions -> compensator -> robot.
+skeleton -> angles -> predictor -> predictions -> compensator -> robot.
 
 "Custom arrays" are std_msgs/Float64MultiArray messages whose layout dims are labelled. A
 MultiArray has no header, so the stamp of the frame travels in the data itself: the layout's
@@ -270,6 +270,11 @@ QOS_DEPTH_STREAM = 50
 QOS_DEPTH_STATUS = 10
 #: The bag recorder's subscription queue (raw CDR): several seconds of every stream.
 QOS_DEPTH_RECORDER = 500
+#: The learner node (learns the person's arm movements and predicts them), and the name it had before: its
+#: deprecated executable `gwr_hierarchy` starts it under that name, so that params-file sections, parameter
+#: calls and recorded /diagnostics of that name still match (removed in the next release).
+LEARNER_NODE = "arm_predictor"
+DEPRECATED_LEARNER_NODE = "gwr_hierarchy"
 #: Key/value names in the learner status (DiagnosticArray on TOPIC_LEARNER_STATUS).
 LEARNER_STATUS_NAME = "learner"  # the status name is "<node>/learner"
 NEURON_KEYS = {"gwr1": "neurons.gwr1", "gwr2": "neurons.gwr2", "pgwr": "neurons.pgwr"}

@@ -74,6 +74,24 @@ def check_params_files(argv: Sequence[str]) -> list[Path]:
     return files
 
 
+def names_node(section: str, node: str) -> bool:
+    """Whether a params-file section key names a node called `node` (`node`, `/node`, `/**/node`,
+    `/ns/node`); wildcards for every node (`/**`) do not count."""
+    return section == node or section.endswith("/" + node)
+
+
+def sections_for_other_name(argv: Sequence[str], node: str, other: str) -> list[Path]:
+    """The params files of `argv` with a section for a node named `other` and none for `node`: rcl applies
+    none of that section to `node` and says nothing, e.g. a `gwr_hierarchy:` section read by the learner
+    under its new name."""
+    found = []
+    for path in params_files(argv):
+        keys = load_params_file(path)
+        if any(names_node(k, other) for k in keys) and not any(names_node(k, node) for k in keys):
+            found.append(path)
+    return found
+
+
 def unknown_parameters(given: Iterable[str], declared: Iterable[str]) -> list[str]:
     """One warning per given name that is no declared parameter, with the closest declared names."""
     known = sorted(set(declared))
