@@ -2,7 +2,7 @@
 
 Every experiment returns an `ExperimentOutput`; `write_output` turns it into
 `<out>/results.json` (machine-readable, NaN as null) and `<out>/results.md` (the human summary that
-docs/experiments.md quotes). Figures are saved by the experiment through `save_figure` so that
+research/experiments.md quotes). Figures are saved by the experiment through `save_figure` so that
 they stay small (PNG, modest dpi) and matplotlib never keeps figures open.
 """
 
