@@ -1,4 +1,4 @@
-"""`gwr-predictor evaluate FILE...`: online evaluation of recordings, hierarchy against baselines.
+"""`gwr-predictor evaluate FILE...`: online evaluation of recordings, the learners against the baselines.
 
 Files are skeleton recordings (NPZ/CSV, 30 fps: median of 3 -> 10 fps -> angles), mocap
 recordings (.bvh, .amc, .npy/.npz joint positions, .pt: mapped and resampled to the same 30 fps
@@ -49,9 +49,12 @@ def configure(parser: argparse.ArgumentParser) -> None:
                         help="frames every model predicts ahead and is scored at (default 6: 600 ms at 10 fps)")
     parser.add_argument("--methods", default=",".join(DEFAULT_METHODS),
                         help=f"comma-separated subset of {','.join(registry.names())}")
-    parser.add_argument("--checkpoint", type=Path, default=None, help="start the hierarchy from this checkpoint")
+    parser.add_argument("--checkpoint", type=Path, default=None,
+                        help="start the method 'hierarchy' (the paper's model) from this checkpoint of one; the "
+                             "other methods start fresh")
     parser.add_argument("--param", action="append", default=[], metavar="KEY=VALUE",
-                        help="hierarchy parameter override in flat form (repeatable)")
+                        help="a setting of the method 'hierarchy' (the paper's model), flat as in its params-file "
+                             "section (e.g. gwr1.eps_b=0.1); horizon and n_joints reach every method (repeatable)")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--no-progress", action="store_true")
     add_import_options(parser)
