@@ -11,8 +11,8 @@ Below it, one class per subpackage, in its `errors.py` (or its central module): 
 the nodes' `NodeFatalError`; and `parameters.spec.ParameterError` for a setting out of its range. A
 case a caller must tell apart is an attribute of the class, not a class of its own
 (`PipelineError.reason == "too_large"`, `LearningError.kind_mismatch`, `.locked`, `.source`). The
-classes keep the built-in bases callers caught before the package had its own (ValueError;
-RuntimeError too for bags, videos, the simulator and experiment outputs).
+classes also derive from the built-in class a caller of such a function would catch anyway (ValueError
+for bad values and files; RuntimeError too for bags, videos, the simulator and experiment outputs).
 """
 
 

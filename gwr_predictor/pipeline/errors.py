@@ -8,9 +8,9 @@ from gwr_predictor.errors import GwrPredictorError
 class PipelineError(GwrPredictorError, ValueError, RuntimeError):
     """What the ROS-free pipeline cannot do: a message whose layout breaks the conventions, a bag, params
     file or video that cannot be written or read, a run that cannot be summarised, plotted or rendered.
-    The message names the bag, file, topic or field and what is wrong. It is a ValueError and a
-    RuntimeError (what bags and videos raised before the package had its own classes), so callers that
-    catch either keep working.
+    The message names the bag, file, topic or field and what is wrong. It is also a ValueError and a
+    RuntimeError, what a caller that does not know the package's classes would catch (a bag or video
+    that cannot be written is a runtime failure, a bad layout a bad value).
 
     `reason`, for the rejection counters: `too_large` for a message over a declared bound
     (`conventions.MAX_*`), refused before anything is sized by it and counted as `<input>.too_large`
