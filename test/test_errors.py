@@ -48,7 +48,7 @@ def test_every_exception_class_of_the_package_derives_from_the_base():
 
 def _exception_classes_by_part() -> dict[str, set[type]]:
     """{subpackage (the nodes are one; "gwr_predictor" for the top-level modules): the exception classes its
-    modules define}; an alias (`BagError = PipelineError`) is the class it names, counted once."""
+    modules define}; an alias (`Other = PipelineError`) is the class it names, counted once."""
     parts: dict[str, set[type]] = {}
     for name in _package_modules():
         if name == "gwr_predictor":
