@@ -11,13 +11,15 @@ PACKAGE = "gwr_predictor"
 NODES = [
     "skeleton_source",
     "angle_extractor",
-    "gwr_hierarchy",
+    "arm_predictor",
     "delay_compensator",
     "nao_sim",
     "bag_recorder",
     "bag_player",
     "hri_bodies",
 ]
+#: Old executable names, kept for one release: name -> the function that starts the node (with a warning).
+DEPRECATED = {"gwr_hierarchy": "arm_predictor:main_gwr_hierarchy"}
 
 
 def tree_data_files(root: str, dest: str) -> list[tuple[str, list[str]]]:
@@ -54,6 +56,7 @@ setup(
     tests_require=["pytest"],
     entry_points={
         "console_scripts": [f"{name} = {PACKAGE}.nodes.{name}:main" for name in NODES]
+        + [f"{name} = {PACKAGE}.nodes.{target}" for name, target in DEPRECATED.items()]
         + [f"gwr-predictor = {PACKAGE}.commands.cli:main"],
     },
 )

@@ -1,4 +1,4 @@
-"""gwr_predictor: online sensorimotor prediction with a hierarchy of Growing When Required networks.
+"""gwr_predictor: online sensorimotor prediction with Growing When Required networks.
 
 The library is pure Python + numpy (no rclpy), one subpackage per concern, in the order data flows:
 
@@ -20,7 +20,8 @@ not installed: `gwr-predictor experiment|bench|soak` run them from a source chec
 ROS nodes live in `gwr_predictor.nodes` and only convert messages. Every predictor follows
 `Predictor` (`learning/protocol.py`); every error the package raises derives from `GwrPredictorError`.
 
-Start here: `make_predictor("hierarchy")` (or any `predictor_names()`), `compare_online(models,
+Start here: `make_default()` (the default predictor, `make_predictor("gwr_experts")`; the paper's model
+is `make_predictor("hierarchy")`, every name in `predictor_names()`), `compare_online(models,
 demo_angle_sequences(...))`, `load_predictor(name, checkpoint)`.
 """
 

@@ -7,13 +7,12 @@ still surface with a traceback.
 
 Below it, one class per subpackage, in its `errors.py` (or its central module): `data.DataError`,
 `learning.LearningError`, `default_predictor.DefaultPredictorError`, `predictors.PredictorError`,
-`evaluation.EvaluationError`, `robot.RobotError`, `pipeline.PipelineError`, the commands'
-`RecordingError`, the nodes' `NodeFatalError`; and `parameters.spec.ParameterError` for a setting out
-of its range. A case a caller must tell apart is an attribute of the class, not a class of its own
-(`PipelineError.reason == "too_large"`, `LearningError.kind_mismatch`, `.locked`, `.source`). Older
-names (`SkeletonFileError`, `CheckpointError`, `BagError`, ...) are module aliases of their
-subpackage's class. The classes keep the built-in bases callers catch (ValueError; RuntimeError too
-where the bags, videos, simulator and experiment outputs raised one).
+`evaluation.EvaluationError`, `robot.RobotError`, `pipeline.PipelineError`, `commands.CommandError`,
+the nodes' `NodeFatalError`; and `parameters.spec.ParameterError` for a setting out of its range. A
+case a caller must tell apart is an attribute of the class, not a class of its own
+(`PipelineError.reason == "too_large"`, `LearningError.kind_mismatch`, `.locked`, `.source`). The
+classes also derive from the built-in class a caller of such a function would catch anyway (ValueError
+for bad values and files; RuntimeError too for bags, videos, the simulator and experiment outputs).
 """
 
 

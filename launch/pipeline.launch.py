@@ -10,7 +10,7 @@
 Same nodes, the same <node>.yaml files (from share/gwr_predictor/config unless params_dir is
 given), the same remaps and overrides as the script: bag_recorder (out/bag), nao_sim,
 delay_compensator, the uncompensated nao_sim + delay_compensator (mode none) in <ns>/uncompensated
-fed by the same angles (<ns>/arm_angles, <ns>/predictions), gwr_hierarchy (checkpoint out/model.npz),
+fed by the same angles (<ns>/arm_angles, <ns>/predictions), arm_predictor (checkpoint out/model.npz),
 angle_extractor and skeleton_source (waits for its 2 subscribers, the extractor and the recorder, so
 nothing is lost). <ns> is the namespace of an enclosing PushRosNamespace, then `namespace:=`.
 
@@ -55,7 +55,7 @@ PACKAGE = "gwr_predictor"
 ARGUMENTS = {
     "out": ("results/launch_run", "run folder: bag/ (recording) and model.npz (learner) go here"),
     "params_dir": ("", "folder with <node>.yaml (empty: the installed share/gwr_predictor/config)"),
-    "predictor": ("", "the learner's model (gwr_hierarchy's `predictor`), after the params files; empty: theirs"),
+    "predictor": ("", "the learner's model (arm_predictor's `predictor`), after the params files; empty: theirs"),
     "checkpoint": ("", "start the learner from this model (copied to out/model.npz, which it then updates)"),
     "scenario": ("", "extra params file applied to every node after its own (e.g. config/scenario_*.yaml)"),
     "baseline": ("true", "also run the uncompensated robot in <namespace>/uncompensated"),
@@ -155,7 +155,8 @@ def pipeline_nodes(context, *_args, **_kwargs) -> list:
     simulated, output, robot_remaps, tree = robot_output(arg, namespace)
     os.makedirs(out, exist_ok=True)
     if os.path.exists(os.path.join(out, "bag")):
-        raise RuntimeError(f"{out}/bag exists already: choose another out:=")
+        raise LaunchArgumentError(f"launch argument out:={arg['out']!r}: {out}/bag exists already; choose another "
+                                  "out:=")
     if arg["checkpoint"]:
         shutil.copyfile(arg["checkpoint"], os.path.join(out, "model.npz"))
 
@@ -181,7 +182,7 @@ def pipeline_nodes(context, *_args, **_kwargs) -> list:
     person = arg["input"].strip()
     if person not in INPUTS:
         raise LaunchArgumentError(f"launch argument input:={person!r}: expected one of {sorted(INPUTS)}")
-    nodes += [node("gwr_hierarchy", **learner)] + [node(executable, **extra) for executable, extra in INPUTS[person]]
+    nodes += [node("arm_predictor", **learner)] + [node(executable, **extra) for executable, extra in INPUTS[person]]
     if _true(arg["tf"]):
         nodes += tf_nodes(arg, share, namespace, sim, baseline, simulated, tree)
     return nodes

@@ -17,13 +17,15 @@ from __future__ import annotations
 import numpy as np
 
 from gwr_predictor.data import k4abt
+from gwr_predictor.data.errors import DataError
 from gwr_predictor.data.extraction import frame_angles
 from gwr_predictor.data.skeleton_files import MAX_PLAUSIBLE_METRES
 from gwr_predictor.data.smoothing import MedianOf3
 from gwr_predictor.parameters.spec import ParamSpec
 from gwr_predictor.pipeline import conventions
-from gwr_predictor.pipeline.conventions import SKELETON_JOINTS, LayoutError
-from gwr_predictor.pipeline.gates import SkeletonReorder
+from gwr_predictor.pipeline.conventions import SKELETON_JOINTS
+from gwr_predictor.pipeline.errors import PipelineError
+from gwr_predictor.pipeline.input_rules import SkeletonReorder
 from gwr_predictor.pipeline.markers import SKELETON_FRAME, skeleton_figure
 from gwr_predictor.robot.nao import ARM_JOINTS
 
@@ -68,14 +70,14 @@ class AngleExtractorNode(PipelineNode):
         """Body-tracking markers -> the nearest body's skeleton, then the skeleton path (same checks)."""
         try:
             stamp, _, ids, xyz = standard_messages.read_body_markers(msg)
-        except LayoutError as exc:  # only the bound on markers is checked before reading
+        except PipelineError as exc:  # only the bound on markers is checked before reading
             if exc.reason != "too_large":
                 raise
             self.counters.reject("body_tracking.too_large", str(exc))
             return
         try:
             body = k4abt.nearest_body(ids, xyz)
-        except k4abt.K4abtError as exc:
+        except DataError as exc:
             self.counters.reject("body_tracking.layout", str(exc))
             return
         if body is None:
@@ -117,7 +119,7 @@ class AngleExtractorNode(PipelineNode):
         """(stamp, positions in SKELETON_JOINTS order) or None, by the rules in docs/pipeline.md."""
         try:
             stamp, names, positions = messages.read_skeleton(msg)
-        except LayoutError as exc:
+        except PipelineError as exc:
             self.counters.reject("skeleton.too_large" if exc.reason == "too_large" else "skeleton.layout", str(exc))
             return None
         if np.any(np.isinf(positions)):

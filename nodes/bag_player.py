@@ -24,7 +24,8 @@ from rclpy.duration import Duration
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
 from gwr_predictor.parameters.spec import ParameterError, ParamSpec
-from gwr_predictor.pipeline import bag_messages, bag_qos, bag_reader, bag_replay
+from gwr_predictor.pipeline import bag_qos, bag_reader, bag_replay
+from gwr_predictor.pipeline.errors import PipelineError
 
 from . import messages
 from .exits import NodeFatalError
@@ -80,7 +81,7 @@ class BagPlayerNode(PipelineNode):
         self.bag = Path(p["bag"])
         try:
             info = bag_reader.bag_info(self.bag)
-        except bag_messages.BagError as exc:
+        except PipelineError as exc:
             raise NodeFatalError(str(exc)) from None
         stored = {topic for topic, (_, count) in info.topics.items() if count}
         wanted = set(p["topics"]) or stored
@@ -115,7 +116,7 @@ class BagPlayerNode(PipelineNode):
         undecodable: dict[str, int] = {}
         try:
             self.messages = list(bag_reader.read_bag(self.bag, self.topics, decode=False, undecodable=undecodable))
-        except bag_messages.BagError as exc:
+        except PipelineError as exc:
             raise NodeFatalError(str(exc)) from None
         for topic, n in undecodable.items():  # replaying them would hand the subscribers the same bytes
             self.counters.count(f"skipped.undecodable.{topic}", n)

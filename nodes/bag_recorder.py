@@ -32,7 +32,8 @@ from rclpy.event_handler import SubscriptionEventCallbacks
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 
 from gwr_predictor.parameters.spec import ParameterError, ParamSpec
-from gwr_predictor.pipeline import bag_messages, bag_qos, bag_writer, conventions
+from gwr_predictor.pipeline import bag_qos, bag_writer, conventions
+from gwr_predictor.pipeline.errors import PipelineError
 
 from . import messages, standard_messages
 from .exits import NodeFatalError
@@ -60,7 +61,7 @@ def below(topic: str, namespaces: list[str]) -> bool:
 
 
 def topic_types(resolve: Callable[[str], str], names: list[str]) -> dict[str, str]:
-    """{resolved topic: type} for the `topics` parameter; ValueError naming a bad entry."""
+    """{resolved topic: type} for the `topics` parameter; PipelineError naming a bad entry."""
     resolved: dict[str, str] = {}
     for entry in names:
         name, _, msgtype = entry.partition("@")
@@ -68,11 +69,11 @@ def topic_types(resolve: Callable[[str], str], names: list[str]) -> dict[str, st
             last = name.rstrip("/").rsplit("/", 1)[-1]
             msgtype = conventions.TOPIC_TYPES.get(last, conventions.OPTIONAL_TOPIC_TYPES.get(last, ""))
         if not msgtype:
-            raise ValueError(f"topic {entry!r}: unknown type; give it as 'name@pkg/msg/Type'")
+            raise PipelineError(f"topic {entry!r}: unknown type; give it as 'name@pkg/msg/Type'")
         try:
             messages.message_class(msgtype)
-        except ValueError as exc:
-            raise ValueError(f"topic {entry!r}: {exc}") from None
+        except PipelineError as exc:
+            raise PipelineError(f"topic {entry!r}: {exc}") from None
         resolved[resolve(name)] = msgtype
     return resolved
 
@@ -95,7 +96,7 @@ class BagRecorderNode(PipelineNode):
         path = Path(p["path"] or time.strftime("recording_%Y%m%d_%H%M%S"))
         try:
             topics = topic_types(self.resolve_topic_name, p["topics"])
-        except ValueError as exc:
+        except PipelineError as exc:
             raise ParameterError(f"parameter 'topics': {exc}") from None
         if not topics:
             raise ParameterError("parameter 'topics' is empty: nothing to record")
@@ -104,7 +105,7 @@ class BagRecorderNode(PipelineNode):
         self.failure: str | None = None
         try:
             self.writer.open()
-        except bag_messages.BagError as exc:
+        except PipelineError as exc:
             raise NodeFatalError(str(exc)) from None
         self.recorded: dict[str, Any] = {}  # topic -> its subscription
         self.matched: set[str] = set()
@@ -144,10 +145,10 @@ class BagRecorderNode(PipelineNode):
                 continue
             try:
                 if len(types) != 1:
-                    raise ValueError(f"published with {len(types)} types {types}")
+                    raise PipelineError(f"published with {len(types)} types {types}")
                 messages.message_class(types[0])
                 self.writer.add_topic(topic, types[0])
-            except (ValueError, bag_messages.BagError) as exc:
+            except PipelineError as exc:
                 self.not_recordable.add(topic)
                 self.counters.count("topics.not_recordable")
                 self.get_logger().warning(f"not recording {topic}: {exc}")
@@ -176,7 +177,7 @@ class BagRecorderNode(PipelineNode):
         try:
             self.write_held(stamp)
             self.writer.write_raw(topic, stamp, raw)
-        except bag_messages.BagError as exc:
+        except PipelineError as exc:
             self.stop_recording(exc)
 
     def drain_progress(self) -> int:
@@ -197,11 +198,11 @@ class BagRecorderNode(PipelineNode):
             if self.before_clock and self.get_clock().now().nanoseconds:
                 self.write_held(self.get_clock().now().nanoseconds)
             self.writer.flush()
-        except bag_messages.BagError as exc:
+        except PipelineError as exc:
             self.stop_recording(exc)
         self.on_disk = self.writer.total_written
 
-    def stop_recording(self, exc: bag_messages.BagError) -> None:
+    def stop_recording(self, exc: PipelineError) -> None:
         """A failed write or flush (full disk, I/O error): stop the node, exit code 1, never a
         bag reported as complete (the shutdown hook says it is not)."""
         self.failure = str(exc)
@@ -224,7 +225,7 @@ class BagRecorderNode(PipelineNode):
                                           "stamped 0 in the bag")
                 self.write_held(0)
             self.writer.close()
-        except bag_messages.BagError as exc:
+        except PipelineError as exc:
             raise NodeFatalError(str(exc)) from None
         total = self.writer.total_written
         self.get_logger().info(f"bag closed: {self.writer.path} ({total} messages)")

@@ -39,10 +39,11 @@ import numpy as np
 from gwr_predictor.parameters.spec import ParameterError, ParamSpec
 from gwr_predictor.pipeline import conventions
 from gwr_predictor.pipeline.clock_jumps import CLOCK_JUMP_SPEC, ClockJumpWatch, CommandStamps
-from gwr_predictor.pipeline.conventions import LayoutError
-from gwr_predictor.pipeline.gates import absurd_predictions
+from gwr_predictor.pipeline.errors import PipelineError
+from gwr_predictor.pipeline.input_rules import absurd_predictions
 from gwr_predictor.pipeline.trajectory import command_trajectory
 from gwr_predictor.robot import compensator, naoqi_output
+from gwr_predictor.robot.errors import RobotError
 from gwr_predictor.robot.nao import ARM_JOINTS
 
 from . import messages, standard_messages
@@ -81,8 +82,8 @@ class DelayCompensatorNode(PipelineNode):
         super().__init__(self.NODE_NAME, PARAMS)
         p = self.params
         self.compensator = self.make_compensator(p["mode"], p["delay_s"])
-        self.observations = self.arm_gate("arm_angles")
-        self.robot_states = self.arm_gate("joint_states", check_stamps=False)
+        self.observations = self.arm_check("arm_angles")
+        self.robot_states = self.arm_check("joint_states", check_stamps=False)
         self.observation: np.ndarray | None = None
         self.predictions: np.ndarray | None = None
         self.pred_stamp: float | None = None
@@ -120,7 +121,7 @@ class DelayCompensatorNode(PipelineNode):
         p = self.params
         try:
             msg_type = naoqi_output.message_type()
-        except naoqi_output.NaoqiOutputError as exc:
+        except RobotError as exc:
             raise NodeFatalError(str(exc)) from None
         warning = naoqi_output.speed_warning(p["naoqi_speed"], p["max_joint_speed"])
         if warning is not None:
@@ -129,7 +130,7 @@ class DelayCompensatorNode(PipelineNode):
                 naoqi_output.SafeArmCommands(p["max_joint_speed"], p["max_step_s"]))
 
     def make_compensator(self, mode: str, delay_s: float) -> compensator.DelayCompensator:
-        """The library compensator for `mode` and `delay_s` (CompensatorError if they do not fit)."""
+        """The library compensator for `mode` and `delay_s` (RobotError if they do not fit)."""
         p = self.params
         return compensator.DelayCompensator(params=compensator.CompensatorParams(
             mode, delay_s, p["frame_period_s"], p["stale_after_s"], guard_decay=p["guard_decay"],
@@ -140,7 +141,7 @@ class DelayCompensatorNode(PipelineNode):
             mode, delay = (value, self.params["delay_s"]) if name == "mode" else (self.params["mode"], value)
             try:
                 self.make_compensator(mode, delay)
-            except compensator.CompensatorError as exc:
+            except RobotError as exc:
                 raise ParameterError(f"parameter '{name}': {exc}") from None
 
     def on_live_parameter(self, name: str, value: Any) -> None:
@@ -164,7 +165,7 @@ class DelayCompensatorNode(PipelineNode):
             "clock_jumps.back", f"node clock jumped back by {-jump:.3f} s to {now:.3f} s (a looping replay?): "
             "command stamps, predictions and stamp rules start over on the new time line")
         self.compensator = self.make_compensator(self.params["mode"], self.params["delay_s"])
-        self.observations = self.arm_gate("arm_angles")
+        self.observations = self.arm_check("arm_angles")
         self.predictions, self.pred_stamp, self.interval = None, None, None
         self.pred_stamps.reset()
         self.robot_state, self.robot_state_time = None, -np.inf
@@ -216,8 +217,8 @@ class DelayCompensatorNode(PipelineNode):
             stamp, names, preds = messages.read_predictions(msg)
             if names != ARM_JOINTS:
                 preds = preds[:, [names.index(n) for n in ARM_JOINTS]]
-        except ValueError as exc:  # a LayoutError (too large ones counted apart) or an arm joint missing
-            too_large = isinstance(exc, LayoutError) and exc.reason == "too_large"
+        except ValueError as exc:  # a PipelineError (too large ones counted apart) or an arm joint missing
+            too_large = isinstance(exc, PipelineError) and exc.reason == "too_large"
             self.counters.reject("predictions.too_large" if too_large else "predictions.layout", str(exc))
             return None
         if not np.all(np.isfinite(preds)):
@@ -236,7 +237,7 @@ class DelayCompensatorNode(PipelineNode):
         try:
             stamp, names, _, lower, upper = messages.read_interval(msg)
             order = [names.index(n) for n in ARM_JOINTS]
-        except ValueError as exc:  # a LayoutError or an arm joint missing
+        except ValueError as exc:  # a PipelineError or an arm joint missing
             self.counters.reject("prediction_interval.layout", str(exc))
             return
         if not (np.isfinite(lower).all() and np.isfinite(upper).all()):

@@ -12,7 +12,7 @@ from collections.abc import Callable
 from rclpy.node import Node
 
 from gwr_predictor.pipeline import conventions
-from gwr_predictor.pipeline.gates import RejectionCounter
+from gwr_predictor.pipeline.input_rules import RejectionCounter
 
 from . import messages
 from .qos import status_qos

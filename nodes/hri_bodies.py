@@ -19,9 +19,11 @@ import numpy as np
 from geometry_msgs.msg import PointStamped
 
 from gwr_predictor.data import hri_bodies
+from gwr_predictor.data.errors import DataError
 from gwr_predictor.data.smoothing import MedianOf3
 from gwr_predictor.parameters.spec import ParameterError, ParamSpec
 from gwr_predictor.pipeline import conventions
+from gwr_predictor.pipeline.errors import PipelineError
 from gwr_predictor.robot.nao import ARM_JOINTS
 
 from . import messages
@@ -85,7 +87,7 @@ class HriBodiesNode(PipelineNode):
         """hri_msgs/IdsList if installed (the one optional import of this node), else None."""
         try:
             return messages.message_class(hri_bodies.IDS_LIST_TYPE)
-        except ValueError:
+        except PipelineError:
             return None
 
     def discover(self) -> None:
@@ -158,7 +160,7 @@ class HriBodiesNode(PipelineNode):
         try:
             hri_bodies.check_frame(msg.header.frame_id, body)
             human = hri_bodies.body_arm_joints(names, positions, body)
-        except hri_bodies.HriBodiesError as exc:
+        except DataError as exc:
             self.counters.reject(f"joint_states.{exc.reason}", str(exc))
             return
         previous = self.stamps.last

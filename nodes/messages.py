@@ -17,7 +17,8 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray, MultiArrayDimension
 
 from gwr_predictor.pipeline import conventions
-from gwr_predictor.pipeline.conventions import ArrayDim, LayoutError, PackedArray
+from gwr_predictor.pipeline.conventions import ArrayDim, PackedArray
+from gwr_predictor.pipeline.errors import PipelineError
 
 # --- time ------------------------------------------------------------------------------------
 
@@ -62,7 +63,7 @@ def skeleton_msg(stamp: float, positions: np.ndarray,
 
 
 def read_skeleton(msg: Float64MultiArray) -> tuple[float, tuple[str, ...], np.ndarray]:
-    """Skeleton array -> (stamp, joint names, positions joints x 3). Raises LayoutError."""
+    """Skeleton array -> (stamp, joint names, positions joints x 3). Raises PipelineError."""
     return conventions.unpack_skeleton(from_multiarray(msg))
 
 
@@ -73,7 +74,7 @@ def predictions_msg(stamp: float, predictions: np.ndarray,
 
 
 def read_predictions(msg: Float64MultiArray) -> tuple[float, tuple[str, ...], np.ndarray]:
-    """Prediction array -> (stamp, joint names, predictions horizon x joints). Raises LayoutError."""
+    """Prediction array -> (stamp, joint names, predictions horizon x joints). Raises PipelineError."""
     return conventions.unpack_predictions(from_multiarray(msg))
 
 
@@ -84,7 +85,7 @@ def interval_msg(stamp: float, lower: np.ndarray, upper: np.ndarray, nominal: fl
 
 
 def read_interval(msg: Float64MultiArray) -> tuple[float, tuple[str, ...], float, np.ndarray, np.ndarray]:
-    """Interval array -> (stamp, joint names, stated share, lower, upper). Raises LayoutError."""
+    """Interval array -> (stamp, joint names, stated share, lower, upper). Raises PipelineError."""
     return conventions.unpack_interval(from_multiarray(msg))
 
 
@@ -95,7 +96,7 @@ def joint_state(stamp: float, names: Sequence[str], positions: np.ndarray, frame
     """Names + positions (rad) -> JointState stamped `stamp` (seconds)."""
     positions = np.asarray(positions, dtype=np.float64).ravel()
     if positions.size != len(names):
-        raise LayoutError(f"{len(names)} joint names but {positions.size} positions")
+        raise PipelineError(f"{len(names)} joint names but {positions.size} positions")
     msg = JointState()
     msg.header.stamp = to_time(stamp)
     msg.header.frame_id = frame_id
@@ -105,16 +106,16 @@ def joint_state(stamp: float, names: Sequence[str], positions: np.ndarray, frame
 
 
 def joint_state_fields(msg: JointState) -> tuple[float, tuple[str, ...], np.ndarray]:
-    """JointState -> (stamp s, names, positions), unchecked (an input gate checks them)."""
+    """JointState -> (stamp s, names, positions), unchecked (an input check checks them: `pipeline.input_rules`)."""
     return from_time(msg.header.stamp), tuple(msg.name), np.asarray(msg.position, dtype=np.float64)
 
 
 def read_joint_state(msg: JointState) -> tuple[float, tuple[str, ...], np.ndarray]:
-    """JointState -> (stamp s, names, positions). Raises LayoutError if names and positions differ in length."""
+    """JointState -> (stamp s, names, positions). Raises PipelineError if names and positions differ in length."""
     names = tuple(msg.name)
     positions = np.asarray(msg.position, dtype=np.float64)
     if positions.size != len(names):
-        raise LayoutError(f"{len(names)} joint names but {positions.size} positions")
+        raise PipelineError(f"{len(names)} joint names but {positions.size} positions")
     return from_time(msg.header.stamp), names, positions
 
 
@@ -154,8 +155,8 @@ def message_class(type_name: str) -> type:
     """'sensor_msgs/msg/JointState' -> the message class (for typed or raw publishers/subscriptions)."""
     package, _, name = type_name.partition("/msg/")
     if not package or not name:
-        raise ValueError(f"message type must look like 'pkg/msg/Type', got {type_name!r}")
+        raise PipelineError(f"message type must look like 'pkg/msg/Type', got {type_name!r}")
     try:
         return getattr(importlib.import_module(f"{package}.msg"), name)
     except (ImportError, AttributeError) as exc:
-        raise ValueError(f"unknown message type {type_name!r}: {exc}") from None
+        raise PipelineError(f"unknown message type {type_name!r}: {exc}") from None

@@ -8,7 +8,7 @@ periods (the physics runs at 240 Hz inside) and publishes what the robot reports
 A node-clock jump beyond `max_clock_jump_s` (a looping replay, a leaping /clock, a stopped process)
 restarts the robot's time base there, logged and counted as `clock_jumps.forward` / `clock_jumps.back`:
 the gap is never simulated, so every step stays short and the node answers signals throughout.
-Commands are checked by the input gate (layout, finite, stamps) and clipped into the joint limits
+Commands are checked by the input check (layout, finite, stamps) and clipped into the joint limits
 once, at the robot's input (`SimulatedRobot.command`), counted as `joint_commands.clipped`.
 
 For URDF viewers (RViz's RobotModel, Foxglove's 3D panel) it also publishes the URDF on
@@ -26,10 +26,11 @@ from typing import Any
 from gwr_predictor.parameters.spec import ParameterError, ParamSpec
 from gwr_predictor.pipeline import conventions
 from gwr_predictor.pipeline.clock_jumps import CLOCK_JUMP_SPEC, RobotTimeBase
-from gwr_predictor.pipeline.gates import ArmAnglesGate
-from gwr_predictor.robot.delayed_arm import ROBOT_SPECS, RobotError, SimulatedRobot, sine_delay
+from gwr_predictor.pipeline.input_rules import ArmAnglesCheck
+from gwr_predictor.robot.delayed_arm import ROBOT_SPECS, SimulatedRobot, sine_delay
+from gwr_predictor.robot.errors import RobotError
 from gwr_predictor.robot.nao import ROBOT_ARM_JOINTS, robot_arm_positions
-from gwr_predictor.robot.pybullet_nao import NaoSimulator, SimulatorError, save_png
+from gwr_predictor.robot.pybullet_nao import NaoSimulator, save_png
 from gwr_predictor.robot.urdf import default_urdf_path
 
 from . import messages, standard_messages
@@ -70,12 +71,12 @@ class NaoSimNode(PipelineNode):
             try:
                 try:
                     self.sim = NaoSimulator(gui=p["gui"], time_step=step)
-                except SimulatorError as exc:
+                except RobotError as exc:
                     if not p["gui"]:
                         raise
                     self.get_logger().warning(f"parameter 'gui': {exc}; running headless instead")
                     self.sim = NaoSimulator(gui=False, time_step=step)
-            except SimulatorError as exc:
+            except RobotError as exc:
                 raise NodeFatalError(f"cannot start the PyBullet simulator: {exc}") from None
         try:
             self.robot = SimulatedRobot(p["delay_s"], p["latency_s"], p["control_period_s"], p["backend"],
@@ -84,7 +85,7 @@ class NaoSimNode(PipelineNode):
             raise ParameterError(str(exc)) from None
         # robot time 0 is the first tick's node-clock time (under sim time, /clock)
         self.time_base = RobotTimeBase(p["max_clock_jump_s"])
-        self.gate = self.command_gate()
+        self.commands = self.command_check()
         self.state_pub = self.create_publisher(messages.JointState, conventions.TOPIC_ROBOT_STATE, stream_qos())
         self.publish_robot_description()
         self.create_subscription(messages.JointState, conventions.TOPIC_COMMAND, self.on_command, stream_qos())
@@ -123,11 +124,11 @@ class NaoSimNode(PipelineNode):
             f"node clock jumped {direction} by {abs(jump):.3f} s to {now:.3f} s (more than max_clock_jump_s "
             f"{self.params['max_clock_jump_s']} s): the robot's time continues from here, the gap is not simulated")
         if jump < 0.0:
-            self.gate = self.command_gate()
+            self.commands = self.command_check()
 
-    def command_gate(self) -> ArmAnglesGate:
-        """No limit rule at the gate: the robot's input clips every command, once (SimulatedRobot.command)."""
-        return self.arm_gate("joint_commands", limit_margin=None)
+    def command_check(self) -> ArmAnglesCheck:
+        """No limit rule in the check: the robot's input clips every command, once (SimulatedRobot.command)."""
+        return self.arm_check("joint_commands", limit_margin=None)
 
     def on_live_parameter(self, name: str, value: Any) -> None:
         """A new delay applies to commands sent from now on (with a sine, `advance` uses it next step)."""
@@ -135,8 +136,8 @@ class NaoSimNode(PipelineNode):
             self.robot.delay_s = float(value)
 
     def on_command(self, msg: messages.JointState) -> None:
-        self.advance()  # first: a clock jump back renews the gate's stamp rule for the new time line
-        accepted = self.gate.accept(*messages.joint_state_fields(msg))
+        self.advance()  # first: a clock jump back renews the check's stamp rule for the new time line
+        accepted = self.commands.accept(*messages.joint_state_fields(msg))
         if accepted is None:
             return
         if self.robot.command(accepted[1]):

@@ -1,8 +1,8 @@
 """The base of every pipeline node, so that each node file only converts, calls and publishes.
 
 `PipelineNode`: a Node with validated parameters (`ros_parameters`; `COMMON_PARAMS` on every node),
-live changes checked as at start, rejection counters and the input gates (library code,
-`gwr_predictor.pipeline.gates`), a periodic DiagnosticArray on /diagnostics carrying every counter, a
+live changes checked as at start, rejection counters and the input checks (library code,
+`gwr_predictor.pipeline.input_rules`), a periodic DiagnosticArray on /diagnostics carrying every counter, a
 `done` future for nodes that finish on their own, and an `on_shutdown` hook (`runner.run_node` runs it).
 Every timer and stamp uses the node clock, so `use_sim_time:=true` with a /clock source (e.g.
 `bag_player clock:=true rate:=2.0`) runs the node on simulated time, faster than real time too;
@@ -30,7 +30,7 @@ from rclpy.task import Future
 
 from gwr_predictor.parameters.spec import ParameterError, ParamSpec
 from gwr_predictor.pipeline import conventions, params_file, stamps
-from gwr_predictor.pipeline.gates import ArmAnglesGate, RejectionCounter, check_stamp
+from gwr_predictor.pipeline.input_rules import ArmAnglesCheck, RejectionCounter, check_stamp
 
 from . import messages
 from .duplicates import DuplicateWatch
@@ -102,17 +102,17 @@ class PipelineNode(Node):
         recorder's received messages); None (the default): nothing to drain, stop at once."""
         return None
 
-    def arm_gate(self, input_name: str, check_stamps: bool = True, limit_margin: float | None = 0.2) -> ArmAnglesGate:
-        """The gate of one JointState input, its stamps checked against this node's clock."""
-        return ArmAnglesGate(self.counters, input_name, limit_margin=limit_margin, check_stamps=check_stamps,
-                             clock=self.now_s, max_ahead_s=self.params["max_stamp_ahead_s"])
+    def arm_check(self, input_name: str, check_stamps: bool = True, limit_margin: float | None = 0.2) -> ArmAnglesCheck:
+        """The check of one JointState input, its stamps checked against this node's clock."""
+        return ArmAnglesCheck(self.counters, input_name, limit_margin=limit_margin, check_stamps=check_stamps,
+                              clock=self.now_s, max_ahead_s=self.params["max_stamp_ahead_s"])
 
     def stamp_check(self) -> stamps.StampCheck:
         """The stamp rule (gwr_predictor.pipeline.stamps) of one more input stream of this node."""
         return stamps.StampCheck(self.params["max_stamp_ahead_s"])
 
     def check_stamp(self, check: stamps.StampCheck, input_name: str, stamp: float) -> bool:
-        """`gates.check_stamp` against the node clock."""
+        """`input_rules.check_stamp` against the node clock."""
         return check_stamp(self.counters, check, input_name, stamp, self.now_s())
 
     # --- live parameters: checked like at start, then applied by the node -------------------------

@@ -18,6 +18,7 @@ from rclpy.signals import SignalHandlerOptions
 from gwr_predictor.learning.blas import single_threaded_blas
 from gwr_predictor.parameters.spec import ParameterError
 from gwr_predictor.pipeline import params_file
+from gwr_predictor.pipeline.errors import PipelineError
 
 from .exits import EXIT_BAD_PARAMETER, EXIT_FATAL, EXIT_OK, NodeFatalError
 from .pipeline_node import PipelineNode
@@ -65,7 +66,7 @@ def run_node(node_cls: type[PipelineNode], args: list[str] | None = None) -> int
     try:
         params_file.check_params_files(sys.argv if args is None else args)
         rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
-    except params_file.ParamsFileError as exc:
+    except PipelineError as exc:
         logger.error(f"bad parameter: {exc}")
         return EXIT_BAD_PARAMETER
     except RuntimeError as exc:  # rcl's RCLError: a remap rule or argument it cannot parse

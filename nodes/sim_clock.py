@@ -8,7 +8,7 @@ import time
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 
-from gwr_predictor.pipeline.gates import RejectionCounter
+from gwr_predictor.pipeline.input_rules import RejectionCounter
 
 
 class SimClockWatch:

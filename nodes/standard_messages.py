@@ -19,6 +19,7 @@ from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 from visualization_msgs.msg import Marker, MarkerArray
 
 from gwr_predictor.pipeline import conventions
+from gwr_predictor.pipeline.errors import PipelineError
 from gwr_predictor.pipeline.markers import Figure
 from gwr_predictor.pipeline.trajectory import Trajectory
 
@@ -30,7 +31,7 @@ __all__ = ["JointTrajectory", "Marker", "MarkerArray", "PoseArray", "String"]
 def to_duration(seconds: float) -> Duration:
     """Seconds (finite, >= 0) -> builtin_interfaces/Duration."""
     if not math.isfinite(seconds) or seconds < 0.0:
-        raise ValueError(f"duration must be finite and >= 0, got {seconds}")
+        raise PipelineError(f"duration must be finite and >= 0, got {seconds}")
     stamp = to_time(seconds)
     return Duration(sec=stamp.sec, nanosec=stamp.nanosec)
 
@@ -75,7 +76,7 @@ def figure_markers(stamp: float, frame_id: str, ns: str, figure: Figure,
 def read_body_markers(msg: MarkerArray) -> tuple[float | None, str, np.ndarray, np.ndarray]:
     """A body-tracking MarkerArray -> (stamp of its first joint marker or None, its frame, ids (n,),
     positions (n, 3)). Only ADD markers count: DELETE / DELETEALL markers carry no joint. More than
-    `conventions.MAX_MARKERS` markers raise LayoutError (reason `too_large`) before any is read."""
+    `conventions.MAX_MARKERS` markers raise PipelineError (reason `too_large`) before any is read."""
     conventions.check_size("markers", len(msg.markers), conventions.MAX_MARKERS)
     adds = [m for m in msg.markers if m.action == Marker.ADD]
     if not adds:
@@ -106,7 +107,7 @@ def pose_array(stamp: float, frame_id: str, positions: np.ndarray) -> PoseArray:
     (a tracker gives no joint orientation), NaN position for an untracked joint."""
     positions = np.asarray(positions, dtype=np.float64)
     if positions.ndim != 2 or positions.shape[1] != 3:
-        raise conventions.LayoutError(f"skeleton positions must be (joints, 3), got {positions.shape}")
+        raise PipelineError(f"skeleton positions must be (joints, 3), got {positions.shape}")
     msg = PoseArray()
     msg.header.stamp = to_time(stamp)
     msg.header.frame_id = frame_id
@@ -121,7 +122,7 @@ def pose_array(stamp: float, frame_id: str, positions: np.ndarray) -> PoseArray:
 
 def read_pose_array(msg: PoseArray) -> tuple[float, str, np.ndarray]:
     """PoseArray -> (stamp s, frame_id, positions (n, 3)); more than `conventions.MAX_JOINTS` poses raise
-    LayoutError (reason `too_large`) before any is read."""
+    PipelineError (reason `too_large`) before any is read."""
     conventions.check_size("poses", len(msg.poses), conventions.MAX_JOINTS)
     xyz = np.array([(p.position.x, p.position.y, p.position.z) for p in msg.poses], dtype=np.float64)
     return from_time(msg.header.stamp), msg.header.frame_id, xyz.reshape(-1, 3)
@@ -133,7 +134,7 @@ def read_pose_array(msg: PoseArray) -> tuple[float, str, np.ndarray]:
 def joint_trajectory(stamp: float, names: Sequence[str], trajectory: Trajectory) -> JointTrajectory:
     """A library trajectory -> trajectory_msgs/JointTrajectory (positions only; stamp 0 = start on arrival)."""
     if trajectory.positions.shape[1] != len(names):
-        raise ValueError(f"{len(names)} joint names but trajectory points of {trajectory.positions.shape[1]}")
+        raise PipelineError(f"{len(names)} joint names but trajectory points of {trajectory.positions.shape[1]}")
     msg = JointTrajectory()
     msg.header.stamp = to_time(stamp)
     msg.joint_names = list(names)
@@ -143,11 +144,11 @@ def joint_trajectory(stamp: float, names: Sequence[str], trajectory: Trajectory)
 
 
 def read_joint_trajectory(msg: JointTrajectory) -> tuple[float, tuple[str, ...], Trajectory]:
-    """JointTrajectory -> (stamp s, names, Trajectory); points whose size differs raise ValueError."""
+    """JointTrajectory -> (stamp s, names, Trajectory); points whose size differs raise PipelineError."""
     names = tuple(msg.joint_names)
     rows = [np.asarray(p.positions, dtype=np.float64) for p in msg.points]
     if any(r.size != len(names) for r in rows):
-        raise ValueError(f"trajectory points must have {len(names)} positions")
+        raise PipelineError(f"trajectory points must have {len(names)} positions")
     times = np.array([from_duration(p.time_from_start) for p in msg.points])
     positions = np.stack(rows) if rows else np.zeros((0, len(names)))
     return from_time(msg.header.stamp), names, Trajectory(times, positions)

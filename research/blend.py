@@ -7,7 +7,7 @@ against an observed frame: a prediction made at frame t for step k waits until f
 observed; if that frame is missing, or the sequence ends or is reset first, it is never scored. So
 the weights used at frame t depend only on frames <= t (no peeking at the targets).
 
-The GWR hierarchy is better in MAE but heavy-tailed, RLS-AR is better in MSE (docs/experiments.md);
+The GWR hierarchy is better in MAE but heavy-tailed, RLS-AR is better in MSE (research/experiments.md);
 blended per step they beat both in MSE. `make_blend` builds the two pairings used in the reports.
 
 Persistence: `save`/`load` write and read ONE checkpoint (checkpoint.py: atomic, versioned, kind

@@ -33,7 +33,8 @@ from tqdm import tqdm
 
 from gwr_predictor.data.datasets import demo_angle_sequences
 from gwr_predictor.default_predictor import make_default
-from gwr_predictor.evaluation.output import ExperimentOutputError, figure, save_figure
+from gwr_predictor.evaluation.errors import EvaluationError
+from gwr_predictor.evaluation.output import figure, save_figure
 from gwr_predictor.files.user_files import write_output
 from gwr_predictor.learning.blas import blas_threads, single_threaded_blas
 from gwr_predictor.learning.saver import CheckpointSaver
@@ -269,7 +270,7 @@ def run(args: argparse.Namespace) -> int:
     if args.out is not None:
         args.out.mkdir(parents=True, exist_ok=True)
         for name, text in (("results.json", json.dumps(results, indent=1) + "\n"), ("results.md", markdown(results))):
-            write_output(args.out / name, text, "day results", ExperimentOutputError)
+            write_output(args.out / name, text, "day results", EvaluationError)
         plot(results, args.out / "day.png")
     print(json.dumps(results), flush=True)
     return 0

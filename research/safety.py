@@ -1,4 +1,4 @@
-"""Round 4 of the default's tuning (`docs/tuning.md`): cheaper ways than a gate per expert to keep the
+"""Round 4 of the default's tuning (`research/tuning.md`): cheaper ways than a gate per expert to keep the
 experts from doing worse than holding the pose. Prototypes measured on the tuning set; none is the default.
 
 - `rebuilt`: the default with its member gates, a hold-last member and its last gate each optional;

@@ -1,4 +1,4 @@
-"""The spread's settings, chosen on the tuning set (`research.tuning`'s, docs/tuning.md), never on a reported
+"""The spread's settings, chosen on the tuning set (`research.tuning`'s, research/tuning.md), never on a reported
 figure: `python -m research.spread_tuning [--out FILE] [VARIANT ...]`.
 
 The spread never changes a prediction (`default_predictor/spread.py`), so each predictor is run once over the
@@ -15,7 +15,7 @@ The rule: coverage within 2 points of the nominal share at every step pooled ove
 first performances (a movement met for the first time: every real clip learned in one pass is one), within
 5 points on both demonstrator splits; of those the smallest mean width over the streams' steps. (A first
 rule asked only 5 points of the first performances; it chose the scale of recent errors alone, which
-stated too little there at the longer steps, 75.5 % at 600 ms: docs/tuning.md.)
+stated too little there at the longer steps, 75.5 % at 600 ms: research/tuning.md.)
 """
 
 from __future__ import annotations

@@ -1,6 +1,6 @@
 """The tuning set of the candidate defaults (`research.candidates`): every setting is chosen here,
 never on a reported figure. What the set holds (`SEGMENTS`, `SEEDS`, `COLD_PATTERNS`, `DEMO_SEED`, the
-bounds), the rule each round chose by, and every round's record: docs/tuning.md.
+bounds), the rule each round chose by, and every round's record: research/tuning.md.
 
 `python -m research.tuning [--real] [--demo] NAME...` scores registry names, the variants in `VARIANTS`
 and `D:<setting>=<value>,...` points. The baselines every candidate must beat per stream (`BASELINES`)

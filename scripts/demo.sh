@@ -44,7 +44,7 @@ done
 out="$(gwr_run_folder "$out" demo)"
 start=$SECONDS
 [ -z "$scenario" ] || extra+=(--scenario "$scenario")
-pretrain_args=(--params-file "$GWR_ROOT/config/gwr_hierarchy.yaml")
+pretrain_args=(--params-file "$GWR_ROOT/config/arm_predictor.yaml")
 # the node and the pretraining build the same kind of model
 [ -z "$predictor" ] || { pretrain_args+=(--predictor "$predictor"); extra+=(--predictor "$predictor"); }
 

@@ -1,8 +1,8 @@
 #!/usr/bin/env bash
 # Replay a recorded bag's person input through the pipeline again and record the new outputs.
-#   <ns>/skeleton    -> angle_extractor -> gwr_hierarchy -> delay_compensator -> nao_sim
-#   <ns>/arm_angles  ->                    gwr_hierarchy -> delay_compensator -> nao_sim
-#   /humans/bodies/* -> hri_bodies      -> gwr_hierarchy -> delay_compensator -> nao_sim   (--hri)
+#   <ns>/skeleton    -> angle_extractor -> arm_predictor -> delay_compensator -> nao_sim
+#   <ns>/arm_angles  ->                    arm_predictor -> delay_compensator -> nao_sim
+#   /humans/bodies/* -> hri_bodies      -> arm_predictor -> delay_compensator -> nao_sim   (--hri)
 # The player restamps the messages to the replay time, so the nodes see a live stream.
 #
 # usage: scripts/replay.sh BAG [--out DIR] [--topic T | --hri] [--namespace NS] [--rate R]
@@ -101,14 +101,14 @@ start_node bag_recorder bag_recorder "${here[@]}" -p "path:=$out/bag"
 gwr_wait_ready bag_recorder 60
 start_node nao_sim nao_sim "${here[@]}"
 start_node delay_compensator delay_compensator "${here[@]}"
-waiting=(nao_sim delay_compensator gwr_hierarchy)
+waiting=(nao_sim delay_compensator arm_predictor)
 if [ "$baseline" = 1 ]; then
     ns=(-r "__ns:=$namespace/uncompensated" -r "arm_angles:=$namespace/arm_angles" -r "predictions:=$namespace/predictions")
     start_node nao_sim_uncompensated nao_sim "${ns[@]}"
     start_node delay_compensator_uncompensated delay_compensator "${ns[@]}" -p mode:=none
     waiting+=(nao_sim_uncompensated delay_compensator_uncompensated)
 fi
-start_node gwr_hierarchy gwr_hierarchy "${here[@]}" -p "checkpoint:=$out/model.npz"
+start_node arm_predictor arm_predictor "${here[@]}" -p "checkpoint:=$out/model.npz"
 case "$input" in
     skeleton) start_node angle_extractor angle_extractor "${here[@]}"; waiting+=(angle_extractor) ;;
     hri)

@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Run the live pipeline for a while and record it:
-#   skeleton_source -> angle_extractor -> gwr_hierarchy -> delay_compensator -> nao_sim
+#   skeleton_source -> angle_extractor -> arm_predictor -> delay_compensator -> nao_sim
 # plus, unless --no-baseline, an uncompensated delay_compensator (mode none) + nao_sim pair in the
 # NS/uncompensated namespace (/uncompensated without --namespace) fed by the same angles, and a
 # bag_recorder started first.
@@ -13,7 +13,7 @@
 #   --params-dir DIR   folder with <node>.yaml (default config/)
 #   --scenario YAML    extra params file applied to every node after its own (e.g. config/scenario_*.yaml)
 #   --checkpoint FILE  start the learner from this model (copied to DIR/model.npz, which it then updates)
-#   --predictor NAME   the learner's model (gwr_hierarchy's `predictor` parameter), after the params files
+#   --predictor NAME   the learner's model (arm_predictor's `predictor` parameter), after the params files
 #   --no-baseline      no uncompensated robot
 #   --render           the compensated robot writes PNG pictures to DIR/frames/
 #   --namespace NS     run every node in namespace NS (e.g. robot1: /robot1/arm_angles, /robot1/uncompensated/...);
@@ -103,9 +103,9 @@ else
 fi
 learner=(-p "checkpoint:=$out/model.npz")
 [ -z "$predictor" ] || learner+=(-p "predictor:=$predictor")
-start_node gwr_hierarchy gwr_hierarchy "${here[@]}" "${learner[@]}"
+start_node arm_predictor arm_predictor "${here[@]}" "${learner[@]}"
 start_node angle_extractor angle_extractor "${here[@]}"
-for n in nao_sim delay_compensator gwr_hierarchy angle_extractor; do gwr_wait_ready "$n" 60; done
+for n in nao_sim delay_compensator arm_predictor angle_extractor; do gwr_wait_ready "$n" 60; done
 if [ "$baseline" = 1 ]; then
     gwr_wait_ready nao_sim_uncompensated 60
     gwr_wait_ready delay_compensator_uncompensated 60

@@ -7,20 +7,15 @@ import numpy as np
 import pytest
 
 from gwr_predictor.commands import angles as angles_cmd
-from gwr_predictor.data.angle_files import AngleFileError, load_angles_csv, save_angles_csv
-from gwr_predictor.data.angles import (
-    PITCH_SINGULAR_WIDTH,
-    AngleExtractionError,
-    arm_angles,
-    clip_fractions,
-    skeleton_to_angles,
-    torso_frame,
-)
+from gwr_predictor.data.angle_files import load_angles_csv, save_angles_csv
+from gwr_predictor.data.angles import PITCH_SINGULAR_WIDTH, arm_angles, clip_fractions, skeleton_to_angles, torso_frame
 from gwr_predictor.data.demonstrator import PATTERNS, default_subjects, demonstrate, demonstrate_one
+from gwr_predictor.data.errors import DataError
 from gwr_predictor.data.skeleton_files import save_skeleton
 from gwr_predictor.data.smoothing import median_of_3
 from gwr_predictor.pipeline.conventions import SKELETON_JOINTS
-from gwr_predictor.pipeline.plotting import PlotError, plot_angle_series
+from gwr_predictor.pipeline.errors import PipelineError
+from gwr_predictor.pipeline.plotting import plot_angle_series
 from gwr_predictor.robot.nao import (
     ARM_JOINTS,
     ELBOW_OFFSET,
@@ -157,12 +152,12 @@ def test_any_batch_shape_and_a_single_frame_work():
 
 
 def test_bad_shapes_and_missing_joint_names_are_refused():
-    with pytest.raises(AngleExtractionError, match=r"\(\.\.\., 15, 3\)"):
+    with pytest.raises(DataError, match=r"\(\.\.\., 15, 3\)"):
         skeleton_to_angles(np.zeros((4, 15, 2)))
     names = [*SKELETON_JOINTS[:-1], "tail"]
     skeleton_to_angles(np.zeros((15, 3)), joint_names=names)  # right_foot is not needed
     names = ["hand" if n == "left_hand" else n for n in SKELETON_JOINTS]
-    with pytest.raises(AngleExtractionError, match="left_hand"):
+    with pytest.raises(DataError, match="left_hand"):
         skeleton_to_angles(np.zeros((15, 3)), joint_names=names)
 
 
@@ -274,7 +269,7 @@ def test_angle_csv_round_trip_keeps_nan_rows(tmp_path):
 def test_malformed_angle_csv_is_explained(tmp_path, text, message):
     path = tmp_path / "bad.csv"
     path.write_text(text)
-    with pytest.raises(AngleFileError, match=message):
+    with pytest.raises(DataError, match=message):
         load_angles_csv(path)
 
 
@@ -294,7 +289,7 @@ def test_plot_writes_a_png_with_all_series(tmp_path):
     path = plot_angle_series(tmp_path / "p.png", {"person": (t, a), "prediction": (t + 0.6, a)},
                              title="x", marks={"rep 2": 1.5})
     assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and path.stat().st_size > 10_000
-    with pytest.raises(PlotError, match="series 'bad'"):
+    with pytest.raises(PipelineError, match="series 'bad'"):
         plot_angle_series(tmp_path / "q.png", {"bad": (t, a[:, :7])})
 
 

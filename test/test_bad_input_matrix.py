@@ -92,7 +92,7 @@ def test_robot_commands_states_and_predictions_every_kind(ros):
 def test_learner_gaps_stamps_duplicates_and_a_burst(ros):
     probe = ros.probe
     diagnostics = ros.diagnostics
-    learner = ros.start_ready("gwr_hierarchy", params=FAST)
+    learner = ros.start_ready("arm_predictor", params=FAST)
     predictions = probe.subscribe("/predictions", Float64MultiArray)
     pub = probe.publisher("/arm_angles", JointState)
     probe.wait_for_subscribers(pub)
@@ -109,7 +109,7 @@ def test_learner_gaps_stamps_duplicates_and_a_burst(ros):
     pub.publish(joint_state(stamps[-1], angles[40]))  # long gap: the sequence ends, learning goes on
     stamps.append(a.next(gap=0.2))
     pub.publish(joint_state(stamps[-1], angles[41]))  # short gap: 2 missing frames bridged
-    wait_counters(ros, diagnostics, "/gwr_hierarchy", {
+    wait_counters(ros, diagnostics, "/arm_predictor", {
         "frames.learned": 42, "rejected.arm_angles.stamp": 1, "rejected.arm_angles.layout": 1,
         "sequences.reset_on_gap": 1, "frames.missing": 2}, [learner])
     got = [round(messages.read_predictions(m)[0], 6) for m in predictions]

@@ -16,6 +16,7 @@ from rosbags.rosbag2 import Reader
 
 from gwr_predictor.pipeline import bag_messages, bag_qos, bag_reader, bag_recovery, bag_writer
 from gwr_predictor.pipeline.conventions import TOPIC_ANGLES, TOPIC_DIAGNOSTICS, TOPIC_TYPES
+from gwr_predictor.pipeline.errors import PipelineError
 from gwr_predictor.robot.nao import ARM_JOINTS
 
 RELIABLE = bag_qos.qos_profile(history="keep_last", depth=30, reliability="reliable", durability="volatile",
@@ -100,13 +101,13 @@ def test_a_bare_mcap_file_reads_like_its_bag(tmp_path):
 def test_unreadable_inputs_are_named(tmp_path):
     junk = tmp_path / "junk.mcap"
     junk.write_bytes(b"not an mcap file at all")
-    with pytest.raises(bag_messages.BagError, match=r"junk\.mcap: unreadable MCAP file"):
+    with pytest.raises(PipelineError, match=r"junk\.mcap: unreadable MCAP file"):
         bag_reader.bag_info(junk)
     other = tmp_path / "notes.txt"
     other.write_text("x")
-    with pytest.raises(bag_messages.BagError, match=r"notes\.txt: neither a bag directory nor a \.mcap file"):
+    with pytest.raises(PipelineError, match=r"notes\.txt: neither a bag directory nor a \.mcap file"):
         bag_reader.bag_info(other)
-    with pytest.raises(bag_messages.BagError, match="QoS reliability 'sometimes'"):
+    with pytest.raises(PipelineError, match="QoS reliability 'sometimes'"):
         bag_qos.qos_profile(history="keep_last", depth=1, reliability="sometimes", durability="volatile")
 
 

@@ -20,6 +20,7 @@ from gwr_predictor.pipeline.conventions import (
     pack_predictions,
     unpack_predictions,
 )
+from gwr_predictor.pipeline.errors import PipelineError
 from gwr_predictor.robot.nao import ARM_JOINTS
 
 TOPICS = {TOPIC_ANGLES: TOPIC_TYPES[TOPIC_ANGLES], TOPIC_PREDICTIONS: TOPIC_TYPES[TOPIC_PREDICTIONS]}
@@ -110,14 +111,14 @@ def test_an_exception_inside_the_with_block_still_leaves_a_readable_bag(tmp_path
 def test_existing_path_is_refused_naming_it(tmp_path):
     path = tmp_path / "taken"
     path.mkdir()
-    with pytest.raises(bag_messages.BagError, match=r"taken.*exists"), bag_writer.BagWriter(path, TOPICS):
+    with pytest.raises(PipelineError, match=r"taken.*exists"), bag_writer.BagWriter(path, TOPICS):
         pass
 
 
 def test_unwritable_path_is_reported_naming_it(tmp_path):
     blocker = tmp_path / "a_file"
     blocker.write_text("not a directory")
-    with pytest.raises(bag_messages.BagError, match="a_file/bag"), bag_writer.BagWriter(blocker / "bag", TOPICS):
+    with pytest.raises(PipelineError, match="a_file/bag"), bag_writer.BagWriter(blocker / "bag", TOPICS):
         pass
 
 
@@ -127,24 +128,24 @@ def test_full_disk_is_reported_naming_the_bag(tmp_path):
     writer.open()
     storage = writer._writer.storage
     storage.bio = FullDisk(storage.bio)
-    with pytest.raises(bag_messages.BagError, match=r"full.*No space left"):
+    with pytest.raises(PipelineError, match=r"full.*No space left"):
         writer.write(TOPIC_ANGLES, 1, bag_messages.joint_state_msg(ARM_JOINTS, angles(0), 0.0))
-    with pytest.raises(bag_messages.BagError, match="not open"):
+    with pytest.raises(PipelineError, match="not open"):
         writer.write(TOPIC_ANGLES, 2, bag_messages.joint_state_msg(ARM_JOINTS, angles(0), 0.0))
 
 
 def test_undeclared_topics_and_unknown_types_are_refused(tmp_path):
-    with pytest.raises(bag_messages.BagError, match="my_msgs/msg/Thing"):
+    with pytest.raises(PipelineError, match="my_msgs/msg/Thing"):
         bag_writer.BagWriter(tmp_path / "x", {"thing": "my_msgs/msg/Thing"})
-    with bag_writer.BagWriter(tmp_path / "y", TOPICS) as writer, pytest.raises(bag_messages.BagError, match="'other'"):
+    with bag_writer.BagWriter(tmp_path / "y", TOPICS) as writer, pytest.raises(PipelineError, match="'other'"):
         writer.write_raw("other", 1, b"")
 
 
 def test_reading_something_that_is_not_a_bag_names_it(tmp_path):
-    with pytest.raises(bag_messages.BagError, match="nothing_here"):
+    with pytest.raises(PipelineError, match="nothing_here"):
         list(bag_reader.read_bag(tmp_path / "nothing_here"))
     (tmp_path / "half").mkdir()
-    with pytest.raises(bag_messages.BagError, match=r"half.*metadata.yaml"):
+    with pytest.raises(PipelineError, match=r"half.*metadata.yaml"):
         bag_reader.bag_info(tmp_path / "half")
 
 
@@ -171,7 +172,7 @@ def crash_recorder(path, flush_every: int, messages: int) -> None:
 def test_a_crashed_writer_is_recovered_up_to_its_last_flush(tmp_path):
     path = tmp_path / "crashed"
     crash_recorder(path, flush_every=10, messages=37)
-    with pytest.raises(bag_messages.BagError, match="recover_bag"):
+    with pytest.raises(PipelineError, match="recover_bag"):
         list(bag_reader.read_bag(path))
     info = bag_recovery.recover_bag(path)
     assert info.message_count == 30
@@ -184,5 +185,5 @@ def test_a_crashed_writer_is_recovered_up_to_its_last_flush(tmp_path):
 def test_a_writer_that_never_flushed_is_reported_unrecoverable(tmp_path):
     path = tmp_path / "lost"
     crash_recorder(path, flush_every=0, messages=5)
-    with pytest.raises(bag_messages.BagError, match=r"lost.*nothing recoverable"):
+    with pytest.raises(PipelineError, match=r"lost.*nothing recoverable"):
         bag_recovery.recover_bag(path)

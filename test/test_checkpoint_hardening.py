@@ -247,10 +247,10 @@ def test_the_learner_moves_any_unreadable_checkpoint_aside_and_starts_fresh(ros,
     corrupt(checkpoint)
     bad = checkpoint.read_bytes()
     diagnostics = ros.diagnostics
-    learner = ros.start_ready("gwr_hierarchy", params={**FAST, "checkpoint": str(checkpoint)})
+    learner = ros.start_ready("arm_predictor", params={**FAST, "checkpoint": str(checkpoint)})
     (aside,) = tmp_path.glob("model.npz.corrupt-*")
     assert aside.read_bytes() == bad
-    assert diagnostics["/gwr_hierarchy"]["checkpoint.corrupt_moved_aside"] == "1"
+    assert diagnostics["/arm_predictor"]["checkpoint.corrupt_moved_aside"] == "1"
     code, _ = learner.stop(signal.SIGINT)
     assert code == 0
     assert inner_model(load_predictor(DEFAULT_PREDICTOR, checkpoint)).frames_seen == 0
@@ -261,10 +261,10 @@ def test_a_second_learner_on_the_same_checkpoint_refuses_to_start(ros, tmp_path)
     checkpoint = tmp_path / "model.npz"
     make_predictor(DEFAULT_PREDICTOR).save(checkpoint)
     diagnostics = ros.diagnostics
-    first = ros.start("gwr_hierarchy", label="first", params={**FAST, "checkpoint": str(checkpoint)})
-    ros.wait_for_node(diagnostics, "/gwr_hierarchy", timeout=60)
+    first = ros.start("arm_predictor", label="first", params={**FAST, "checkpoint": str(checkpoint)})
+    ros.wait_for_node(diagnostics, "/arm_predictor", timeout=60)
     # another namespace: the duplicate detector does not apply, only the checkpoint is shared
-    code, output = ros.run("gwr_hierarchy", label="second", namespace="/other", timeout=60,
+    code, output = ros.run("arm_predictor", label="second", namespace="/other", timeout=60,
                            params={**FAST, "checkpoint": str(checkpoint)})
     assert code == 1, output
     lines = [line for line in output.splitlines() if "in use by process" in line]
@@ -272,7 +272,7 @@ def test_a_second_learner_on_the_same_checkpoint_refuses_to_start(ros, tmp_path)
     assert "ready" not in output
     assert first.running()
     ros.kill(first)  # a crash: the OS releases the lock, so a restart is not blocked
-    again = ros.start("gwr_hierarchy", label="again", params={**FAST, "checkpoint": str(checkpoint)})
+    again = ros.start("arm_predictor", label="again", params={**FAST, "checkpoint": str(checkpoint)})
     ros.wait_for_log(again, "ready", timeout=60)
     code, _ = again.stop(signal.SIGINT)
     assert code == 0
@@ -394,7 +394,7 @@ def test_the_learner_stops_on_a_readable_checkpoint_of_another_predictor_and_lea
     checkpoint = tmp_path / "model.npz"
     make_predictor("hierarchy", HierarchyParams(), seed=0).save(checkpoint)
     saved = checkpoint.read_bytes()
-    code, output = ros.run("gwr_hierarchy", params={**FAST, "checkpoint": str(checkpoint),
+    code, output = ros.run("arm_predictor", params={**FAST, "checkpoint": str(checkpoint),
                                                     "predictor": DEFAULT_PREDICTOR}, timeout=60)
     assert code == 1, output
     assert "does not fit parameter predictor" in output and "ready" not in output

@@ -4,9 +4,10 @@ import numpy as np
 import pytest
 
 from gwr_predictor.robot.closed_loop import run_closed_loop
-from gwr_predictor.robot.delayed_arm import RobotError, RobotParams
+from gwr_predictor.robot.delayed_arm import RobotParams
+from gwr_predictor.robot.errors import RobotError
 from gwr_predictor.robot.nao import limits_array
-from gwr_predictor.robot.tracking import LagError, estimate_lag, shift_mse, tracking_error
+from gwr_predictor.robot.tracking import estimate_lag, shift_mse, tracking_error
 
 LATENCY = 0.035
 
@@ -172,7 +173,7 @@ def test_tracking_error_of_a_constant_offset():
 
 
 def test_lag_inputs_are_validated():
-    with pytest.raises(LagError, match="shape"):
+    with pytest.raises(RobotError, match="shape"):
         estimate_lag(np.zeros((10, 2)), np.zeros((10, 3)), 0.1, 0.3)
-    with pytest.raises(LagError, match="max_lag_s"):
+    with pytest.raises(RobotError, match="max_lag_s"):
         estimate_lag(np.zeros((10, 2)), np.zeros((10, 2)), 0.1, 5.0)

@@ -10,7 +10,7 @@ from pathlib import Path
 import pytest
 from ros_harness import BIN, ROOT
 
-NODES = ["skeleton_source", "angle_extractor", "gwr_hierarchy", "delay_compensator", "nao_sim", "bag_recorder",
+NODES = ["skeleton_source", "angle_extractor", "arm_predictor", "delay_compensator", "nao_sim", "bag_recorder",
          "bag_player", "hri_bodies"]
 SKIP = shutil.ignore_patterns(".venv", ".git", "build", "install", "log", "results", ".test-logs", "__pycache__",
                               "*.egg-info", ".pytest_cache", ".ruff_cache")

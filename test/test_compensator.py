@@ -7,13 +7,13 @@ from gwr_predictor.robot.compensator import (
     NO_PREDICTIONS,
     NO_ROBOT_STATE,
     STALE_PREDICTIONS,
-    CompensatorError,
     CompensatorParams,
     DelayCompensator,
     eq11_step,
     fixed_step,
     robot_lag,
 )
+from gwr_predictor.robot.errors import RobotError
 
 REST = np.array([1.4, 0.2, -1.2, -0.5, 1.4, -0.2, 1.2, 0.5])
 DIRECTION = np.array([-0.1, 0.05, 0.08, -0.04, -0.1, -0.05, -0.08, 0.04])
@@ -174,11 +174,11 @@ def test_reset_restores_the_configured_delay_and_clears_counters():
 
 def test_wrong_shapes_raise_compensator_errors_naming_the_input():
     comp = DelayCompensator("fixed", 0.3)
-    with pytest.raises(CompensatorError, match="observation"):
+    with pytest.raises(RobotError, match="observation"):
         comp.command(0.0, np.zeros(7), predictions_from(REST), 0.0)
-    with pytest.raises(CompensatorError, match="predictions"):
+    with pytest.raises(RobotError, match="predictions"):
         comp.command(0.0, REST, np.zeros((6, 7)), 0.0)
-    with pytest.raises(CompensatorError, match="robot_state"):
+    with pytest.raises(RobotError, match="robot_state"):
         comp.command(0.0, REST, predictions_from(REST), 0.0, robot_state=np.zeros(3))
 
 
@@ -186,7 +186,7 @@ def test_wrong_shapes_raise_compensator_errors_naming_the_input():
                                               ("stale_after_s", -1.0), ("tracking_gain", 1.5),
                                               ("history_frames", 0), ("history_frames", 2.5)])
 def test_params_reject_bad_values_naming_the_field(field, value):
-    with pytest.raises(CompensatorError, match=field):
+    with pytest.raises(RobotError, match=field):
         CompensatorParams(**{field: value})
 
 

@@ -11,7 +11,6 @@ from gwr_predictor.data.datasets import AngleSequence, demo_angle_sequences
 from gwr_predictor.data.demonstrator import (
     HUMAN_RANGES,
     PATTERNS,
-    DemonstratorError,
     SubjectProfile,
     arm_trajectories,
     default_subjects,
@@ -19,6 +18,7 @@ from gwr_predictor.data.demonstrator import (
     demonstrate_one,
     duration,
 )
+from gwr_predictor.data.errors import DataError
 from gwr_predictor.data.smoothing import median_of_3
 from gwr_predictor.pipeline.conventions import SKELETON_JOINTS
 from gwr_predictor.robot.nao import ARM_JOINTS, VELOCITY_LIMITS
@@ -55,16 +55,16 @@ def test_default_subjects_are_three_fixed_people_and_more_can_be_drawn():
 @pytest.mark.parametrize(("field", "value"), [("upper_arm", 0.9), ("speed", 0.0), ("noise_mm", -1.0),
                                               ("distance", 5.0), ("amplitude", "big")])
 def test_subject_profile_names_the_bad_field_and_its_range(field, value):
-    with pytest.raises(DemonstratorError, match=rf"SubjectProfile\.{field} must be in \[.*\]"):
+    with pytest.raises(DataError, match=rf"SubjectProfile\.{field} must be in \[.*\]"):
         dataclasses.replace(SUBJECTS[0], **{field: value})
 
 
 def test_bad_pattern_and_counts_are_refused():
-    with pytest.raises(DemonstratorError, match="unknown pattern 'jump'"):
+    with pytest.raises(DataError, match="unknown pattern 'jump'"):
         demonstrate(["jump"], repetitions=1)
-    with pytest.raises(DemonstratorError, match="repetitions"):
+    with pytest.raises(DataError, match="repetitions"):
         demonstrate(repetitions=0)
-    with pytest.raises(DemonstratorError, match="subjects"):
+    with pytest.raises(DataError, match="subjects"):
         default_subjects(0)
 
 

@@ -1,6 +1,6 @@
-"""README.md and docs/*.md cannot rot: their Python examples run, the commands and scripts their bash
-examples name exist, the source files they name exist, their relative links (and #anchors) lead
-somewhere, and the README's results table holds its recorded runs' figures.
+"""README.md, docs/*.md and the lab record (research/*.md) cannot rot: their Python examples run, the
+commands and scripts their bash examples name exist, the source files they name exist, their relative
+links (and #anchors) lead somewhere, and the README's results table holds its recorded runs' figures.
 
 A Python block fenced as ```python no-run is skipped; use it only for code that needs what this
 machine cannot have (a live ROS graph, a robot, a display), and say why next to the block.
@@ -18,11 +18,11 @@ import pytest
 from gwr_predictor.commands.cli import COMMANDS
 
 ROOT = Path(__file__).resolve().parents[1]
-PAGES = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
+PAGES = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md")), *sorted((ROOT / "research").glob("*.md"))]
 FENCE = re.compile(r"^```(\w[\w-]*)?([^\n]*)\n(.*?)^```", re.MULTILINE | re.DOTALL)
 LINK = re.compile(r"(?<!!)\[[^\]]*\]\(([^)\s]+)\)|!\[[^\]]*\]\(([^)\s]+)\)|<img [^>]*src=\"([^\"]+)\"")
 HEADING = re.compile(r"^#{1,6} (.+?)\s*$", re.MULTILINE)
-NODES = ("skeleton_source", "angle_extractor", "gwr_hierarchy", "delay_compensator", "nao_sim", "bag_recorder",
+NODES = ("skeleton_source", "angle_extractor", "arm_predictor", "delay_compensator", "nao_sim", "bag_recorder",
          "bag_player", "hri_bodies")
 
 
@@ -189,9 +189,9 @@ def readme_results_rows() -> list[tuple[str, list[str]]]:
 
 
 def test_the_readme_results_table_is_the_recorded_runs():
-    """Every figure of the README's table is its recorded run's (docs/results/*/results.json), to the
+    """Every figure of the README's table is its recorded run's (research/results/*/results.json), to the
     three decimals shown: a re-run that moves a figure moves the table, or this fails."""
-    runs = {name: json.loads((ROOT / "docs" / "results" / name / "results.json").read_text())["results"]
+    runs = {name: json.loads((ROOT / "research" / "results" / name / "results.json").read_text())["results"]
             for name in {run for run, _ in RESULT_COLUMNS}}
     rows = readme_results_rows()
     assert {"hold", "rls_ar", "gwr_experts"} <= {name for name, _ in rows}

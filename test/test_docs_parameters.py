@@ -1,4 +1,4 @@
-"""docs/pipeline.md's parameter tables are the nodes' declared parameters: a renamed parameter, a new
+"""docs/parameters.md's tables are the nodes' declared parameters: a renamed parameter, a new
 default or a new range breaks this test, not a reader."""
 
 import importlib
@@ -11,16 +11,16 @@ from gwr_predictor.parameters.spec import markdown_table
 from gwr_predictor.predictors.registry import learner_names
 
 ROOT = Path(__file__).resolve().parents[1]
-DOC = ROOT / "docs" / "pipeline.md"
-NODES = ["skeleton_source", "angle_extractor", "gwr_hierarchy", "delay_compensator", "nao_sim", "bag_recorder",
+DOC = ROOT / "docs" / "parameters.md"
+NODES = ["skeleton_source", "angle_extractor", "arm_predictor", "delay_compensator", "nao_sim", "bag_recorder",
          "bag_player", "hri_bodies"]
 
 
 def documented_table(node: str) -> str:
-    """The table right below the '#### <node>' heading."""
+    """The table right below the '## <node>' heading."""
     text = DOC.read_text(encoding="utf-8")
-    match = re.search(rf"^#### {node}\n\n((?:\|.*\n)+)", text, re.MULTILINE)
-    assert match, f"docs/pipeline.md has no '#### {node}' heading followed by a table"
+    match = re.search(rf"^## {node}\n\n((?:\|.*\n)+)", text, re.MULTILINE)
+    assert match, f"docs/parameters.md has no '## {node}' heading followed by a table"
     return match.group(1).rstrip("\n")
 
 
@@ -32,17 +32,17 @@ def node_table(node: str) -> str:
 def test_the_documented_parameters_are_the_declared_ones(node):
     expected = node_table(node)
     documented = documented_table(node)
-    assert documented == expected, f"replace the table under '#### {node}' in docs/pipeline.md with:\n{expected}"
+    assert documented == expected, f"replace the table under '## {node}' in docs/parameters.md with:\n{expected}"
 
 
 @pytest.mark.parametrize("predictor", learner_names())
 def test_each_product_predictors_settings_are_documented(predictor):
     """The learner declares the chosen predictor's own settings: one table per product predictor."""
-    from gwr_predictor.nodes.gwr_hierarchy import predictor_specs
+    from gwr_predictor.nodes.arm_predictor import predictor_specs
 
     expected = markdown_table(predictor_specs(predictor))
-    heading = f"gwr_hierarchy: predictor {predictor}"
-    assert documented_table(heading) == expected, f"replace the table under '#### {heading}' with:\n{expected}"
+    heading = f"arm_predictor: predictor {predictor}"
+    assert documented_table(heading) == expected, f"replace the table under '## {heading}' with:\n{expected}"
 
 
 def test_the_parameters_every_node_declares_are_documented():

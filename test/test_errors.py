@@ -39,7 +39,7 @@ def test_every_exception_class_of_the_package_derives_from_the_base():
                 found[f"{name}.{cls_name}"] = cls
     # a walk that misses one subpackage's class (or the nodes') missed modules
     every_part = {"GwrPredictorError", "ParameterError", "DataError", "LearningError", "DefaultPredictorError",
-                  "PredictorError", "EvaluationError", "RobotError", "PipelineError", "RecordingError",
+                  "PredictorError", "EvaluationError", "RobotError", "PipelineError", "CommandError",
                   "NodeFatalError"}
     assert every_part <= {c.__name__ for c in found.values()}, sorted(found)
     strays = sorted(n for n, c in found.items() if not issubclass(c, GwrPredictorError))
@@ -48,7 +48,7 @@ def test_every_exception_class_of_the_package_derives_from_the_base():
 
 def _exception_classes_by_part() -> dict[str, set[type]]:
     """{subpackage (the nodes are one; "gwr_predictor" for the top-level modules): the exception classes its
-    modules define}; an alias (`BagError = PipelineError`) is the class it names, counted once."""
+    modules define}; an alias (`Other = PipelineError`) is the class it names, counted once."""
     parts: dict[str, set[type]] = {}
     for name in _package_modules():
         if name == "gwr_predictor":
@@ -72,6 +72,33 @@ def test_each_subpackage_defines_one_error_class_at_most():
     over = {part: sorted(c.__qualname__ for c in classes) for part, classes in parts.items()
             if len(classes) > limits.get(part, 1)}
     assert not over, f"more than one exception class in a subpackage: {over}"
+
+
+#: The parts whose error class has one name: a caller imports and catches that name, not an alias of it
+#: (defined by the part or imported from it).
+_ONE_NAME_PARTS = ("gwr_predictor", "files", "joints", "parameters", "data", "evaluation", "pipeline", "robot",
+                   "commands", "nodes")
+
+
+def _part_of(module: str) -> str:
+    """The subpackage of a module name ("nodes" for the nodes, "gwr_predictor" for the top-level modules)."""
+    words = module.split(".")
+    if len(words) > 2 or (len(words) == 2 and hasattr(importlib.import_module(module), "__path__")):
+        return words[1]
+    return "gwr_predictor"
+
+
+def test_an_error_class_goes_by_its_own_name_only():
+    aliases = []
+    for name in _package_modules():
+        module = importlib.import_module(name)
+        if _part_of(name) not in _ONE_NAME_PARTS:
+            continue
+        for attr, value in vars(module).items():
+            if (isinstance(value, type) and issubclass(value, GwrPredictorError) and attr != value.__name__
+                    and _part_of(value.__module__) in _ONE_NAME_PARTS):
+                aliases.append(f"{name}.{attr} = {value.__name__}")
+    assert not aliases, "aliases of error classes:\n" + "\n".join(aliases)
 
 
 def test_corrupt_checkpoint_is_one_line_and_exit_2(tmp_path, capsys):
@@ -106,59 +133,46 @@ def test_a_checkpoint_whose_read_out_queue_disagrees_with_its_regressors_is_refu
         LocalLinearPredictor.from_state(header, arrays)
 
 
-#: Built-in errors the package must not raise at a caller; each module raises its own class instead.
+#: Built-in errors the package must not raise; each module raises its own class instead, also where its own
+#: function catches it again (a bare ValueError caught a few lines down is a message that could have been its class).
 _BARE = {"ValueError", "RuntimeError", "KeyError"}
 #: Functions that raise one of them on purpose: every caller in the package converts it to its own class.
 _CONVERTED_BY_EVERY_CALLER = {("files/limits.py", "npy_header")}
-
-
-def _caught(handler: ast.ExceptHandler, name: str) -> bool:
-    """Whether an `except` clause catches the built-in `name` (or everything it derives from)."""
-    if handler.type is None:
-        return True
-    types = handler.type.elts if isinstance(handler.type, ast.Tuple) else [handler.type]
-    return any(isinstance(t, ast.Name) and t.id in (name, "Exception", "BaseException") for t in types)
+#: What the package installs and runs: the library, the nodes, the launch file.
+_PRODUCT = ("gwr_predictor", "nodes", "launch")
 
 
 def _bare_raises(tree: ast.AST) -> list[tuple[str, int, str]]:
-    """(function, line, built-in) of every `raise ValueError(...)` (and the like) that leaves its function:
-    not inside the body of a `try` of the same function whose handlers catch it."""
+    """(function, line, built-in) of every `raise ValueError(...)` (and the like)."""
     found = []
 
-    def visit(node: ast.AST, function: str, catching: frozenset[str]) -> None:
+    def visit(node: ast.AST, function: str) -> None:
         if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef, ast.Lambda)):
-            function, catching = getattr(node, "name", "<lambda>"), frozenset()
+            function = getattr(node, "name", "<lambda>")
         if isinstance(node, ast.Raise) and node.exc is not None:
             exc = node.exc.func if isinstance(node.exc, ast.Call) else node.exc
-            if isinstance(exc, ast.Name) and exc.id in _BARE and exc.id not in catching:
+            if isinstance(exc, ast.Name) and exc.id in _BARE:
                 found.append((function, node.lineno, exc.id))
-        if isinstance(node, ast.Try):
-            inner = catching | {n for n in _BARE if any(_caught(h, n) for h in node.handlers)}
-            for child in node.body:
-                visit(child, function, inner)
-            for child in [*node.handlers, *node.orelse, *node.finalbody]:
-                visit(child, function, catching)
-            return
         for child in ast.iter_child_nodes(node):
-            visit(child, function, catching)
+            visit(child, function)
 
-    visit(tree, "<module>", frozenset())
+    visit(tree, "<module>")
     return found
 
 
-def test_the_scan_finds_a_bare_raise_and_lets_a_converted_one_pass():
+def test_the_scan_finds_bare_raises_caught_or_not_and_lets_the_own_class_pass():
     source = ("def f(x):\n    raise ValueError(x)\n"
               "def g(x):\n    try:\n        raise ValueError(x)\n    except ValueError as e:\n        raise Own(e)\n"
-              "def h(x):\n    try:\n        raise KeyError(x)\n    except ValueError:\n        pass\n")
-    assert _bare_raises(ast.parse(source)) == [("f", 2, "ValueError"), ("h", 10, "KeyError")]
+              "def h(x):\n    raise Own(x)\n")
+    assert _bare_raises(ast.parse(source)) == [("f", 2, "ValueError"), ("g", 5, "ValueError")]
 
 
-def test_the_library_raises_its_own_error_classes_not_bare_built_ins():
-    package = ROOT / "gwr_predictor"
+def test_the_product_raises_its_own_error_classes_not_bare_built_ins():
     strays = []
-    for path in sorted(package.rglob("*.py")):
-        where = path.relative_to(package).as_posix()
-        for function, line, name in _bare_raises(ast.parse(path.read_text(), str(path))):
-            if (where, function) not in _CONVERTED_BY_EVERY_CALLER:
-                strays.append(f"{where}:{line} {function}: raise {name}")
+    for folder in _PRODUCT:
+        for path in sorted((ROOT / folder).rglob("*.py")):
+            where = path.relative_to(ROOT / folder).as_posix()
+            for function, line, name in _bare_raises(ast.parse(path.read_text(), str(path))):
+                if (where, function) not in _CONVERTED_BY_EVERY_CALLER:
+                    strays.append(f"{folder}/{where}:{line} {function}: raise {name}")
     assert not strays, "raise the module's GwrPredictorError class instead:\n" + "\n".join(strays)

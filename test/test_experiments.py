@@ -10,7 +10,8 @@ import pytest
 
 from gwr_predictor.commands.cli import main
 from gwr_predictor.default_predictor import LocalLinearParams
-from gwr_predictor.evaluation.output import ExperimentOutputError, markdown_table, to_jsonable
+from gwr_predictor.evaluation.errors import EvaluationError
+from gwr_predictor.evaluation.output import markdown_table, to_jsonable
 from research.experiments import EXPERIMENTS, UnknownExperiment, load
 from research.experiments.gate import DEFAULT as GATE_DEFAULT
 from research.experiments.splits import SplitError, key, make_splits
@@ -49,7 +50,7 @@ def test_duplicate_demonstrations_are_refused():
 
 def test_report_helpers():
     assert to_jsonable({"a": np.array([1.0, np.nan]), "b": (np.int64(2),)}) == {"a": [1.0, None], "b": [2]}
-    with pytest.raises(ExperimentOutputError):
+    with pytest.raises(EvaluationError):
         to_jsonable(object())
     assert markdown_table(["x", "y"], [[1, 0.12345]]).splitlines()[-1] == "| 1 | 0.123 |"
     with pytest.raises(UnknownExperiment):

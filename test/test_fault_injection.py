@@ -14,6 +14,7 @@ from gwr_predictor.nodes import messages
 from gwr_predictor.nodes.messages import DiagnosticArray, Float64MultiArray, JointState
 from gwr_predictor.pipeline import bag_messages, bag_reader, bag_recovery
 from gwr_predictor.pipeline.conventions import NEURON_KEYS
+from gwr_predictor.pipeline.errors import PipelineError
 from gwr_predictor.predictors.registry import DEFAULT_PREDICTOR, load_predictor
 
 FAST = {"diagnostics_period_s": 0.5}
@@ -45,7 +46,7 @@ def test_each_node_killed_and_restarted_the_pipeline_recovers_and_keeps_what_it_
         "bag_recorder": {**FAST, "path": str(tmp_path / "bag1"), "flush_period_s": 0.5},
         "nao_sim": {**FAST, "backend": "kinematic"},
         "delay_compensator": FAST,
-        "gwr_hierarchy": {**FAST, "checkpoint": str(checkpoint), "checkpoint_interval_s": CHECKPOINT_INTERVAL_S,
+        "arm_predictor": {**FAST, "checkpoint": str(checkpoint), "checkpoint_interval_s": CHECKPOINT_INTERVAL_S,
                           "status_period_s": 0.25},
         "angle_extractor": FAST,
         # the tracker loses 30 % of the frames in 1 s chunks: dropouts of seconds all along
@@ -82,13 +83,13 @@ def test_each_node_killed_and_restarted_the_pipeline_recovers_and_keeps_what_it_
     frames_well_before = int(learner_values(statuses[-1])["frames"])
     probe.spin_for(CHECKPOINT_INTERVAL_S + 1.0)
     frames_at_kill = int(learner_values(statuses[-1])["frames"])
-    ros.kill(procs["gwr_hierarchy"])
+    ros.kill(procs["arm_predictor"])
     saved = load_predictor(DEFAULT_PREDICTOR, checkpoint)  # a SIGKILL never leaves a half-written checkpoint
     saved_frames = inner_model(saved).frames_seen
     assert frames_well_before <= saved_frames <= frames_at_kill + 10
     n_status = len(statuses)
-    restart("gwr_hierarchy", ("predictions", "learner_status"))
-    log = procs["gwr_hierarchy"].output()
+    restart("arm_predictor", ("predictions", "learner_status"))
+    log = procs["arm_predictor"].output()
     assert (f"loaded {checkpoint} ({DEFAULT_PREDICTOR}): {saved_frames} frames seen, "
             f"neurons {saved.neuron_counts}") in log
     after = learner_values(statuses[n_status])
@@ -103,7 +104,7 @@ def test_each_node_killed_and_restarted_the_pipeline_recovers_and_keeps_what_it_
     on_disk = int(diagnostics["/bag_recorder"]["messages.on_disk"])
     assert on_disk > 0
     ros.kill(procs["bag_recorder"])
-    with pytest.raises(bag_messages.BagError, match="recover_bag"):
+    with pytest.raises(PipelineError, match="recover_bag"):
         bag_reader.bag_info(tmp_path / "bag1")
     recovered = bag_recovery.recover_bag(tmp_path / "bag1")
     assert recovered.message_count >= on_disk
@@ -130,9 +131,9 @@ def test_each_node_killed_and_restarted_the_pipeline_recovers_and_keeps_what_it_
     # --- learning went on through the dropouts and the crashes -----------------------------------
     source = diagnostics["/skeleton_source"]
     assert int(source["frames.dropped_by_fault_injection"]) > 0
-    learned_before_stop = int(diagnostics["/gwr_hierarchy"]["frames.learned"])
+    learned_before_stop = int(diagnostics["/arm_predictor"]["frames.learned"])
     assert learned_before_stop > 0
-    for name in ("skeleton_source", "angle_extractor", "gwr_hierarchy", "delay_compensator", "nao_sim",
+    for name in ("skeleton_source", "angle_extractor", "arm_predictor", "delay_compensator", "nao_sim",
                  "bag_recorder"):
         code, killed = procs[name].stop(signal.SIGINT)
         assert code == 0 and not killed, procs[name].output()[-2000:]

@@ -3,7 +3,8 @@
 import numpy as np
 import pytest
 
-from gwr_predictor.data.faults import CHUNK_FRAMES, FaultParameterError, drop_chunks, joint_dropouts
+from gwr_predictor.data.errors import DataError
+from gwr_predictor.data.faults import CHUNK_FRAMES, drop_chunks, joint_dropouts
 
 
 def _runs(removed: np.ndarray) -> list[int]:
@@ -49,14 +50,14 @@ def test_chunks_land_anywhere_not_on_a_fixed_grid():
 
 @pytest.mark.parametrize("bad", [-0.1, 1.5, float("nan"), "0.3"])
 def test_fraction_outside_zero_one_is_refused(bad):
-    with pytest.raises(FaultParameterError, match=r"fraction must be in \[0, 1\]"):
+    with pytest.raises(DataError, match=r"fraction must be in \[0, 1\]"):
         drop_chunks(100, bad)
 
 
 def test_bad_frame_and_chunk_counts_are_refused():
-    with pytest.raises(FaultParameterError, match="n_frames"):
+    with pytest.raises(DataError, match="n_frames"):
         drop_chunks(-1, 0.1)
-    with pytest.raises(FaultParameterError, match="chunk"):
+    with pytest.raises(DataError, match="chunk"):
         drop_chunks(10, 0.1, chunk=0)
 
 
@@ -82,9 +83,9 @@ def test_joint_dropout_share_follows_rate_and_span():
 
 
 def test_joint_dropouts_refuse_bad_arguments():
-    with pytest.raises(FaultParameterError, match="positions"):
+    with pytest.raises(DataError, match="positions"):
         joint_dropouts(np.zeros((5, 3)), 0.1)
-    with pytest.raises(FaultParameterError, match="rate"):
+    with pytest.raises(DataError, match="rate"):
         joint_dropouts(np.zeros((5, 15, 3)), 2.0)
-    with pytest.raises(FaultParameterError, match="joints"):
+    with pytest.raises(DataError, match="joints"):
         joint_dropouts(np.zeros((5, 15, 3)), 0.1, joints=[15])

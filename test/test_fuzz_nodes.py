@@ -23,12 +23,14 @@ from hypothesis import strategies as st
 from ros_harness import in_process
 
 from gwr_predictor.data.demonstrator import default_subjects, demonstrate_one
-from gwr_predictor.data.skeleton_files import SkeletonFileError, load_skeleton
+from gwr_predictor.data.errors import DataError
+from gwr_predictor.data.skeleton_files import load_skeleton
 from gwr_predictor.learning.checkpoint import CheckpointError, read_checkpoint
 from gwr_predictor.nodes import messages
 from gwr_predictor.nodes.messages import Float64MultiArray, JointState, MultiArrayDimension
 from gwr_predictor.pipeline import stamps
-from gwr_predictor.pipeline.params_file import ParamsFileError, load_params_file
+from gwr_predictor.pipeline.errors import PipelineError
+from gwr_predictor.pipeline.params_file import load_params_file
 from gwr_predictor.robot.nao import ARM_JOINTS
 
 pytestmark = pytest.mark.ros
@@ -43,12 +45,12 @@ POISON = 1e6  # seconds ahead of now
 @pytest.fixture(scope="module")
 def nodes():
     from gwr_predictor.nodes.angle_extractor import AngleExtractorNode
+    from gwr_predictor.nodes.arm_predictor import ArmPredictorNode
     from gwr_predictor.nodes.delay_compensator import DelayCompensatorNode
-    from gwr_predictor.nodes.gwr_hierarchy import GwrHierarchyNode
     from gwr_predictor.nodes.nao_sim import NaoSimNode
 
     with in_process(["-p", "nao_sim:backend:=kinematic", "-p", "stop_if_duplicate:=false"],
-                    extractor=AngleExtractorNode, learner=GwrHierarchyNode, compensator=DelayCompensatorNode,
+                    extractor=AngleExtractorNode, learner=ArmPredictorNode, compensator=DelayCompensatorNode,
                     robot=NaoSimNode) as built:
         sent: list = []
         built["compensator"].command_pub.publish = sent.append  # capture the commands
@@ -133,7 +135,7 @@ def test_angle_extractor_survives_any_skeletons_and_is_not_silenced(nodes, msgs)
 @given(st.lists(joint_states(), max_size=8))
 @example([genuine_joint_state(time.time() + POISON)])
 @example([JointState()])
-def test_gwr_hierarchy_survives_any_angles_and_keeps_learning(nodes, msgs):
+def test_arm_predictor_survives_any_angles_and_keeps_learning(nodes, msgs):
     node = nodes["learner"]
     before = total_inputs(node, "arm_angles", "frames.learned")
     for msg in msgs:
@@ -199,7 +201,7 @@ def test_skeleton_and_checkpoint_readers_raise_only_their_own_errors(tmp_path, d
     path.write_bytes(data)
     try:
         load_skeleton(path)
-    except SkeletonFileError:
+    except DataError:
         pass
     try:
         read_checkpoint(path, "Hierarchy")
@@ -217,7 +219,7 @@ def test_params_files_are_accepted_or_refused_with_a_params_file_error(tmp_path,
     path.write_text(text)
     try:
         sections = load_params_file(path)
-    except ParamsFileError as exc:
+    except PipelineError as exc:
         assert str(path) in str(exc)
     else:
         assert all(isinstance(v, dict) for v in sections.values())

@@ -8,10 +8,12 @@ import numpy as np
 import pytest
 
 from gwr_predictor.commands.cli import main as cli_main
-from gwr_predictor.data.skeleton_files import SkeletonFileError, load_skeleton
+from gwr_predictor.data.errors import DataError
+from gwr_predictor.data.skeleton_files import load_skeleton
 from gwr_predictor.files import limits
 from gwr_predictor.learning.checkpoint import CheckpointError, read_checkpoint
 from gwr_predictor.pipeline import bag_messages, bag_reader, bag_recovery, bag_writer
+from gwr_predictor.pipeline.errors import PipelineError
 from gwr_predictor.pipeline.message_latency import latency_report
 from gwr_predictor.pipeline.run_report import read_run
 from gwr_predictor.robot.nao import ARM_JOINTS
@@ -44,7 +46,7 @@ def angles_bag(path, n: int = 20, garbage_at: tuple[int, ...] = (), flush_every:
 
 def test_undecodable_messages_are_skipped_counted_and_reported(tmp_path, capsys):
     path = angles_bag(tmp_path / "bag", garbage_at=(3, 11))
-    with pytest.raises(bag_messages.BagError, match=r"cannot decode .*/arm_angles"):
+    with pytest.raises(PipelineError, match=r"cannot decode .*/arm_angles"):
         list(bag_reader.read_bag(path))  # strict by default
     skipped: dict[str, int] = {}
     assert len(list(bag_reader.read_bag(path, undecodable=skipped))) == 18
@@ -63,7 +65,7 @@ def test_a_metadata_yaml_that_lies_makes_latency_and_report_fail(tmp_path, capsy
     meta.write_text(text.replace("message_count: 20", "message_count: 25"))
     assert cli_main(["latency", str(path), "--out", str(tmp_path)]) == 1
     assert "metadata.yaml does not match" in capsys.readouterr().err
-    with pytest.raises(bag_messages.BagError, match="metadata 25, file 20"):
+    with pytest.raises(PipelineError, match="metadata 25, file 20"):
         read_run(path)
 
 
@@ -72,7 +74,7 @@ def test_a_truncated_mcap_with_metadata_is_recovered_and_its_metadata_rewritten(
     mcap = next(path.glob("*.mcap"))
     data = mcap.read_bytes()
     mcap.write_bytes(data[: len(data) * 2 // 3])  # a disk that filled up, a copy cut short
-    with pytest.raises(bag_messages.BagError):
+    with pytest.raises(PipelineError):
         list(bag_reader.read_bag(path))
     info = bag_recovery.recover_bag(path)
     assert 10 <= info.message_count < 40 and info.message_count % 10 == 0
@@ -94,8 +96,8 @@ def restart_bag(path, concurrent: bool):
             rows.append((t, "/arm_angles", bag_messages.joint_state_msg(ARM_JOINTS, np.zeros(8), t)))
         rows.append((11.4 + base, "/diagnostics",
                      diagnostics_msg(0, "/angle_extractor", {"angles.published": 10}, inst)))
-    rows.append((9.0, "/diagnostics", diagnostics_msg(0, "/gwr_hierarchy", {"frames.learned": 0}, "L")))
-    rows.append((20.0, "/diagnostics", diagnostics_msg(0, "/gwr_hierarchy", {"frames.learned": 20}, "L")))
+    rows.append((9.0, "/diagnostics", diagnostics_msg(0, "/arm_predictor", {"frames.learned": 0}, "L")))
+    rows.append((20.0, "/diagnostics", diagnostics_msg(0, "/arm_predictor", {"frames.learned": 20}, "L")))
     with bag_writer.BagWriter(path, {"/arm_angles": bag_messages.JOINT_STATE, "/diagnostics": DIAGNOSTICS}) as writer:
         for t, topic, msg in sorted(rows, key=lambda r: r[0]):
             writer.write(topic, round(t * 1e9), msg)
@@ -104,7 +106,7 @@ def restart_bag(path, concurrent: bool):
 
 def test_a_restarted_node_counts_with_every_instance_and_loses_nothing(tmp_path):
     report = latency_report(restart_bag(tmp_path / "bag", concurrent=False))
-    hop = next(c for c in report.counts if c.topic == "/arm_angles" and c.consumer == "gwr_hierarchy")
+    hop = next(c for c in report.counts if c.topic == "/arm_angles" and c.consumer == "arm_predictor")
     assert (hop.published, hop.recorded, hop.consumed, hop.instances) == (20, 20, 20, 2)
     assert (hop.lost_recorder, hop.lost_consumer) == (0, 0)
     assert report.total_lost == 0
@@ -113,7 +115,7 @@ def test_a_restarted_node_counts_with_every_instance_and_loses_nothing(tmp_path)
 
 def test_two_instances_at_once_are_named_and_no_consumer_loss_is_invented(tmp_path):
     report = latency_report(restart_bag(tmp_path / "bag", concurrent=True))
-    hop = next(c for c in report.counts if c.topic == "/arm_angles" and c.consumer == "gwr_hierarchy")
+    hop = next(c for c in report.counts if c.topic == "/arm_angles" and c.consumer == "arm_predictor")
     assert hop.concurrent and hop.lost_consumer is None
     assert hop.published == 20 and hop.lost_recorder == 0
     assert any("two instances of a node ran at once" in line for line in report.summary_lines())
@@ -125,12 +127,12 @@ def test_files_that_cannot_be_recordings_are_refused_before_reading(tmp_path, mo
         zf.writestr("positions.npy", b"\0" * (8 << 20))  # 8 MB of zeros: a few KB on disk
     assert bomb.stat().st_size < 100_000
     monkeypatch.setattr("gwr_predictor.data.skeleton_files.MAX_RECORDING_BYTES", 4 << 20)
-    with pytest.raises(SkeletonFileError, match=r"bomb.npz: its arrays inflate to 8 MB.*refused before reading"):
+    with pytest.raises(DataError, match=r"bomb.npz: its arrays inflate to 8 MB.*refused before reading"):
         load_skeleton(bomb)
     big_csv = tmp_path / "big.csv"
     big_csv.write_bytes(b"t" * (3 << 20))
     monkeypatch.setattr("gwr_predictor.data.skeleton_files.MAX_CSV_BYTES", 2 << 20)
-    with pytest.raises(SkeletonFileError, match=r"big.csv: 3 MB is too large"):
+    with pytest.raises(DataError, match=r"big.csv: 3 MB is too large"):
         load_skeleton(big_csv)
     monkeypatch.setattr("gwr_predictor.learning.checkpoint.MAX_CHECKPOINT_BYTES", 4 << 20)
     with pytest.raises(CheckpointError, match="inflate to 8 MB"):

@@ -27,12 +27,12 @@ def test_one_poisoned_stamp_silences_no_node_and_the_compensator_keeps_commandin
     diagnostics = probe.subscribe_diagnostics()
     procs = [
         ros.start("angle_extractor", params=FAST, remaps={"arm_angles": "/extracted"}),
-        ros.start("gwr_hierarchy", params=FAST, remaps={"arm_angles": "/h_angles", "predictions": "/h_preds"}),
+        ros.start("arm_predictor", params=FAST, remaps={"arm_angles": "/h_angles", "predictions": "/h_preds"}),
         ros.start("delay_compensator", params=FAST, remaps={"arm_angles": "/c_angles", "predictions": "/c_preds",
                                                             "joint_commands": "/c_cmds"}),
         ros.start("nao_sim", params={**FAST, "backend": "kinematic"}, remaps={"joint_commands": "/n_cmds"}),
     ]
-    for name in ("/angle_extractor", "/gwr_hierarchy", "/delay_compensator", "/nao_sim"):
+    for name in ("/angle_extractor", "/arm_predictor", "/delay_compensator", "/nao_sim"):
         ros.wait_for_node(diagnostics, name, timeout=60)
     extracted = probe.subscribe("/extracted", JointState)
     commands = probe.subscribe("/c_cmds", JointState)
@@ -81,7 +81,7 @@ def test_one_poisoned_stamp_silences_no_node_and_the_compensator_keeps_commandin
     wait_counters(ros, diagnostics, "/angle_extractor", {
         "rejected.skeleton.stamp_ahead": 1, "rejected.skeleton.stamp": 1, "angles.published": 2}, procs)
     assert len(extracted) == 2
-    wait_counters(ros, diagnostics, "/gwr_hierarchy", {
+    wait_counters(ros, diagnostics, "/arm_predictor", {
         "rejected.arm_angles.stamp_ahead": 1, "frames.learned": 10}, procs)
     wait_counters(ros, diagnostics, "/nao_sim", {
         "rejected.joint_commands.stamp_ahead": 1, "commands.accepted": 2}, procs)
@@ -105,7 +105,7 @@ def test_a_checkpoint_place_that_is_not_ours_or_not_writable_is_refused_at_start
     else:
         target = "/proc/self/gwr_model.npz"  # a place no one can write
     before = sorted(p.name for p in tmp_path.rglob("*"))
-    code, output = ros.run("gwr_hierarchy", params={**FAST, "checkpoint": str(target)}, timeout=60)
+    code, output = ros.run("arm_predictor", params={**FAST, "checkpoint": str(target)}, timeout=60)
     assert code == 1, output
     assert "parameter 'checkpoint'" in output and "ready" not in output
     if place != "proc":
@@ -131,22 +131,22 @@ def test_stale_temp_files_are_removed_and_a_failed_save_is_an_error_on_diagnosti
     (folder / ".other.npz.y.tmp").write_bytes(b"not ours")
     statuses = ros.probe.subscribe("/diagnostics", DiagnosticArray)
     diagnostics = ros.probe.subscribe_diagnostics()
-    learner = ros.start("gwr_hierarchy", params={**FAST, "checkpoint": str(checkpoint),
+    learner = ros.start("arm_predictor", params={**FAST, "checkpoint": str(checkpoint),
                                                  "checkpoint_interval_s": 0.5})
-    ros.wait_for_node(diagnostics, "/gwr_hierarchy", timeout=60)
+    ros.wait_for_node(diagnostics, "/arm_predictor", timeout=60)
     assert not any(path.exists() for path in stale)
     assert (folder / ".other.npz.y.tmp").exists()
-    assert diagnostics["/gwr_hierarchy"]["checkpoint.stale_temp_removed"] == "2"
-    ros.probe.spin_until(lambda: int(diagnostics["/gwr_hierarchy"].get("checkpoint.saved", "0")) >= 1, 20,
+    assert diagnostics["/arm_predictor"]["checkpoint.stale_temp_removed"] == "2"
+    ros.probe.spin_until(lambda: int(diagnostics["/arm_predictor"].get("checkpoint.saved", "0")) >= 1, 20,
                          "a periodic save", [learner])
     shutil.rmtree(folder)
     folder.write_text("the folder is gone: every save fails")  # works as root too (unlike chmod)
 
     def error_seen() -> bool:
-        return any(s.name == "/gwr_hierarchy" and s.level == messages.ERROR for m in statuses for s in m.status)
+        return any(s.name == "/arm_predictor" and s.level == messages.ERROR for m in statuses for s in m.status)
 
     ros.probe.spin_until(error_seen, 20, "an ERROR status after the failed save", [learner])
-    status = next(s for m in statuses for s in m.status if s.name == "/gwr_hierarchy" and s.level == messages.ERROR)
+    status = next(s for m in statuses for s in m.status if s.name == "/arm_predictor" and s.level == messages.ERROR)
     assert "checkpoint save failed" in status.message
     code, _ = learner.stop()
     assert code == 1  # the final save failed too
@@ -155,7 +155,7 @@ def test_stale_temp_files_are_removed_and_a_failed_save_is_an_error_on_diagnosti
 @pytest.mark.ros
 def test_bad_start_up_arguments_exit_2_with_a_message_and_unknown_names_are_warned(ros, tmp_path):
     bad_yaml = tmp_path / "bad.yaml"
-    bad_yaml.write_text("gwr_hierarchy:\n  ros__parameters:\n    horizon: [6\n")
+    bad_yaml.write_text("arm_predictor:\n  ros__parameters:\n    horizon: [6\n")
     no_section = tmp_path / "flat.yaml"
     no_section.write_text("horizon: 6\n")
     cases = [
@@ -166,7 +166,7 @@ def test_bad_start_up_arguments_exit_2_with_a_message_and_unknown_names_are_warn
         ({"remaps": {"arm_angles": "my angles"}}, "bad ROS arguments"),
     ]
     for kwargs, message in cases:
-        code, output = ros.run("gwr_hierarchy", timeout=60, **kwargs)
+        code, output = ros.run("arm_predictor", timeout=60, **kwargs)
         assert code == 2, (kwargs, output)
         assert message in output and "Traceback" not in output, (kwargs, output)
     code, output = ros.run("bag_recorder", params={"path": str(tmp_path / "bag"), "topics": ["my topic"]}, timeout=60)

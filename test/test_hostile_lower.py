@@ -13,7 +13,8 @@ from gwr_predictor.commands.cli import main as cli_main
 from gwr_predictor.data import k4abt
 from gwr_predictor.data.demonstrator import default_subjects, demonstrate_one
 from gwr_predictor.pipeline import bag_messages, bag_recovery, bag_writer, conventions
-from gwr_predictor.pipeline.run_report import BagSummaryError, read_run
+from gwr_predictor.pipeline.errors import PipelineError
+from gwr_predictor.pipeline.run_report import read_run
 from gwr_predictor.robot.nao import ARM_JOINTS
 
 T = bag_messages.TYPESTORE.types
@@ -80,7 +81,7 @@ def run_bag(path: Path, wrong: tuple[str, ...] = (), diag_values: dict[str, str]
             put(writer, f"{ns}/diagnostics", T0 + 1,
                 lambda ns=ns, v=values: diagnostics(T0 + 1, f"{ns}/delay_compensator", v))
         put(writer, "/learner_status", T0 + 1,
-            lambda: diagnostics(T0 + 1, "gwr_hierarchy", {conventions.NEURON_KEYS["gwr1"]: "12"}))
+            lambda: diagnostics(T0 + 1, "arm_predictor", {conventions.NEURON_KEYS["gwr1"]: "12"}))
     return path
 
 
@@ -98,7 +99,7 @@ def render(bag: Path, out: Path) -> int:
 
 def test_report_and_render_refuse_arm_angles_of_another_type_in_one_line(tmp_path, capsys):
     bag = run_bag(tmp_path / "bag", wrong=("/arm_angles",))
-    with pytest.raises(BagSummaryError, match="/arm_angles"):
+    with pytest.raises(PipelineError, match="/arm_angles"):
         read_run(bag)
     assert cli_main(["report", str(bag), "--out", str(tmp_path)]) == 1
     line = one_line_error(capsys.readouterr().err)
@@ -269,7 +270,7 @@ def test_recover_bag_on_a_full_disk_is_one_bag_error_and_leaves_the_bag_as_it_wa
     bag = crashed_bag(tmp_path / "bag")
     before = sorted(p.name for p in bag.iterdir())
     monkeypatch.setattr(target, name, replacement)
-    with pytest.raises(bag_messages.BagError) as caught:
+    with pytest.raises(PipelineError) as caught:
         bag_recovery.recover_bag(bag)
     message = str(caught.value)
     assert "\n" not in message and message.startswith(str(bag)) and "No space left on device" in message
@@ -290,7 +291,7 @@ def test_recover_bag_that_cannot_move_the_result_into_place_says_where_it_is(tmp
         return real_rename(self, target)
 
     monkeypatch.setattr(Path, "rename", rename)
-    with pytest.raises(bag_messages.BagError) as caught:
+    with pytest.raises(PipelineError) as caught:
         bag_recovery.recover_bag(bag)
     message = str(caught.value)
     assert "\n" not in message and "No space left on device" in message

@@ -30,8 +30,9 @@ from test_node_bad_input import FAST, joint_state
 from gwr_predictor.commands import cli
 from gwr_predictor.files.limits import MAX_NETWORK_NEURONS
 from gwr_predictor.learning.checkpoint import CheckpointError, CheckpointLock, check_checkpoint_place
-from gwr_predictor.pipeline import bag_messages, bag_reader
-from gwr_predictor.pipeline.params_file import ParamsFileError, check_params_files
+from gwr_predictor.pipeline import bag_reader
+from gwr_predictor.pipeline.errors import PipelineError
+from gwr_predictor.pipeline.params_file import check_params_files
 from gwr_predictor.pipeline.video_files import default_suffix
 from gwr_predictor.predictors.registry import make_predictor
 
@@ -129,7 +130,7 @@ def test_the_learner_counts_a_memory_error_in_a_frame_goes_on_and_keeps_what_it_
     from ros_harness import allocate_domain_id, release_domain_id
 
     from gwr_predictor.default_predictor.gate import inner_model
-    from gwr_predictor.nodes.gwr_hierarchy import GwrHierarchyNode
+    from gwr_predictor.nodes.arm_predictor import ArmPredictorNode
     from gwr_predictor.predictors.registry import load_predictor
 
     checkpoint = tmp_path / "model.npz"
@@ -137,7 +138,7 @@ def test_the_learner_counts_a_memory_error_in_a_frame_goes_on_and_keeps_what_it_
     rclpy.init(args=["--ros-args", "-p", f"checkpoint:={checkpoint}", "-p", "predictor:=hierarchy"],
                domain_id=domain)
     try:
-        node = GwrHierarchyNode()
+        node = ArmPredictorNode()
         now = time.time() - 10.0
         rng = np.random.default_rng(0)
         pose = np.array([1.2, 0.2, -1.0, -0.5, 1.2, -0.2, 1.0, 0.5])
@@ -197,7 +198,7 @@ def alias_bomb(path: Path, levels: int = 9, width: int = 9) -> Path:
     def mapping(value: str) -> str:
         return "{" + ", ".join(f"k{i}: {value}" for i in range(width)) + "}"
 
-    lines = ["gwr_hierarchy:", "  ros__parameters:", f"    l0: &l0 {mapping('lol')}"]
+    lines = ["arm_predictor:", "  ros__parameters:", f"    l0: &l0 {mapping('lol')}"]
     lines += [f"    l{k}: &l{k} {mapping(f'*l{k - 1}')}" for k in range(1, levels)]
     path.write_text("\n".join(lines) + "\n")
     return path
@@ -206,8 +207,9 @@ def alias_bomb(path: Path, levels: int = 9, width: int = 9) -> Path:
 def test_a_yaml_alias_bomb_is_refused_before_it_expands(tmp_path):
     bomb = alias_bomb(tmp_path / "bomb.yaml")
     assert bomb.stat().st_size < 1200
-    output = refusal("from gwr_predictor.pipeline.params_file import ParamsFileError, check_params_files",
-                     f"check_params_files(['node', '--ros-args', '--params-file', {str(bomb)!r}])", "ParamsFileError")
+    output = refusal("from gwr_predictor.pipeline.errors import PipelineError\n"
+                     "from gwr_predictor.pipeline.params_file import check_params_files",
+                     f"check_params_files(['node', '--ros-args', '--params-file', {str(bomb)!r}])", "PipelineError")
     assert "alias '*l0'" in output, output
     code, output = command("pretrain", "--params-file", bomb, "-o", tmp_path / "model.npz", "--quiet")
     one_line_error(code, output, "bomb.yaml", "alias")
@@ -215,7 +217,7 @@ def test_a_yaml_alias_bomb_is_refused_before_it_expands(tmp_path):
 
 
 @pytest.mark.ros
-@pytest.mark.parametrize("node", ["gwr_hierarchy", "hri_bodies"])
+@pytest.mark.parametrize("node", ["arm_predictor", "hri_bodies"])
 def test_nodes_refuse_a_yaml_alias_bomb_at_once(ros, tmp_path, node):
     bomb = alias_bomb(tmp_path / "bomb.yaml")
     start = time.monotonic()
@@ -233,11 +235,11 @@ def test_pretrain_checks_its_params_file_as_the_nodes_do(tmp_path, kind):
         params, needle = Path("/dev/zero"), "character device"
     else:
         params, needle = tmp_path / "params.yaml", "too large"
-        params.write_text("gwr_hierarchy:\n  ros__parameters:\n    seed: 1\n" + "# padding\n" * 150_000)
+        params.write_text("arm_predictor:\n  ros__parameters:\n    seed: 1\n" + "# padding\n" * 150_000)
     code, output = command("pretrain", "--params-file", params, "-o", tmp_path / "model.npz", "--quiet",
                            timeout=20)
     one_line_error(code, output, str(params), needle)
-    with pytest.raises(ParamsFileError, match=needle):
+    with pytest.raises(PipelineError, match=needle):
         check_params_files(["node", "--ros-args", "--params-file", str(params)])
 
 
@@ -268,8 +270,9 @@ def test_a_chunk_index_claiming_a_terabyte_is_refused_before_reading(tmp_path, b
     bag = copy_bag(tmp_path)
     forge_first_chunk_index(bag / "bag.mcap", 1 << 40)
     target = bag / "bag.mcap" if bare else bag
-    output = refusal("from gwr_predictor.pipeline import bag_messages, bag_reader",
-                     f"list(bag_reader.read_bag({str(target)!r}))", "bag_messages.BagError")
+    output = refusal("from gwr_predictor.pipeline import bag_reader\n"
+                     "from gwr_predictor.pipeline.errors import PipelineError",
+                     f"list(bag_reader.read_bag({str(target)!r}))", "PipelineError")
     assert "1,099,511,627,776 compressed" in output, output
     if not bare:
         for args in (["report", bag, "--out", tmp_path / "out"], ["render", bag, "-o", tmp_path / "v.gif",
@@ -284,7 +287,7 @@ def test_a_record_longer_than_the_file_is_refused_before_reading(tmp_path):
     data = bytearray(mcap.read_bytes())
     struct.pack_into("<Q", data, 9, 1 << 40)  # the header record's length
     mcap.write_bytes(bytes(data))
-    with pytest.raises(bag_messages.BagError,
+    with pytest.raises(PipelineError,
                        match=r"record 0x01 at byte 8 declares 1,099,511,627,776 bytes, past the end"):
         bag_reader.bag_info(mcap)
 
@@ -353,10 +356,10 @@ def test_bag_metadata_with_aliases_or_over_its_size_is_refused_before_parsing(tm
     meta.write_text(text.replace("  duration:\n", "  duration: &span\n", 1).replace(
         "  - duration:\n      nanoseconds: 30984965707\n", "  - duration: *span\n", 1))
     assert bag_reader.bag_info(SAMPLE_BAG).message_count == 3840  # the same bag without the alias reads
-    with pytest.raises(bag_messages.BagError, match=r"metadata\.yaml: YAML alias '\*span'"):
+    with pytest.raises(PipelineError, match=r"metadata\.yaml: YAML alias '\*span'"):
         bag_reader.bag_info(bag)
     meta.write_text(text + "# padding\n" * (bag_reader.MAX_METADATA_BYTES // 10))
-    with pytest.raises(bag_messages.BagError, match=r"metadata\.yaml: 1 MB is too large for a bag's metadata\.yaml"):
+    with pytest.raises(PipelineError, match=r"metadata\.yaml: 1 MB is too large for a bag's metadata\.yaml"):
         bag_reader.bag_info(bag)
 
 

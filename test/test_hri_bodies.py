@@ -8,9 +8,9 @@ import yaml
 
 from gwr_predictor.data import hri_bodies
 from gwr_predictor.data.angles import skeleton_to_angles
+from gwr_predictor.data.errors import DataError
 from gwr_predictor.data.hri_bodies import (
     HUMAN_ARM_JOINTS,
-    HriBodiesError,
     arm_directions,
     body_arm_joints,
     body_to_nao,
@@ -144,7 +144,7 @@ def test_hri_fullbody_joint_names_with_the_body_suffix_are_read_in_order():
     (["l_elbow", "l_elbow_b1"], np.zeros(2), "layout"),
 ])
 def test_unusable_joint_states_raise_with_a_reason(names, values, reason):
-    with pytest.raises(HriBodiesError) as err:
+    with pytest.raises(DataError) as err:
         body_arm_joints(names, values, "b1")
     assert err.value.reason == reason
 
@@ -167,7 +167,7 @@ def test_nearest_uses_positions_with_a_margin_against_flicker():
     assert choose_body(["a", "b", "c"], "a", "nearest", d, switch_margin_m=0.2) == "c"
     assert choose_body(["x", "a"], None, "nearest", d) == "a"  # a known distance beats none
     assert choose_body(["x", "y"], None, "nearest", d) == "x"  # no distances: as 'first'
-    with pytest.raises(HriBodiesError, match="selection"):
+    with pytest.raises(DataError, match="selection"):
         choose_body(["a"], None, "tallest")
 
 

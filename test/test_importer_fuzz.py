@@ -1,6 +1,6 @@
 """Property-based fuzzing (hypothesis) of every mocap importer: random or mutated bytes and
 structurally valid but hostile headers give either a recording within the limits or the package's
-own error (`SkeletonFileError`, of which `MocapError` is one), never another exception."""
+own error (`DataError`), never another exception."""
 
 from __future__ import annotations
 
@@ -14,9 +14,10 @@ from mocap_files import write_bvh
 from test_importer_limits import bvh_text, pt_bytes
 from test_mocap import AMC, ASF
 
+from gwr_predictor.data.errors import DataError
 from gwr_predictor.data.mocap import load_any_skeleton, load_clip
 from gwr_predictor.data.mocap_clip import ImportOptions
-from gwr_predictor.data.skeleton_files import SkeletonFileError, SkeletonSequence, load_skeleton, save_skeleton
+from gwr_predictor.data.skeleton_files import SkeletonSequence, load_skeleton, save_skeleton
 from gwr_predictor.files import limits
 
 # derandomize: the same examples on every run, so that CI is reproducible (explore more with a larger
@@ -42,7 +43,7 @@ NUMBERS = st.sampled_from(["0", "-1", "1e9", "1e-9", "1e308", "nan", "inf", "999
 def _loads_within_limits_or_refuses(path, loader=load_clip) -> None:
     try:
         result = loader(path, OPTIONS) if loader is not load_skeleton else loader(path)
-    except SkeletonFileError as exc:
+    except DataError as exc:
         assert "\n" not in str(exc).strip()
         return
     positions = result.positions

@@ -32,7 +32,7 @@ def diagnostics_msg(stamp: float, name: str, values: dict[str, int]):
     return T["diagnostic_msgs/msg/DiagnosticArray"](header=header, status=[status])
 
 
-def write_run(path, n_groups: int = 30, lose_predictions: int = 0):
+def write_run(path, n_groups: int = 30, lose_predictions: int = 0, learner: str = conventions.LEARNER_NODE):
     """Skeletons at 30 fps from t=100 s; every group of 3 -> angles stamped with its middle frame,
     received EXTRACT_DELAY after the group's third skeleton; predictions LEARN_DELAY after the angles;
     a command COMP_DELAY after each prediction. Final counters: what was published."""
@@ -62,7 +62,7 @@ def write_run(path, n_groups: int = 30, lose_predictions: int = 0):
         "/skeleton_source": {"frames.published": len(skel_t)},
         "/angle_extractor": {"skeleton.accepted": len(skel_t) - 2, "rejected.skeleton.stamp": 2,
                              "angles.published": n_groups},
-        "/gwr_hierarchy": {"frames.learned": n_groups, "predictions.published": n_groups},
+        f"/{learner}": {"frames.learned": n_groups, "predictions.published": n_groups},
         "/delay_compensator": {"arm_angles.received": n_groups, "predictions.received": n_pred,
                                "commands.published": n_pred},
         "/nao_sim": {"commands.accepted": n_pred, "states.published": 0},
@@ -93,7 +93,7 @@ def test_each_hop_is_measured_from_the_source_stamp_and_the_receive_times(tmp_pa
     assert lat["hop angle_extractor"].n == 30
     # the angles are stamped with the middle frame: one skeleton period more than the hops
     assert lat["source -> arm_angles"].p50 == pytest.approx(1 / 30 + SKEL_DELAY + EXTRACT_DELAY, abs=1e-6)
-    assert lat["hop gwr_hierarchy"].p99 == pytest.approx(LEARN_DELAY, abs=1e-6)
+    assert lat["hop arm_predictor"].p99 == pytest.approx(LEARN_DELAY, abs=1e-6)
     assert lat["hop delay_compensator"].p50 == pytest.approx(COMP_DELAY, abs=1e-6)
     assert lat["joint_commands transit"].p50 == pytest.approx(TRANSIT, abs=1e-6)
     assert lat["source -> joint_commands"].max == pytest.approx(
@@ -110,6 +110,17 @@ def test_lost_messages_are_counted_per_hop(tmp_path):
     assert (pred.published, pred.recorded, pred.consumed) == (30, 27, 27)
     assert (pred.lost_recorder, pred.lost_consumer) == (3, 3)
     assert report.total_lost == 3 + 3 + 3  # predictions (recorder, compensator), predicted_angles (recorder)
+
+
+def test_a_run_of_the_learners_deprecated_executable_counts_under_its_old_name(tmp_path):
+    # bags recorded before the rename (and by the deprecated executable) hold the old name's statuses
+    report = latency_report(write_run(tmp_path / "bag", lose_predictions=3, learner="gwr_hierarchy"))
+    counts = {(c.topic, c.publisher): c for c in report.counts}
+    pred = counts[("/predictions", "gwr_hierarchy")]
+    assert (pred.published, pred.recorded, pred.lost_recorder) == (30, 27, 3)
+    learned = next(c for c in report.counts if c.topic == "/arm_angles" and c.consumer == "gwr_hierarchy")
+    assert (learned.published, learned.consumed) == (30, 30)
+    assert report.total_lost == 3 + 3 + 3
 
 
 def test_a_bag_without_final_counters_reports_unknown_published_counts(tmp_path):
@@ -141,10 +152,10 @@ def test_latency_command_prints_writes_json_and_fails_on_loss(tmp_path, capsys):
     write_run(run / "bag", lose_predictions=1)
     assert cli_main(["latency", str(run)]) == 0
     out = capsys.readouterr().out
-    assert "hop gwr_hierarchy" in out and "messages lost: 3 (" in out
+    assert "hop arm_predictor" in out and "messages lost: 3 (" in out
     saved = json.loads((run / "latency.json").read_text())
     assert saved["total_lost"] == 3
-    assert saved["latency_ms"]["hop gwr_hierarchy"]["p50"] == pytest.approx(1e3 * LEARN_DELAY, abs=1e-3)
+    assert saved["latency_ms"]["hop arm_predictor"]["p50"] == pytest.approx(1e3 * LEARN_DELAY, abs=1e-3)
     assert cli_main(["latency", str(run), "--max-lost", "2"]) == 3
     assert "3 messages lost" in capsys.readouterr().err
     assert cli_main(["latency", str(tmp_path / "nothing")]) == 1

@@ -238,7 +238,7 @@ def test_script_parser_sees_every_node_of_the_script():
     (uncompensated,) = [n for n in scripted if n["label"] == "delay_compensator_uncompensated"]
     assert uncompensated["namespace"] == "/uncompensated" and uncompensated["overrides"] == {"mode": "none"}
     assert ("arm_angles", "/arm_angles") in uncompensated["remaps"]
-    (learner,) = [n for n in script_nodes("/o", "/c", True, False, "", "rls_ar") if n["label"] == "gwr_hierarchy"]
+    (learner,) = [n for n in script_nodes("/o", "/c", True, False, "", "rls_ar") if n["label"] == "arm_predictor"]
     assert learner["overrides"] == {"checkpoint": "/o/model.npz", "predictor": "rls_ar"}
 
 
@@ -429,7 +429,7 @@ def test_launch_file_takes_the_person_from_a_tracker(launch_module, tmp_path):
         launched = launched_nodes(launch_module, out=str(tmp_path / person), input=person, output="naoqi",
                                   params_dir=str(CONFIG))
         people[person] = {n["executable"] for n in launched} & {"skeleton_source", "angle_extractor", "hri_bodies"}
-        assert {n["executable"] for n in launched} >= {"bag_recorder", "gwr_hierarchy", "delay_compensator"}
+        assert {n["executable"] for n in launched} >= {"bag_recorder", "arm_predictor", "delay_compensator"}
     assert people == {"demonstrator": {"skeleton_source", "angle_extractor"}, "skeleton": {"angle_extractor"},
                       "hri": {"hri_bodies"}}
     with pytest.raises(ValueError, match="input"):

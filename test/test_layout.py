@@ -33,6 +33,11 @@ def test_every_node_console_script_has_a_module_with_main():
         assert src.is_file(), f"console script {name} has no nodes/{name}.py"
         mod = ast.parse(src.read_text())
         assert any(isinstance(f, ast.FunctionDef) and f.name == "main" for f in mod.body), name
+    deprecated = next(n for n in ast.walk(tree) if isinstance(n, ast.Assign) and n.targets[0].id == "DEPRECATED")
+    for old, target in ast.literal_eval(deprecated.value).items():  # old executable names, for one release
+        module, function = target.split(":")
+        mod = ast.parse((ROOT / "nodes" / f"{module}.py").read_text())
+        assert old not in names and any(isinstance(f, ast.FunctionDef) and f.name == function for f in mod.body), old
 
 
 def test_library_never_imports_rclpy():

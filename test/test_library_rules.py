@@ -14,7 +14,7 @@ from gwr_predictor.learning.checkpoint import set_aside
 from gwr_predictor.learning.params import hierarchy_parameter_specs
 from gwr_predictor.parameters.spec import ParameterError, ParamSpec
 from gwr_predictor.pipeline.conventions import ARM_JOINTS, SKELETON_JOINTS, split_stamp, stamp_seconds
-from gwr_predictor.pipeline.gates import ArmAnglesGate, RejectionCounter, SkeletonReorder, missing_frames
+from gwr_predictor.pipeline.input_rules import ArmAnglesCheck, RejectionCounter, SkeletonReorder, missing_frames
 from gwr_predictor.robot.compensator import DelayCompensator, recent_state
 from gwr_predictor.robot.delayed_arm import sine_delay
 from gwr_predictor.robot.nao import clip_to_limits
@@ -116,24 +116,24 @@ def test_one_extraction_path_clips_once_and_the_dataset_uses_it():
     np.testing.assert_array_equal(clipped, clip_to_limits(raw))
 
 
-def test_arm_angles_gate_rejects_huge_and_non_finite_angles_without_numeric_warnings():
+def test_arm_angles_check_rejects_huge_and_non_finite_angles_without_numeric_warnings():
     counters = RejectionCounter(_Log())
-    gate = ArmAnglesGate(counters, "arm_angles", check_stamps=False)
+    check = ArmAnglesCheck(counters, "arm_angles", check_stamps=False)
     angles = np.zeros(len(ARM_JOINTS))
     angles[:2] = [1e308, np.nan]  # the rejection's message once overflowed while rounding 1e308
     with warnings.catch_warnings():
         warnings.simplefilter("error")
-        assert gate.accept(1.0, ARM_JOINTS, angles) is None
+        assert check.accept(1.0, ARM_JOINTS, angles) is None
     assert counters.get("rejected.arm_angles.non_finite") == 1
 
 
-def test_arm_angles_gate_without_a_limit_rule_passes_commands_on_unclipped():
-    """nao_sim's commands: the robot's input clips them (once), so the gate neither rejects nor clips."""
+def test_arm_angles_check_without_a_limit_rule_passes_commands_on_unclipped():
+    """nao_sim's commands: the robot's input clips them (once), so the check neither rejects nor clips."""
     counters = RejectionCounter(_Log())
-    gate = ArmAnglesGate(counters, "joint_commands", limit_margin=None, check_stamps=False)
+    check = ArmAnglesCheck(counters, "joint_commands", limit_margin=None, check_stamps=False)
     wild = np.full(len(ARM_JOINTS), 5.0)
-    _, angles = gate.accept(1.0, ARM_JOINTS, wild)
+    _, angles = check.accept(1.0, ARM_JOINTS, wild)
     np.testing.assert_array_equal(angles, wild)
     assert counters.snapshot() == {}
-    assert gate.accept(2.0, ARM_JOINTS, np.full(len(ARM_JOINTS), np.nan)) is None  # the other rules stay
+    assert check.accept(2.0, ARM_JOINTS, np.full(len(ARM_JOINTS), np.nan)) is None  # the other rules stay
     assert counters.get("rejected.joint_commands.non_finite") == 1

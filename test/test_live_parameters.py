@@ -104,14 +104,14 @@ def test_learning_switches_off_live_and_the_checkpoint_interval_restarts_the_sav
     probe = ros.probe
     diagnostics = probe.subscribe_diagnostics()
     checkpoint = tmp_path / "model.npz"
-    learner = ros.start("gwr_hierarchy", params={**FAST, "checkpoint": str(checkpoint), "checkpoint_interval_s": 0.0})
+    learner = ros.start("arm_predictor", params={**FAST, "checkpoint": str(checkpoint), "checkpoint_interval_s": 0.0})
     procs = [learner]
-    ros.wait_for_node(diagnostics, "/gwr_hierarchy", timeout=60)
-    d = describe(probe, "/gwr_hierarchy", ["seed", "learn", "checkpoint_interval_s", "horizon"], procs)
+    ros.wait_for_node(diagnostics, "/arm_predictor", timeout=60)
+    d = describe(probe, "/arm_predictor", ["seed", "learn", "checkpoint_interval_s", "horizon"], procs)
     assert d["seed"].read_only and d["seed"].integer_range[0].to_value == 2**31 - 1
     assert not d["learn"].read_only and not d["checkpoint_interval_s"].read_only
     assert d["horizon"].read_only and d["horizon"].integer_range
-    assert not set_param(probe, "/gwr_hierarchy", "seed", 5, procs).successful
+    assert not set_param(probe, "/arm_predictor", "seed", 5, procs).successful
 
     pub = probe.publisher("/arm_angles", JointState)
     probe.wait_for_subscribers(pub)
@@ -122,15 +122,15 @@ def test_learning_switches_off_live_and_the_checkpoint_interval_restarts_the_sav
             probe.spin_for(0.01)
 
     feed(0, 10)
-    probe.spin_until(lambda: diagnostics["/gwr_hierarchy"].get("frames.learned") == "10", 20, "10 learned", procs)
-    assert set_param(probe, "/gwr_hierarchy", "learn", False, procs).successful
+    probe.spin_until(lambda: diagnostics["/arm_predictor"].get("frames.learned") == "10", 20, "10 learned", procs)
+    assert set_param(probe, "/arm_predictor", "learn", False, procs).successful
     feed(10, 5)
-    probe.spin_until(lambda: diagnostics["/gwr_hierarchy"].get("frames.seen") == "5", 20, "5 seen", procs)
-    assert diagnostics["/gwr_hierarchy"]["frames.learned"] == "10"
+    probe.spin_until(lambda: diagnostics["/arm_predictor"].get("frames.seen") == "5", 20, "5 seen", procs)
+    assert diagnostics["/arm_predictor"]["frames.learned"] == "10"
 
     assert not checkpoint.exists()  # interval 0: only at shutdown
-    assert not set_param(probe, "/gwr_hierarchy", "checkpoint_interval_s", -1.0, procs).successful
-    assert set_param(probe, "/gwr_hierarchy", "checkpoint_interval_s", 0.3, procs).successful
+    assert not set_param(probe, "/arm_predictor", "checkpoint_interval_s", -1.0, procs).successful
+    assert set_param(probe, "/arm_predictor", "checkpoint_interval_s", 0.3, procs).successful
     probe.spin_until(checkpoint.exists, 10, "a periodic checkpoint", procs)
 
 

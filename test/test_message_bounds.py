@@ -8,8 +8,8 @@ import pytest
 
 from gwr_predictor.learning.params import MAX_HORIZON, HierarchyParams
 from gwr_predictor.pipeline import conventions
-from gwr_predictor.pipeline.conventions import LayoutError
-from gwr_predictor.pipeline.gates import ArmAnglesGate, RejectionCounter
+from gwr_predictor.pipeline.errors import PipelineError
+from gwr_predictor.pipeline.input_rules import ArmAnglesCheck, RejectionCounter
 from gwr_predictor.predictors.registry import make_predictor
 from gwr_predictor.robot.compensator import DelayCompensator
 from gwr_predictor.robot.nao import ARM_JOINTS
@@ -26,7 +26,7 @@ class _Quiet:
 
 def test_a_prediction_longer_than_the_horizon_limit_is_refused_on_unpacking():
     packed = conventions.pack_predictions(1.0, np.zeros((MAX_HORIZON + 1, 8)))
-    with pytest.raises(LayoutError, match="horizon") as too_large_horizon:
+    with pytest.raises(PipelineError, match="horizon") as too_large_horizon:
         conventions.unpack_predictions(packed)
     assert too_large_horizon.value.reason == "too_large"
     _, names, preds = conventions.unpack_predictions(conventions.pack_predictions(1.0, np.zeros((MAX_HORIZON, 8))))
@@ -61,13 +61,13 @@ def test_the_guard_memory_does_not_grow_with_the_horizon_of_its_predictions(hori
 
 def test_joint_names_are_bounded_and_unique_in_every_layout():
     many = tuple(f"j{i}" for i in range(conventions.MAX_JOINTS + 1))
-    with pytest.raises(LayoutError, match="joint names") as too_large_joint:
+    with pytest.raises(PipelineError, match="joint names") as too_large_joint:
         conventions.unpack_skeleton(conventions.pack_skeleton(0.5, np.zeros((len(many), 3)), many))
-    with pytest.raises(LayoutError, match="characters") as too_large_characters:
+    with pytest.raises(PipelineError, match="characters") as too_large_characters:
         conventions.parse_joint_label(conventions.joint_label(("x" * (conventions.MAX_NAME_CHARS + 1),)))
     assert too_large_joint.value.reason == too_large_characters.value.reason == "too_large"
     twice = (*conventions.SKELETON_JOINTS[:-1], "head")
-    with pytest.raises(LayoutError, match="'head' appears twice") as layout:
+    with pytest.raises(PipelineError, match="'head' appears twice") as layout:
         conventions.unpack_skeleton(conventions.pack_skeleton(0.5, np.zeros((15, 3)), twice))
     assert layout.value.reason == ""
     _, names, pos = conventions.unpack_skeleton(conventions.pack_skeleton(0.5, np.ones((15, 3))))
@@ -76,21 +76,21 @@ def test_joint_names_are_bounded_and_unique_in_every_layout():
 
 def test_a_joint_state_with_too_many_names_is_counted_as_too_large():
     counters = RejectionCounter(_Quiet())
-    gate = ArmAnglesGate(counters, "arm_angles", check_stamps=False)
+    check = ArmAnglesCheck(counters, "arm_angles", check_stamps=False)
     names = [*ARM_JOINTS, *(f"extra{i}" for i in range(conventions.MAX_JOINTS))]
-    assert gate.accept(1.0, names, np.concatenate([POSE, np.zeros(conventions.MAX_JOINTS)])) is None
+    assert check.accept(1.0, names, np.concatenate([POSE, np.zeros(conventions.MAX_JOINTS)])) is None
     assert counters.snapshot() == {"rejected.arm_angles.too_large": 1}
-    assert gate.accept(1.1, list(ARM_JOINTS), POSE) is not None
+    assert check.accept(1.1, list(ARM_JOINTS), POSE) is not None
 
 
-def test_the_gate_counts_too_large_layout_and_missing_joints_apart():
+def test_the_input_check_counts_too_large_layout_and_missing_joints_apart():
     counters = RejectionCounter(_Quiet())
-    gate = ArmAnglesGate(counters, "arm_angles", check_stamps=False)
-    assert gate.accept(1.0, [*ARM_JOINTS, *(f"x{i}" for i in range(conventions.MAX_JOINTS))],
+    check = ArmAnglesCheck(counters, "arm_angles", check_stamps=False)
+    assert check.accept(1.0, [*ARM_JOINTS, *(f"x{i}" for i in range(conventions.MAX_JOINTS))],
                        np.zeros(8 + conventions.MAX_JOINTS)) is None
-    assert gate.accept(1.1, [*ARM_JOINTS, "LShoulderPitch"], np.zeros(9)) is None  # a name twice
-    assert gate.accept(1.2, list(ARM_JOINTS), np.zeros(7)) is None  # 8 names, 7 positions
-    assert gate.accept(1.3, list(ARM_JOINTS[:7]), np.zeros(7)) is None
+    assert check.accept(1.1, [*ARM_JOINTS, "LShoulderPitch"], np.zeros(9)) is None  # a name twice
+    assert check.accept(1.2, list(ARM_JOINTS), np.zeros(7)) is None  # 8 names, 7 positions
+    assert check.accept(1.3, list(ARM_JOINTS[:7]), np.zeros(7)) is None
     assert counters.snapshot() == {"rejected.arm_angles.too_large": 1, "rejected.arm_angles.layout": 2,
                                    "rejected.arm_angles.missing_joints": 1}
 
@@ -134,7 +134,7 @@ def test_a_body_tracking_message_with_too_many_markers_is_refused_before_it_is_r
 
     n = conventions.MAX_MARKERS + 1
     msg = standard_messages.body_markers(1.0, "depth_camera_link", range(n), np.zeros((n, 3)))
-    with pytest.raises(LayoutError, match="markers") as too_large_markers:
+    with pytest.raises(PipelineError, match="markers") as too_large_markers:
         standard_messages.read_body_markers(msg)
     assert too_large_markers.value.reason == "too_large"
     msg.markers = msg.markers[:32]

@@ -7,7 +7,7 @@ from rclpy.serialization import deserialize_message, serialize_message
 from gwr_predictor.nodes import messages
 from gwr_predictor.nodes.messages import DiagnosticArray, Float64MultiArray, JointState
 from gwr_predictor.pipeline import conventions
-from gwr_predictor.pipeline.conventions import LayoutError
+from gwr_predictor.pipeline.errors import PipelineError
 from gwr_predictor.robot.nao import ARM_JOINTS
 
 
@@ -51,12 +51,12 @@ def test_predictions_round_trip_through_cdr():
 def test_predictions_with_a_truncated_payload_are_refused():
     msg = messages.predictions_msg(3.0, np.zeros((6, 8)))
     msg.data = msg.data[:-1]
-    with pytest.raises(LayoutError, match="expected data_offset 1 and 49 values"):
+    with pytest.raises(PipelineError, match="expected data_offset 1 and 49 values"):
         messages.read_predictions(msg)
 
 
 def test_skeleton_with_a_prediction_layout_is_refused():
-    with pytest.raises(LayoutError, match="skeleton layout"):
+    with pytest.raises(PipelineError, match="skeleton layout"):
         messages.read_skeleton(messages.predictions_msg(3.0, np.zeros((6, 8))))
 
 
@@ -72,16 +72,18 @@ def test_joint_state_round_trip_and_selection_in_any_order():
 
 
 def test_joint_selection_names_missing_and_duplicated_joints():
-    with pytest.raises(LayoutError, match="missing joints \\['RElbowRoll'\\]"):
+    with pytest.raises(PipelineError, match="missing joints \\['RElbowRoll'\\]") as missing:
         messages.select_joints(ARM_JOINTS[:-1], np.zeros(7), ARM_JOINTS)
-    with pytest.raises(LayoutError, match="appears twice"):
+    assert missing.value.reason == "missing_joints"  # what the rejection counters read, not the message
+    with pytest.raises(PipelineError, match="appears twice") as twice:
         messages.select_joints(ARM_JOINTS + ARM_JOINTS[:1], np.zeros(9), ARM_JOINTS)
+    assert twice.value.reason == ""
 
 
 def test_joint_state_with_fewer_positions_than_names_is_refused():
     msg = messages.joint_state(1.0, ARM_JOINTS, np.zeros(8))
     msg.position = [0.0] * 7
-    with pytest.raises(LayoutError, match="8 joint names but 7 positions"):
+    with pytest.raises(PipelineError, match="8 joint names but 7 positions"):
         messages.read_joint_state(msg)
 
 

@@ -3,9 +3,9 @@
 import numpy as np
 import pytest
 
+from gwr_predictor.evaluation.errors import EvaluationError
 from gwr_predictor.evaluation.metrics import (
     HorizonStats,
-    MetricsError,
     future_windows,
     horizon_stats,
     linear_trend,
@@ -34,7 +34,7 @@ def test_merge_equals_scoring_everything_at_once():
     parts = horizon_stats(a[:2], b[:2]).merge(horizon_stats(a[2:], b[2:]))
     np.testing.assert_allclose(parts.mae, whole.mae)
     np.testing.assert_allclose(parts.std, whole.std)
-    with pytest.raises(MetricsError):
+    with pytest.raises(EvaluationError):
         whole.merge(HorizonStats.empty(2))
 
 
@@ -63,7 +63,7 @@ def test_linear_trend_recovers_a_line():
     assert tr.slope == pytest.approx(-0.03)
     assert tr.intercept == pytest.approx(2.0)
     assert tr(10.0) == pytest.approx(1.7)
-    with pytest.raises(MetricsError):
+    with pytest.raises(EvaluationError):
         linear_trend(np.array([1.0, np.nan]))
 
 
@@ -86,5 +86,5 @@ def test_settling_against_a_repeated_reference_ignores_the_shape_of_the_movement
     s = settling_frame(learning, window=5, tolerance=0.1, reference=shape)
     assert 30 <= s <= 42
     assert settling_frame(np.tile(shape, 3), window=5, reference=shape) == 0
-    with pytest.raises(MetricsError, match="tile"):
+    with pytest.raises(EvaluationError, match="tile"):
         settling_frame(learning, reference=shape[:7])

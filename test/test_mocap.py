@@ -16,9 +16,10 @@ from mocap_files import MIXAMO_NAMES, as_zup_millimetres, person, write_bvh
 from gwr_predictor.data.angles import skeleton_to_angles
 from gwr_predictor.data.asf_amc import load_amc
 from gwr_predictor.data.bvh import load_bvh
+from gwr_predictor.data.errors import DataError
 from gwr_predictor.data.joint_maps import detect_preset, resolve_map
 from gwr_predictor.data.mocap import load_any_skeleton, load_clip, resample
-from gwr_predictor.data.mocap_clip import ImportOptions, MocapError
+from gwr_predictor.data.mocap_clip import ImportOptions
 from gwr_predictor.data.smoothing import median_of_3
 from gwr_predictor.data.torch_files import load_tensor
 from gwr_predictor.pipeline.conventions import SKELETON_JOINTS
@@ -82,7 +83,7 @@ def test_bvh_rotation_order_follows_the_channel_list(tmp_path):
 def test_bad_bvh_files_say_what_is_wrong(tmp_path, text, needle):
     path = tmp_path / "bad.bvh"
     path.write_text(text)
-    with pytest.raises(MocapError, match=r"bad\.bvh") as err:
+    with pytest.raises(DataError, match=r"bad\.bvh") as err:
         load_clip(path)
     assert needle in str(err.value)
 
@@ -127,29 +128,29 @@ def test_npz_positions_with_names_and_rate_and_a_user_map_by_index(tmp_path):
     seq = person(fps=60.0)
     odd = [f"J{i}" for i in range(len(SKELETON_JOINTS))]
     np.savez(tmp_path / "a.npz", joints=seq.positions, names=np.array(odd), mocap_framerate=np.array(60.0))
-    with pytest.raises(MocapError, match=r"fit no preset.*lacks left_shoulder") as err:
+    with pytest.raises(DataError, match=r"fit no preset.*lacks left_shoulder") as err:
         load_any_skeleton(tmp_path / "a.npz")
     assert "--joint-map" in str(err.value) and "a.npz" in str(err.value)
     (tmp_path / "map.json").write_text(json.dumps({j: i for i, j in enumerate(SKELETON_JOINTS)}))
     out = load_any_skeleton(tmp_path / "a.npz", ImportOptions(joint_map=tmp_path / "map.json", up="y", units="m"))
     assert out.fps == pytest.approx(30.0)
     (tmp_path / "bad.json").write_text(json.dumps({"left_elbow": "NoSuchJoint"}))
-    with pytest.raises(MocapError, match="maps left_elbow to 'NoSuchJoint', which the recording lacks"):
+    with pytest.raises(DataError, match="maps left_elbow to 'NoSuchJoint', which the recording lacks"):
         load_any_skeleton(tmp_path / "a.npz", ImportOptions(joint_map=tmp_path / "bad.json"))
     (tmp_path / "keys.json").write_text(json.dumps({"left_wrist": "J5"}))
-    with pytest.raises(MocapError, match=r"keys \['left_wrist'\] are not skeleton joints"):
+    with pytest.raises(DataError, match=r"keys \['left_wrist'\] are not skeleton joints"):
         load_any_skeleton(tmp_path / "a.npz", ImportOptions(joint_map=tmp_path / "keys.json"))
 
 
 def test_npy_without_a_rate_or_with_the_wrong_shape_is_refused(tmp_path):
     np.save(tmp_path / "p.npy", np.zeros((10, 15, 3)))
-    with pytest.raises(MocapError, match="give --fps"):
+    with pytest.raises(DataError, match="give --fps"):
         load_clip(tmp_path / "p.npy")
     np.save(tmp_path / "q.npy", np.zeros((10, 15, 4)))
-    with pytest.raises(MocapError, match=r"\(frames, joints, 3\), got shape \(10, 15, 4\)"):
+    with pytest.raises(DataError, match=r"\(frames, joints, 3\), got shape \(10, 15, 4\)"):
         load_clip(tmp_path / "q.npy", ImportOptions(fps=30))
     np.save(tmp_path / "o.npy", np.array([{"a": 1}], dtype=object), allow_pickle=True)
-    with pytest.raises(MocapError, match="without unpickling"):
+    with pytest.raises(DataError, match="without unpickling"):
         load_clip(tmp_path / "o.npy", ImportOptions(fps=30))
 
 
@@ -171,7 +172,7 @@ def test_presets_are_detected_from_the_names(names, preset):
 def test_a_recording_that_misses_one_arm_joint_names_it(tmp_path):
     text = write_bvh(tmp_path / "a.bvh", frames=3, fps=30.0).read_text().replace("LeftForeArm", "LeftFore")
     (tmp_path / "b.bvh").write_text(text)
-    with pytest.raises(MocapError, match=r"b\.bvh: joint names fit no preset; the closest, mixamo, lacks "
+    with pytest.raises(DataError, match=r"b\.bvh: joint names fit no preset; the closest, mixamo, lacks "
                                          r"left_elbow \(LeftForeArm\); give a joint-map file"):
         load_any_skeleton(tmp_path / "b.bvh")
 
@@ -248,17 +249,17 @@ def test_asf_amc_forward_kinematics_matches_a_hand_computation(tmp_path):
 
 def test_amc_errors_name_the_file_and_the_bone(tmp_path):
     (tmp_path / "walk.amc").write_text(AMC)
-    with pytest.raises(MocapError, match=r"no skeleton walk\.asf beside it.*--asf"):
+    with pytest.raises(DataError, match=r"no skeleton walk\.asf beside it.*--asf"):
         load_clip(tmp_path / "walk.amc")
     (tmp_path / "skel.asf").write_text(ASF)
     (tmp_path / "other.asf").write_text(ASF)
     clip = load_clip(tmp_path / "walk.amc", ImportOptions(asf=tmp_path / "skel.asf"))
     assert clip.positions.shape[0] == 2
     (tmp_path / "bad.amc").write_text(AMC.replace("upper 90", "upper 90 12"))
-    with pytest.raises(MocapError, match="frame 2, bone 'upper': 2 values, the ASF gives it 1 dof"):
+    with pytest.raises(DataError, match="frame 2, bone 'upper': 2 values, the ASF gives it 1 dof"):
         load_clip(tmp_path / "bad.amc", ImportOptions(asf=tmp_path / "skel.asf"))
     (tmp_path / "ghost.amc").write_text(AMC.replace("upper 90", "upper 90\nghost 1"))
-    with pytest.raises(MocapError, match=r"bones \['ghost'\] are not in the ASF"):
+    with pytest.raises(DataError, match=r"bones \['ghost'\] are not in the ASF"):
         load_clip(tmp_path / "ghost.amc", ImportOptions(asf=tmp_path / "skel.asf"))
 
 
@@ -319,7 +320,7 @@ def test_torch_files_are_read_without_torch_and_never_run_code(tmp_path, monkeyp
     np.testing.assert_array_equal(clip.positions[1, 0], values[591 + 162: 591 + 165])
     evil = b"\x80\x02cos\nsystem\nX\x04\x00\x00\x00trueq\x00\x85R."
     _write_pt(tmp_path / "evil.pt", values, evil)
-    with pytest.raises(MocapError, match=r"refuses to load os\.system"):
+    with pytest.raises(DataError, match=r"refuses to load os\.system"):
         load_tensor(tmp_path / "evil.pt")
 
 

@@ -141,7 +141,7 @@ def test_two_namespaced_pipelines_share_a_domain_without_crossing(tmp_path):
         node = probe.node
         for ns in MOTIONS:
             # each shared topic has its own pipeline's publisher, and only its own pipeline's subscribers
-            for topic, publisher in ((f"{ns}/arm_angles", "angle_extractor"), (f"{ns}/predictions", "gwr_hierarchy")):
+            for topic, publisher in ((f"{ns}/arm_angles", "angle_extractor"), (f"{ns}/predictions", "arm_predictor")):
                 pubs = [(i.node_namespace, i.node_name) for i in node.get_publishers_info_by_topic(topic)]
                 assert pubs == [(ns, publisher)], topic
                 subs = {i.node_namespace for i in node.get_subscriptions_info_by_topic(topic)} - {"/"}
@@ -185,7 +185,7 @@ def check_recording(bag: Path, ns: str) -> None:
     assert report.scored_predictions > 0
     assert all(key.startswith(ns + "/") for key in report.rejected), report.rejected
     latency = latency_report(bag)
-    assert latency.namespace == ns and "hop gwr_hierarchy" in latency.latencies
+    assert latency.namespace == ns and "hop arm_predictor" in latency.latencies
     hop = next(c for c in latency.counts if c.topic == f"{ns}/arm_angles")
     assert hop.publisher == f"{ns}/angle_extractor" and hop.published and not hop.concurrent
     skeletons = first_stamps(bag, f"{ns}/skeleton", 3)

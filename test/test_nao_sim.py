@@ -6,7 +6,8 @@ import pytest
 from PIL import Image
 
 from gwr_predictor.robot import nao
-from gwr_predictor.robot.pybullet_nao import NaoSimulator, SimulatorError, contact_sheet, save_png
+from gwr_predictor.robot.errors import RobotError
+from gwr_predictor.robot.pybullet_nao import NaoSimulator, contact_sheet, save_png
 
 REST = np.array([1.4, 0.2, -1.2, -0.5, 1.4, -0.2, 1.2, 0.5])
 
@@ -58,7 +59,7 @@ def test_closed_simulator_refuses_use():
     sim = NaoSimulator()
     sim.close()
     sim.close()  # idempotent
-    with pytest.raises(SimulatorError, match="closed"):
+    with pytest.raises(RobotError, match="closed"):
         sim.joint_positions()
 
 
@@ -82,9 +83,9 @@ def test_command_by_name_moves_only_that_joint_and_stops_at_its_limit():
 
 def test_command_rejects_unknown_joints_and_wrong_shapes():
     with NaoSimulator() as sim:
-        with pytest.raises(SimulatorError, match="HeadYaw"):
+        with pytest.raises(RobotError, match="HeadYaw"):
             sim.command({"HeadYaw": 0.1})
-        with pytest.raises(SimulatorError, match="shape"):
+        with pytest.raises(RobotError, match="shape"):
             sim.command(np.zeros(5))
 
 
@@ -105,5 +106,5 @@ def test_render_shows_the_arm_moving(tmp_path):
 
 
 def test_missing_urdf_is_named_in_the_error(tmp_path):
-    with pytest.raises(SimulatorError, match=r"nope\.urdf"):
+    with pytest.raises(RobotError, match=r"nope\.urdf"):
         NaoSimulator(urdf_path=tmp_path / "nope.urdf")

@@ -14,8 +14,9 @@ import rclpy
 from gwr_predictor.nodes import messages
 from gwr_predictor.parameters.spec import ParameterError
 from gwr_predictor.robot import naoqi_output
+from gwr_predictor.robot.errors import RobotError
 from gwr_predictor.robot.nao import ARM_JOINTS, limits_array
-from gwr_predictor.robot.naoqi_output import NaoqiOutputError, SafeArmCommands
+from gwr_predictor.robot.naoqi_output import SafeArmCommands
 
 LO, HI = limits_array()
 DOWN = np.array([1.5, 0.1, -1.2, -0.4, 1.5, -0.1, 1.2, 0.4])  # inside every limit
@@ -99,9 +100,9 @@ def test_a_random_command_stream_never_leaves_the_limits_nor_exceeds_the_speed()
 
 
 def test_bad_commands_and_settings_raise_the_packages_error():
-    with pytest.raises(NaoqiOutputError, match="8 finite angles"):
+    with pytest.raises(RobotError, match="8 finite angles"):
         SafeArmCommands(2.0).command(0.0, [np.nan] * 8)
-    with pytest.raises(NaoqiOutputError, match="8 finite angles"):
+    with pytest.raises(RobotError, match="8 finite angles"):
         SafeArmCommands(2.0).command(0.0, [0.0] * 7)
     with pytest.raises(ParameterError, match="max_joint_speed"):
         SafeArmCommands(0.0)
@@ -118,7 +119,7 @@ def test_message_fields_are_those_of_joint_angles_with_speed(fake_naoqi_msgs):
 def test_without_naoqi_bridge_msgs_the_error_says_what_to_install(monkeypatch):
     monkeypatch.setitem(sys.modules, "naoqi_bridge_msgs", None)  # import fails as if not installed
     monkeypatch.setitem(sys.modules, "naoqi_bridge_msgs.msg", None)
-    with pytest.raises(NaoqiOutputError, match=r"needs the naoqi_bridge_msgs/msg/JointAnglesWithSpeed message.*"
+    with pytest.raises(RobotError, match=r"needs the naoqi_bridge_msgs/msg/JointAnglesWithSpeed message.*"
                                                r"ros-jazzy-naoqi-bridge-msgs"):
         naoqi_output.message_type()
 

@@ -56,11 +56,11 @@ def test_bad_input_is_rejected_counted_and_the_nodes_keep_working(ros):
     diagnostics = probe.subscribe_diagnostics()
     procs = [
         ros.start("angle_extractor", params=FAST, remaps={"arm_angles": "/extracted_angles"}),
-        ros.start("gwr_hierarchy", params=FAST, remaps={"predictions": "/learner_predictions"}),
+        ros.start("arm_predictor", params=FAST, remaps={"predictions": "/learner_predictions"}),
         ros.start("delay_compensator", params=FAST, remaps={"joint_commands": "/compensator_commands"}),
         ros.start("nao_sim", params={**FAST, "backend": "kinematic"}),
     ]
-    for name in ("/angle_extractor", "/gwr_hierarchy", "/delay_compensator", "/nao_sim"):
+    for name in ("/angle_extractor", "/arm_predictor", "/delay_compensator", "/nao_sim"):
         ros.wait_for_node(diagnostics, name, timeout=60)
     extracted = probe.subscribe("/extracted_angles", JointState)
     learner_predictions = probe.subscribe("/learner_predictions", Float64MultiArray)
@@ -100,7 +100,7 @@ def test_bad_input_is_rejected_counted_and_the_nodes_keep_working(ros):
     assert len(extracted) == 2
     assert all(messages.read_joint_state(m)[1] == ARM_JOINTS for m in extracted)
 
-    # --- arm angles: read by both gwr_hierarchy and delay_compensator
+    # --- arm angles: read by both arm_predictor and delay_compensator
     a = Stamps(200.0, 0.1)
     t0 = a.next()
     angles_pub.publish(joint_state(t0))
@@ -119,7 +119,7 @@ def test_bad_input_is_rejected_counted_and_the_nodes_keep_working(ros):
     expected_angles = {"rejected.arm_angles.non_finite": 1, "rejected.arm_angles.missing_joints": 2,
                        "rejected.arm_angles.layout": 1, "rejected.arm_angles.out_of_limits": 1,
                        "rejected.arm_angles.stamp": 1, "arm_angles.clipped": 1}
-    wait_counters(ros, diagnostics, "/gwr_hierarchy", {**expected_angles, "frames.learned": 8,
+    wait_counters(ros, diagnostics, "/arm_predictor", {**expected_angles, "frames.learned": 8,
                                                        "frames.missing": 4}, procs)
     # the rejected messages left a 0.5 s stamp gap: 4 missing frames (windows cleared); the default
     # predictor predicts on every accepted frame (hold-last until its window refills): t0 + 7 good ones
@@ -186,12 +186,12 @@ class FakeLogger:
 
 
 def test_rejections_are_counted_per_reason_and_warned_at_most_once_per_period(monkeypatch):
-    from gwr_predictor.pipeline import gates
+    from gwr_predictor.pipeline import input_rules
 
     clock = [100.0]
-    monkeypatch.setattr(gates.time, "monotonic", lambda: clock[0])
+    monkeypatch.setattr(input_rules.time, "monotonic", lambda: clock[0])
     log = FakeLogger()
-    counter = gates.RejectionCounter(log, throttle_s=5.0)
+    counter = input_rules.RejectionCounter(log, throttle_s=5.0)
     for _ in range(4):
         counter.reject("skeleton.layout", "bad dims")
     counter.reject("skeleton.stamp", "went back")

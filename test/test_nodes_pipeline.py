@@ -1,4 +1,4 @@
-"""The real multi-process pipeline over DDS: skeleton_source -> angle_extractor -> gwr_hierarchy ->
+"""The real multi-process pipeline over DDS: skeleton_source -> angle_extractor -> arm_predictor ->
 delay_compensator -> nao_sim (PyBullet), recorded by bag_recorder; clean SIGTERM with checkpoint."""
 
 import signal
@@ -54,10 +54,10 @@ def test_pipeline_flows_learns_moves_the_robot_and_records(ros, tmp_path):
              ros.start("nao_sim", params=FAST),
              ros.start("delay_compensator", params=FAST),
              # BLAS as a 2-core machine's default would run it: the learner pins it to one thread
-             ros.start("gwr_hierarchy", params={**FAST, "checkpoint": str(checkpoint), "status_period_s": 0.5,
+             ros.start("arm_predictor", params={**FAST, "checkpoint": str(checkpoint), "status_period_s": 0.5,
                                                 "checkpoint_interval_s": 2.0}, env={"OPENBLAS_NUM_THREADS": "2"}),
              ros.start("angle_extractor", params=FAST)]
-    for name in ("/nao_sim", "/delay_compensator", "/gwr_hierarchy", "/angle_extractor"):
+    for name in ("/nao_sim", "/delay_compensator", "/arm_predictor", "/angle_extractor"):
         ros.wait_for_node(diagnostics, name, timeout=60)
     source = ros.start("skeleton_source", params={**FAST, "patterns": ["wave_both", "raise_front_both"],
                                                   "repetitions": 1, "loop": True, "pause_s": 0.7,
@@ -108,11 +108,11 @@ def test_pipeline_flows_learns_moves_the_robot_and_records(ros, tmp_path):
     # the periodic saves: a snapshot between two frames, written by the saver's thread
     assert float(last["checkpoint_snapshot_ms"]) > 0 and float(last["checkpoint_write_ms"]) > 0
     assert float(last["checkpoint_mb"]) > 0
-    assert int(diagnostics["/gwr_hierarchy"]["checkpoint.saved"]) >= 3
+    assert int(diagnostics["/arm_predictor"]["checkpoint.saved"]) >= 3
 
     # SIGTERM: clean exit, checkpoint written and loadable, with every learned frame
     learner = procs[3]
-    learned = int(diagnostics["/gwr_hierarchy"]["frames.learned"])
+    learned = int(diagnostics["/arm_predictor"]["frames.learned"])
     learner.send_signal(signal.SIGTERM)
     assert learner.wait(30) == 0, learner.output()
     assert "SIGTERM received" in learner.output()
@@ -153,11 +153,11 @@ def test_corrupt_checkpoint_is_moved_aside_not_overwritten(ros, tmp_path):
     truncated = checkpoint.read_bytes()[:200]  # a checkpoint cut short (a crash of another writer)
     checkpoint.write_bytes(truncated)
     diagnostics = ros.diagnostics
-    learner = ros.start_ready("gwr_hierarchy", params={**FAST, "checkpoint": str(checkpoint)})
+    learner = ros.start_ready("arm_predictor", params={**FAST, "checkpoint": str(checkpoint)})
     aside = list(tmp_path.glob("model.npz.corrupt-*"))
     assert len(aside) == 1 and aside[0].read_bytes() == truncated
     assert "unreadable checkpoint moved to" in learner.output()
-    assert diagnostics["/gwr_hierarchy"]["checkpoint.corrupt_moved_aside"] == "1"
+    assert diagnostics["/arm_predictor"]["checkpoint.corrupt_moved_aside"] == "1"
     code, _ = learner.stop(signal.SIGINT)
     assert code == 0
     fresh = inner_model(load_predictor(DEFAULT_PREDICTOR, checkpoint))

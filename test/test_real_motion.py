@@ -12,6 +12,7 @@ from mocap_files import MIXAMO_NAMES, as_zup_millimetres, fake_recording_cache, 
 
 from gwr_predictor.commands.cli import main
 from gwr_predictor.data import real_motion
+from gwr_predictor.data.errors import DataError
 from gwr_predictor.data.mocap import load_any_skeleton
 from gwr_predictor.nodes import messages
 from gwr_predictor.nodes.messages import Float64MultiArray
@@ -119,7 +120,7 @@ def test_recordings_come_from_the_cache_and_never_need_pip_when_cached(tmp_path,
     seq = load_any_skeleton(clips[0].path, clips[0].options)
     assert seq.metadata["joint_map"] == "mixamo" and seq.fps == pytest.approx(30.0)
     assert load_any_skeleton(clips[1].path, clips[1].options).metadata["joint_map"] == "mixamo"
-    with pytest.raises(real_motion.RealDataError, match="unknown clips"):
+    with pytest.raises(DataError, match="unknown clips"):
         real_motion.fetch_clips(("nope",), cache=cache)
 
 

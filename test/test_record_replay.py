@@ -35,12 +35,12 @@ def test_replayed_angles_reproduce_the_recorded_predictions_exactly(ros, tmp_pat
     recorder = ros.start("bag_recorder", label="recorder_live", params={
         **FAST, "path": str(tmp_path / "live"), "topics": ["skeleton", "arm_angles", "predictions"]})
     ros.wait_for_node(diagnostics, "/bag_recorder", timeout=60)
-    live = [recorder, ros.start("gwr_hierarchy", label="learner_live", params=learner_params),
+    live = [recorder, ros.start("arm_predictor", label="learner_live", params=learner_params),
             ros.start("angle_extractor", params=FAST)]
-    for name in ("/gwr_hierarchy", "/angle_extractor"):
+    for name in ("/arm_predictor", "/angle_extractor"):
         ros.wait_for_node(diagnostics, name, timeout=60)
-    probe.wait_for_graph({"/arm_angles": ("angle_extractor", ["gwr_hierarchy", "bag_recorder"]),
-                          "/predictions": ("gwr_hierarchy", ["bag_recorder"])})
+    probe.wait_for_graph({"/arm_angles": ("angle_extractor", ["arm_predictor", "bag_recorder"]),
+                          "/predictions": ("arm_predictor", ["bag_recorder"])})
     source = ros.start("skeleton_source", params={**FAST, "patterns": ["raise_lateral_one", "wave_both"], "subjects": 1,
                                                   "repetitions": 1, "loop": False, "pause_s": 0.7,
                                                   "wait_for_subscribers": 2})  # extractor and recorder
@@ -64,11 +64,11 @@ def test_replayed_angles_reproduce_the_recorded_predictions_exactly(ros, tmp_pat
     diagnostics.clear()
     replay_recorder = ros.start("bag_recorder", label="recorder_replay", params={
         **FAST, "path": str(tmp_path / "replay"), "topics": ["predictions"]})
-    learner = ros.start("gwr_hierarchy", label="learner_replay", params=learner_params)
+    learner = ros.start("arm_predictor", label="learner_replay", params=learner_params)
     # their 'ready' lines, not /diagnostics: a late final status of the live recorder could pass for one
     for proc in (replay_recorder, learner):
         ros.wait_for_log(proc, "]: ready", timeout=60)
-    probe.wait_for_graph({"/predictions": ("gwr_hierarchy", ["bag_recorder"])})
+    probe.wait_for_graph({"/predictions": ("arm_predictor", ["bag_recorder"])})
     code, output = ros.run("bag_player", timeout=60, params={
         **FAST, "bag": str(tmp_path / "live"), "topics": ["/arm_angles"], "rate": 4.0,
         "wait_for_subscribers": 1, "start_delay_s": 1.0})

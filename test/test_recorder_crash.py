@@ -15,6 +15,7 @@ from gwr_predictor.nodes.exits import NodeFatalError
 from gwr_predictor.nodes.messages import JointState
 from gwr_predictor.nodes.qos import stream_qos
 from gwr_predictor.pipeline import bag_messages, bag_reader, bag_recovery
+from gwr_predictor.pipeline.errors import PipelineError
 from gwr_predictor.robot.nao import ARM_JOINTS
 
 RECORDER = {"diagnostics_period_s": 0.2, "topics": ["arm_angles"], "flush_period_s": 0.3}
@@ -57,7 +58,7 @@ def test_sigkill_loses_only_what_was_not_flushed_and_recover_bag_restores_the_re
     ros.kill(recorder)
     assert recorder.popen.returncode == -signal.SIGKILL
 
-    with pytest.raises(bag_messages.BagError, match="recover_bag"):
+    with pytest.raises(PipelineError, match="recover_bag"):
         list(bag_reader.read_bag(path))
     info = bag_recovery.recover_bag(path)
     # everything up to the last flush survives; at most one flush period after it is lost

@@ -96,14 +96,14 @@ def test_replay_on_simulated_time_twice_as_fast_as_real_time(ros, tmp_path):
                                    QoSProfile(depth=1000))
     nodes = [ros.start("bag_recorder", params={**SIM, "path": str(tmp_path / "replayed"),
                                                "topics": ["joint_commands", "diagnostics"]}),
-             ros.start("gwr_hierarchy", params={**SIM, "seed": 1}),
+             ros.start("arm_predictor", params={**SIM, "seed": 1}),
              # stale_after_s 1 s of recorded time = 0.5 s of wall time at rate 2: a loaded machine's
              # learner lag (doubled on the recorded time line) stays within it
              ros.start("delay_compensator", params={**SIM, "mode": "fixed", "stale_after_s": 1.0}),
              ros.start("nao_sim", params={**SIM, "backend": "kinematic"})]
-    for name in ("/bag_recorder", "/gwr_hierarchy", "/delay_compensator", "/nao_sim"):
+    for name in ("/bag_recorder", "/arm_predictor", "/delay_compensator", "/nao_sim"):
         ros.wait_for_node(diagnostics, name, timeout=60)  # diagnostics run on the wall clock, /clock or not
-    probe.wait_for_graph({"/predictions": ("gwr_hierarchy", ["delay_compensator"]),  # every hop, so nothing is lost
+    probe.wait_for_graph({"/predictions": ("arm_predictor", ["delay_compensator"]),  # every hop, so nothing is lost
                           "/joint_commands": ("delay_compensator", ["nao_sim", "bag_recorder"]),
                           "/diagnostics": ("nao_sim", ["bag_recorder"])})
     player = ros.start("bag_player", params={

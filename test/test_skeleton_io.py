@@ -7,7 +7,8 @@ import pytest
 
 from gwr_predictor.commands import demonstrate as demonstrate_cmd
 from gwr_predictor.data.demonstrator import default_subjects, demonstrate_one
-from gwr_predictor.data.skeleton_files import SkeletonFileError, SkeletonSequence, load_skeleton, save_skeleton
+from gwr_predictor.data.errors import DataError
+from gwr_predictor.data.skeleton_files import SkeletonSequence, load_skeleton, save_skeleton
 from gwr_predictor.pipeline.conventions import SKELETON_JOINTS
 
 
@@ -75,7 +76,7 @@ def test_fps_can_replace_timestamps(tmp_path):
 def test_malformed_npz_fields_are_named(tmp_path, change, message):
     arrays = {**_valid_arrays(), **change}
     path = _npz(tmp_path / "bad.npz", **arrays)
-    with pytest.raises(SkeletonFileError, match=message) as err:
+    with pytest.raises(DataError, match=message) as err:
         load_skeleton(path)
     assert str(path) in str(err.value)
 
@@ -83,25 +84,25 @@ def test_malformed_npz_fields_are_named(tmp_path, change, message):
 def test_millimetres_are_refused_with_the_fix(tmp_path):
     arrays = _valid_arrays()
     arrays["positions"] = arrays["positions"] * 1000.0
-    with pytest.raises(SkeletonFileError, match=r"looks like millimetres.*divide by 1000"):
+    with pytest.raises(DataError, match=r"looks like millimetres.*divide by 1000"):
         load_skeleton(_npz(tmp_path / "mm.npz", **arrays))
 
 
 def test_infinite_position_is_refused_with_frame_and_joint(tmp_path):
     arrays = _valid_arrays()
     arrays["positions"][2, SKELETON_JOINTS.index("left_hand"), 1] = np.inf
-    with pytest.raises(SkeletonFileError, match=r"positions\[2\] left_hand_y is infinite"):
+    with pytest.raises(DataError, match=r"positions\[2\] left_hand_y is infinite"):
         load_skeleton(_npz(tmp_path / "inf.npz", **arrays))
 
 
 def test_missing_arrays_are_named(tmp_path):
     arrays = _valid_arrays()
     del arrays["joint_names"]
-    with pytest.raises(SkeletonFileError, match="missing array 'joint_names'"):
+    with pytest.raises(DataError, match="missing array 'joint_names'"):
         load_skeleton(_npz(tmp_path / "m.npz", **arrays))
     arrays = _valid_arrays()
     del arrays["timestamps"]
-    with pytest.raises(SkeletonFileError, match="needs 'timestamps'"):
+    with pytest.raises(DataError, match="needs 'timestamps'"):
         load_skeleton(_npz(tmp_path / "t.npz", **arrays))
 
 
@@ -110,10 +111,10 @@ def test_truncated_and_garbage_files_get_clear_errors(tmp_path, seq):
     (tmp_path / "cut.npz").write_bytes(good[: len(good) // 2])
     (tmp_path / "junk.npz").write_bytes(b"\x00\xff definitely not a zip" * 10)
     for name in ("cut.npz", "junk.npz"):
-        with pytest.raises(SkeletonFileError, match="not a readable NPZ archive"):
+        with pytest.raises(DataError, match="not a readable NPZ archive"):
             load_skeleton(tmp_path / name)
     (tmp_path / "junk.csv").write_bytes(b"\xff\xfe\x00garbage")
-    with pytest.raises(SkeletonFileError, match="not a text CSV"):
+    with pytest.raises(DataError, match="not a text CSV"):
         load_skeleton(tmp_path / "junk.csv")
 
 
@@ -125,23 +126,23 @@ def test_csv_errors_name_line_and_column(tmp_path, seq):
     cells[4] = "oops"
     broken = [*lines[: first_data + 1], ",".join(cells), *lines[first_data + 2:]]
     path.write_text("\n".join(broken) + "\n")
-    with pytest.raises(SkeletonFileError, match=rf"line {first_data + 2}, column 'neck_x': not a number"):
+    with pytest.raises(DataError, match=rf"line {first_data + 2}, column 'neck_x': not a number"):
         load_skeleton(path)
     path.write_text("\n".join([*lines[: first_data + 1], "0.5,1.0"]) + "\n")
-    with pytest.raises(SkeletonFileError, match=rf"line {first_data + 2}: 2 columns, header has 46"):
+    with pytest.raises(DataError, match=rf"line {first_data + 2}: 2 columns, header has 46"):
         load_skeleton(path)
     path.write_text("time,head_x,head_y\n")
-    with pytest.raises(SkeletonFileError, match="2 position columns is not a multiple of 3"):
+    with pytest.raises(DataError, match="2 position columns is not a multiple of 3"):
         load_skeleton(path)
     path.write_text("# pattern: x\n")
-    with pytest.raises(SkeletonFileError, match="no header line"):
+    with pytest.raises(DataError, match="no header line"):
         load_skeleton(path)
 
 
 def test_unknown_suffix_and_missing_file(tmp_path, seq):
-    with pytest.raises(SkeletonFileError, match=r"use \.npz or \.csv"):
+    with pytest.raises(DataError, match=r"use \.npz or \.csv"):
         save_skeleton(tmp_path / "x.json", seq)
-    with pytest.raises(SkeletonFileError, match="no such file"):
+    with pytest.raises(DataError, match="no such file"):
         load_skeleton(tmp_path / "absent.npz")
 
 

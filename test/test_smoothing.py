@@ -3,7 +3,8 @@
 import numpy as np
 import pytest
 
-from gwr_predictor.data.smoothing import MedianOf3, SmoothingError, median_of_3
+from gwr_predictor.data.errors import DataError
+from gwr_predictor.data.smoothing import MedianOf3, median_of_3
 
 
 def _frames(n: int, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
@@ -61,9 +62,9 @@ def test_reset_drops_a_partial_group():
 
 
 def test_mismatched_shapes_are_refused():
-    with pytest.raises(SmoothingError, match="timestamps"):
+    with pytest.raises(DataError, match="timestamps"):
         median_of_3(np.zeros((6, 15, 3)), np.zeros(5))
     smoother = MedianOf3()
     smoother.push(0.0, np.zeros((15, 3)))
-    with pytest.raises(SmoothingError, match="frame shape"):
+    with pytest.raises(DataError, match="frame shape"):
         smoother.push(1.0, np.zeros((14, 3)))

@@ -17,10 +17,11 @@ from gwr_predictor.evaluation.online import compare_online
 from gwr_predictor.learning.checkpoint import read_checkpoint, write_checkpoint
 from gwr_predictor.learning.protocol import Spreading
 from gwr_predictor.pipeline import conventions
-from gwr_predictor.pipeline.conventions import LayoutError
+from gwr_predictor.pipeline.errors import PipelineError
 from gwr_predictor.predictors.baselines import HoldLast
 from gwr_predictor.predictors.registry import DEFAULT_PREDICTOR, load_predictor, make_predictor
-from gwr_predictor.robot.compensator import CompensatorError, CompensatorParams, DelayCompensator
+from gwr_predictor.robot.compensator import CompensatorParams, DelayCompensator
+from gwr_predictor.robot.errors import RobotError
 
 
 def _walk(n: int = 3000, seed: int = 0) -> np.ndarray:
@@ -211,9 +212,9 @@ def test_the_interval_travels_with_its_share_and_bad_layouts_are_refused():
            replace(packed, dims=packed.dims[1:]),
            replace(packed, data=packed.data[:-1])]
     for b in bad:
-        with pytest.raises(LayoutError):
+        with pytest.raises(PipelineError):
             conventions.unpack_interval(b)
-    with pytest.raises(LayoutError, match="share"):
+    with pytest.raises(PipelineError, match="share"):
         conventions.pack_interval(0.0, lower, upper, 1.0)
 
 
@@ -234,5 +235,5 @@ def test_spread_shrink_pulls_a_command_towards_the_observation_by_how_wide_its_i
     keep = d**2 / (d**2 + 4.0 * half[2] ** 2)
     np.testing.assert_allclose(command(4.0), keep * d)
     assert command(4.0)[0] == d[0] and np.all(command(4.0)[1:] < d[1:])  # only the unsure joints are pulled
-    with pytest.raises(CompensatorError, match="interval"):
+    with pytest.raises(RobotError, match="interval"):
         command(1.0, (half[:2], half[:2]))

@@ -20,12 +20,12 @@ POSE = np.array([1.2, 0.2, -1.0, -0.5, 1.2, -0.2, 1.0, 0.5])
 
 @pytest.fixture(scope="module")
 def nodes():
+    from gwr_predictor.nodes.arm_predictor import ArmPredictorNode
     from gwr_predictor.nodes.delay_compensator import DelayCompensatorNode
-    from gwr_predictor.nodes.gwr_hierarchy import GwrHierarchyNode
 
     with in_process(["-p", "delay_compensator:spread_shrink:=1.0", "-p", "delay_compensator:mode:=fixed",
                      "-p", "delay_compensator:delay_s:=0.3", "-p", "stop_if_duplicate:=false"],
-                    learner=GwrHierarchyNode, compensator=DelayCompensatorNode) as built:
+                    learner=ArmPredictorNode, compensator=DelayCompensatorNode) as built:
         yield built
 
 

@@ -17,6 +17,7 @@ from gwr_predictor.nodes.skeleton_source import PARAMS as SOURCE_PARAMS
 from gwr_predictor.nodes.standard_messages import JointTrajectory, PoseArray
 from gwr_predictor.pipeline import bag_reader, conventions
 from gwr_predictor.pipeline.conventions import SKELETON_JOINTS
+from gwr_predictor.pipeline.errors import PipelineError
 from gwr_predictor.pipeline.markers import SKELETON_FRAME
 from gwr_predictor.robot.nao import ARM_JOINTS
 
@@ -51,7 +52,7 @@ def test_pose_array_round_trip_keeps_nan_for_untracked_joints_and_refuses_oversi
     assert stamp == 12.25 and frame_id == "kinect"
     np.testing.assert_array_equal(back, positions)  # NaN where NaN (assert_array_equal treats NaN as equal)
     msg.poses = msg.poses * (conventions.MAX_JOINTS // 15 + 1)
-    with pytest.raises(conventions.LayoutError) as too_large:
+    with pytest.raises(PipelineError) as too_large:
         standard_messages.read_pose_array(msg)
     assert too_large.value.reason == "too_large"
 
@@ -126,9 +127,9 @@ def test_predicted_trajectory_is_on_by_default_and_carries_every_prediction_at_i
     preds = probe.subscribe("/predictions", Float64MultiArray)
     trajectories = probe.subscribe("/predicted_trajectory", JointTrajectory)
     horizon, period = 4, 0.05
-    learner = ros.start("gwr_hierarchy", params={**FAST, "checkpoint_interval_s": 0.0, "horizon": horizon,
+    learner = ros.start("arm_predictor", params={**FAST, "checkpoint_interval_s": 0.0, "horizon": horizon,
                                                  "frame_period_s": period})
-    ros.wait_for_node(diagnostics, "/gwr_hierarchy", timeout=60)
+    ros.wait_for_node(diagnostics, "/arm_predictor", timeout=60)
     pub = probe.publisher("/arm_angles", JointState)
     probe.wait_for_subscribers(pub)
     n = 24

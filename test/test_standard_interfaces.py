@@ -109,8 +109,8 @@ def test_learner_publishes_its_predictions_as_a_joint_trajectory_and_the_predict
     arm = probe.subscribe("/predicted_arm_markers", MarkerArray)
     intervals = probe.subscribe("/prediction_interval", Float64MultiArray)
     bounds = [probe.subscribe(f"/predicted_trajectory_{b}", JointTrajectory) for b in ("lower", "upper")]
-    learner = ros.start("gwr_hierarchy", params={**FAST, "checkpoint_interval_s": 0.0})
-    ros.wait_for_node(diagnostics, "/gwr_hierarchy", timeout=60)
+    learner = ros.start("arm_predictor", params={**FAST, "checkpoint_interval_s": 0.0})
+    ros.wait_for_node(diagnostics, "/arm_predictor", timeout=60)
     pub = probe.publisher("/arm_angles", JointState)
     probe.wait_for_subscribers(pub)
     n = 30

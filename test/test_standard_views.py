@@ -10,6 +10,7 @@ from k4abt_bodies import body, markers
 from gwr_predictor.data import k4abt
 from gwr_predictor.data.angles import skeleton_to_angles
 from gwr_predictor.data.demonstrator import default_subjects, demonstrate_one
+from gwr_predictor.data.errors import DataError
 from gwr_predictor.pipeline.conventions import SKELETON_JOINTS
 from gwr_predictor.pipeline.markers import SKELETON_BONES, arm_figure, skeleton_figure
 from gwr_predictor.pipeline.trajectory import command_trajectory, prediction_trajectory
@@ -72,9 +73,9 @@ def test_untracked_joints_are_nan_and_unknown_joint_indices_are_counted():
 
 def test_bad_marker_ids_are_named():
     assert k4abt.nearest_body(np.zeros(0), np.zeros((0, 3))) is None
-    with pytest.raises(k4abt.K4abtError, match="negative marker ids"):
+    with pytest.raises(DataError, match="negative marker ids"):
         k4abt.nearest_body(np.array([-5]), np.zeros((1, 3)))
-    with pytest.raises(k4abt.K4abtError, match="2 marker ids"):
+    with pytest.raises(DataError, match="2 marker ids"):
         k4abt.group_bodies(np.array([1, 2]), np.zeros((3, 3)))
 
 

@@ -8,16 +8,11 @@ from PIL import Image
 from gwr_predictor.commands.cli import main
 from gwr_predictor.data.demonstrator import default_subjects, demonstrate_one
 from gwr_predictor.pipeline import bag_messages, bag_writer, conventions
-from gwr_predictor.pipeline.video import (
-    PERSON_ARM_RGB,
-    PERSON_RGB,
-    FrameRenderer,
-    VideoError,
-    parse_span,
-    read_video_run,
-)
+from gwr_predictor.pipeline.errors import PipelineError
+from gwr_predictor.pipeline.video import PERSON_ARM_RGB, PERSON_RGB, FrameRenderer, parse_span, read_video_run
+from gwr_predictor.robot.errors import RobotError
 from gwr_predictor.robot.nao import ARM_JOINTS
-from gwr_predictor.robot.pybullet_nao import NaoSimulator, SimulatorError
+from gwr_predictor.robot.pybullet_nao import NaoSimulator
 
 ARMS_DOWN = np.array([1.4, 0.15, -1.2, -0.4, 1.4, -0.15, 1.2, 0.4])
 ARMS_UP = np.array([-1.2, 0.3, -1.0, -0.3, -1.2, -0.3, 1.0, 0.3])
@@ -151,7 +146,7 @@ def test_the_captions_follow_the_lag(tmp_path):
 
 def test_a_bag_without_robot_topics_is_a_clear_error(tmp_path, capsys):
     bag = write_bag(tmp_path / "bag", robots={}, modes={})
-    with pytest.raises(VideoError, match=r"bag: no robot in the bag \(no <namespace>/joint_states.*arm_angles"):
+    with pytest.raises(PipelineError, match=r"bag: no robot in the bag \(no <namespace>/joint_states.*arm_angles"):
         read_video_run(bag)
     assert main(["render", str(bag), "-o", str(tmp_path / "v.gif"), "--no-progress"]) == 1
     assert "no robot in the bag" in capsys.readouterr().err
@@ -164,7 +159,7 @@ def test_span_parsing():
     assert parse_span("10:30", 60.0) == (10.0, 30.0)
     assert parse_span(":-5", 60.0) == (0.0, 55.0)
     for bad in ("5", "a:b", "30:10", "70:80"):
-        with pytest.raises(VideoError, match="--seconds"):
+        with pytest.raises(PipelineError, match="--seconds"):
             parse_span(bad, 60.0)
 
 
@@ -196,7 +191,7 @@ def test_render_command_writes_an_mp4_and_a_gif(tmp_path, capsys):
 
 def test_gui_without_a_display_is_refused_with_the_reason(monkeypatch):
     monkeypatch.delenv("DISPLAY", raising=False)
-    with pytest.raises(SimulatorError, match="DISPLAY is not set"):
+    with pytest.raises(RobotError, match="DISPLAY is not set"):
         NaoSimulator(gui=True)
 
 

@@ -11,9 +11,9 @@ import numpy as np
 from gwr_predictor.commands.import_options import add_import_options, import_options
 from gwr_predictor.data.angle_files import save_angles_csv, write_angles_csv
 from gwr_predictor.data.angles import clip_fractions
+from gwr_predictor.data.errors import DataError
 from gwr_predictor.data.extraction import extract_angles
 from gwr_predictor.data.mocap import load_any_skeleton
-from gwr_predictor.data.skeleton_files import SkeletonFileError
 from gwr_predictor.pipeline.plotting import plot_angle_series
 from gwr_predictor.robot.nao import ARM_JOINTS
 
@@ -33,7 +33,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     try:
         seq = load_any_skeleton(args.skeleton, import_options(args))
-    except SkeletonFileError as exc:
+    except DataError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
     t, angles, raw = extract_angles(seq.positions, seq.timestamps, seq.joint_names, smooth=not args.no_smooth)

@@ -8,7 +8,9 @@ from pathlib import Path
 
 from tqdm import tqdm
 
-from gwr_predictor.data.demonstrator import PATTERNS, DemonstratorError, default_subjects, demonstrate_one
+from gwr_predictor.commands.errors import CommandError
+from gwr_predictor.data.demonstrator import PATTERNS, default_subjects, demonstrate_one
+from gwr_predictor.data.errors import DataError
 from gwr_predictor.data.skeleton_files import save_skeleton
 
 
@@ -28,8 +30,8 @@ def run(args: argparse.Namespace) -> int:
     try:
         subjects = default_subjects(args.subjects, seed=args.seed)
         if args.repetitions < 1:
-            raise DemonstratorError(f"--repetitions must be >= 1, got {args.repetitions}")
-    except DemonstratorError as exc:
+            raise CommandError(f"--repetitions must be >= 1, got {args.repetitions}")
+    except (CommandError, DataError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
     args.out.mkdir(parents=True, exist_ok=True)

@@ -1,4 +1,4 @@
-"""`gwr-predictor evaluate FILE...`: online evaluation of recordings, hierarchy against baselines.
+"""`gwr-predictor evaluate FILE...`: online evaluation of recordings, the learners against the baselines.
 
 Files are skeleton recordings (NPZ/CSV, 30 fps: median of 3 -> 10 fps -> angles), mocap
 recordings (.bvh, .amc, .npy/.npz joint positions, .pt: mapped and resampled to the same 30 fps
@@ -22,14 +22,14 @@ from typing import Any
 
 import numpy as np
 
+from gwr_predictor.commands.errors import CommandError
 from gwr_predictor.commands.import_options import add_import_options, import_options
 from gwr_predictor.commands.param_overrides import parse_overrides
-from gwr_predictor.data.angle_files import AngleFileError, load_angles_csv
+from gwr_predictor.data.angle_files import load_angles_csv
+from gwr_predictor.data.errors import DataError
 from gwr_predictor.data.extraction import extract_angles
 from gwr_predictor.data.mocap import load_any_skeleton
 from gwr_predictor.data.mocap_clip import ImportOptions
-from gwr_predictor.data.skeleton_files import SkeletonFileError
-from gwr_predictor.errors import GwrPredictorError
 from gwr_predictor.evaluation.online import EvaluationError, compare_online
 from gwr_predictor.evaluation.output import markdown_table, to_jsonable
 from gwr_predictor.learning.params import HierarchyParams
@@ -38,10 +38,6 @@ from gwr_predictor.predictors import registry
 from gwr_predictor.robot.nao import ARM_JOINTS
 
 DEFAULT_METHODS = ("hold", "const_velocity", "rls_ar", "hierarchy")
-
-
-class RecordingError(GwrPredictorError, ValueError):
-    """A file that is neither an angle CSV nor a skeleton recording; the message says why."""
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
@@ -53,16 +49,19 @@ def configure(parser: argparse.ArgumentParser) -> None:
                         help="frames every model predicts ahead and is scored at (default 6: 600 ms at 10 fps)")
     parser.add_argument("--methods", default=",".join(DEFAULT_METHODS),
                         help=f"comma-separated subset of {','.join(registry.names())}")
-    parser.add_argument("--checkpoint", type=Path, default=None, help="start the hierarchy from this checkpoint")
+    parser.add_argument("--checkpoint", type=Path, default=None,
+                        help="start the method 'hierarchy' (the paper's model) from this checkpoint of one; the "
+                             "other methods start fresh")
     parser.add_argument("--param", action="append", default=[], metavar="KEY=VALUE",
-                        help="hierarchy parameter override in flat form (repeatable)")
+                        help="a setting of the method 'hierarchy' (the paper's model), flat as in its params-file "
+                             "section (e.g. gwr1.eps_b=0.1); horizon and n_joints reach every method (repeatable)")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--no-progress", action="store_true")
     add_import_options(parser)
 
 
 def default_method() -> str:
-    """The predictor the gwr_hierarchy node runs by default (its key in evaluate's `mae_rad`)."""
+    """The predictor the arm_predictor node runs by default (its key in evaluate's `mae_rad`)."""
     return registry.default_name()
 
 
@@ -72,18 +71,18 @@ def load_recording(path: Path, options: ImportOptions | None = None) -> np.ndarr
     if path.suffix.lower() == ".csv":
         try:
             _, angles, names = load_angles_csv(path)
-        except AngleFileError as exc:
+        except DataError as exc:
             angle_error = exc
         else:
             missing = [n for n in ARM_JOINTS if n not in names]
             if missing:
-                raise RecordingError(f"{path}: angle file lacks the arm joints {missing}")
+                raise CommandError(f"{path}: angle file lacks the arm joints {missing}")
             return angles[:, [names.index(n) for n in ARM_JOINTS]]
     try:
         seq = load_any_skeleton(path, options)
-    except SkeletonFileError as exc:
-        raise RecordingError(f"{path}: not an angle CSV ({angle_error}) nor a skeleton file ({exc})"
-                             if angle_error else str(exc)) from exc
+    except DataError as exc:
+        raise CommandError(f"{path}: not an angle CSV ({angle_error}) nor a skeleton file ({exc})"
+                           if angle_error else str(exc)) from exc
     return extract_angles(seq.positions, seq.timestamps, seq.joint_names).angles
 
 
@@ -91,9 +90,9 @@ def run(args: argparse.Namespace) -> int:
     try:
         methods = tuple(m.strip() for m in args.methods.split(",") if m.strip())
         if unknown := [m for m in methods if m not in registry.names()]:
-            raise ValueError(f"unknown methods {unknown}; choose from {', '.join(registry.names())}")
+            raise CommandError(f"unknown methods {unknown}; choose from {', '.join(registry.names())}")
         if args.passes < 1:
-            raise ValueError(f"--passes must be >= 1, got {args.passes}")
+            raise CommandError(f"--passes must be >= 1, got {args.passes}")
         if default_method() not in methods:
             methods = (*methods, default_method())
         options = import_options(args)
@@ -101,14 +100,14 @@ def run(args: argparse.Namespace) -> int:
         overrides = parse_overrides(args.param)
         if args.horizon is not None:  # the models predict as far as they are scored
             if overrides.setdefault("horizon", args.horizon) != args.horizon:
-                raise ValueError(f"--horizon {args.horizon} and --param horizon={overrides['horizon']} disagree")
+                raise CommandError(f"--horizon {args.horizon} and --param horizon={overrides['horizon']} disagree")
         params = HierarchyParams.from_flat(overrides)
         models = {m: (registry.load_predictor(m, args.checkpoint) if m == "hierarchy" and args.checkpoint
                       else registry.make_predictor(m, params, args.seed)) for m in methods}
         horizon = params.horizon
         results = compare_online(models, recordings, horizon=horizon, passes=args.passes,
                                  progress=not args.no_progress, desc="evaluate")
-    except (ValueError, OSError) as exc:  # RecordingError, EvaluationError, CheckpointError, bad params
+    except (ValueError, OSError) as exc:  # CommandError, EvaluationError, CheckpointError, bad params
         kind = "evaluation" if isinstance(exc, EvaluationError) else "input"
         print(f"error ({kind}): {exc}", file=sys.stderr)
         return 2

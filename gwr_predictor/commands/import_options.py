@@ -23,5 +23,5 @@ def add_import_options(parser: argparse.ArgumentParser) -> None:
 
 
 def import_options(args: argparse.Namespace) -> ImportOptions:
-    """`ImportOptions` from parsed arguments (raises MocapError for a bad value)."""
+    """`ImportOptions` from parsed arguments (raises DataError for a bad value)."""
     return ImportOptions(units=args.units, up=args.up, fps=args.fps, joint_map=args.joint_map, asf=args.asf)

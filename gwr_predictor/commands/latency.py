@@ -14,7 +14,7 @@ from pathlib import Path
 
 from gwr_predictor.commands.run_folder import add_run_arguments, bag_and_folder
 from gwr_predictor.files.user_files import write_output
-from gwr_predictor.pipeline.bag_messages import BagError
+from gwr_predictor.pipeline.errors import PipelineError
 from gwr_predictor.pipeline.message_latency import latency_report
 
 
@@ -30,8 +30,8 @@ def run(args: argparse.Namespace) -> int:
     out = args.out or folder
     try:
         report = latency_report(bag, args.namespace)
-        path = write_output(out / "latency.json", report.to_json() + "\n", "latency report", BagError)
-    except BagError as exc:
+        path = write_output(out / "latency.json", report.to_json() + "\n", "latency report", PipelineError)
+    except PipelineError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 1
     for line in report.summary_lines():

@@ -1,6 +1,6 @@
 """`gwr-predictor pretrain`: train a predictor offline on the demonstrator's training repetitions.
 
-The live pipeline then starts from this checkpoint (gwr_hierarchy's `checkpoint` parameter) and
+The live pipeline then starts from this checkpoint (arm_predictor's `checkpoint` parameter) and
 keeps learning: pretraining only front-loads what the paper's online training would learn over
 many demonstrations. The learning parameters and the `predictor` (the default gated local-linear
 P-GWR or the paper's hierarchy) come from the node's YAML (`--params-file`)
@@ -22,10 +22,11 @@ import numpy as np
 from tqdm import tqdm
 
 from gwr_predictor.data.datasets import demo_angle_sequences
-from gwr_predictor.data.demonstrator import PATTERNS, DemonstratorError
+from gwr_predictor.data.demonstrator import PATTERNS
 from gwr_predictor.default_predictor.gate import inner_model
 from gwr_predictor.learning.checkpoint import check_checkpoint_place
 from gwr_predictor.learning.protocol import Learner
+from gwr_predictor.pipeline.conventions import DEPRECATED_LEARNER_NODE, LEARNER_NODE
 from gwr_predictor.pipeline.params_file import load_params_file
 from gwr_predictor.predictors.registry import (
     DEFAULT_PREDICTOR,
@@ -34,13 +35,11 @@ from gwr_predictor.predictors.registry import (
     settings_from_parameters,
 )
 
-NODE_NAME = "gwr_hierarchy"
-
 
 def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("-o", "--out", type=Path, required=True, help="checkpoint file to write (.npz)")
     parser.add_argument("--params-file", type=Path, default=None,
-                        help="ROS params YAML of the gwr_hierarchy node (e.g. config/gwr_hierarchy.yaml): its "
+                        help="ROS params YAML of the arm_predictor node (e.g. config/arm_predictor.yaml): its "
                              "learning parameters and seed are used")
     parser.add_argument("--patterns", nargs="*", default=None, help=f"patterns (default all: {', '.join(PATTERNS)})")
     parser.add_argument("--subjects", type=int, default=3, help="simulated people (default 3)")
@@ -58,13 +57,20 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
 
 
-def node_parameters(path: Path, node: str = NODE_NAME) -> dict[str, Any]:
+def node_parameters(path: Path, node: str = LEARNER_NODE) -> dict[str, Any]:
     """The flat (dotted) ros__parameters of `node` in a ROS params YAML (keys '/**', 'node', '/node',
-    '/**/node'), the file checked as the nodes check theirs (`params_file.load_params_file`)."""
+    '/**/node'), the file checked as the nodes check theirs (`params_file.load_params_file`). For the
+    learner, a section of its old name (`gwr_hierarchy`) is read too, before its own, for one release."""
     sections = load_params_file(path)
-    flat: dict[str, Any] = {}
-    for key in ("/**", node, "/" + node, "/**/" + node):
-        flat.update(sections.get(key, {}))
+    names = (DEPRECATED_LEARNER_NODE, node) if node == LEARNER_NODE else (node,)
+    flat: dict[str, Any] = dict(sections.get("/**", {}))
+    for name in names:
+        keys = [key for key in (name, "/" + name, "/**/" + name) if key in sections]
+        if keys and name == DEPRECATED_LEARNER_NODE:
+            print(f"warning: {path}: section {keys[0]!r} has the learner's old name, read for one more release: "
+                  f"name it '{LEARNER_NODE}'", file=sys.stderr)
+        for key in keys:
+            flat.update(sections[key])
     return flat
 
 
@@ -74,7 +80,7 @@ def run(args: argparse.Namespace) -> int:
         flat = node_parameters(args.params_file) if args.params_file else {}
         seed = args.seed if args.seed is not None else int(flat.get("seed", 0))
         seqs = demo_angle_sequences(args.patterns or None, args.subjects, args.repetitions, args.data_seed)
-    except (ValueError, DemonstratorError) as exc:
+    except ValueError as exc:  # the place (LearningError), the params file (PipelineError), the data (DataError)
         print(f"error: {exc}", file=sys.stderr)
         return 2
     if args.epochs < 1:

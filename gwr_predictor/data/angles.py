@@ -46,10 +46,6 @@ YAW_SINGULAR_WIDTH = 0.7  # reach of the elbow-yaw bias in sin(elbow bend): bend
 _MIN_LENGTH = 1e-3  # m: shorter segments are degenerate
 
 
-#: DataError, for positions or joint names that angle extraction cannot use; the message says which.
-AngleExtractionError = DataError
-
-
 def _unit(v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     n = np.linalg.norm(v, axis=-1, keepdims=True)
     with np.errstate(invalid="ignore", divide="ignore"):
@@ -77,7 +73,7 @@ def _indices(joint_names: Sequence[str], wanted: Sequence[str]) -> list[int]:
     names = list(joint_names)
     missing = [w for w in wanted if w not in names]
     if missing:
-        raise AngleExtractionError(f"joint_names lacks {missing}; angle extraction needs {list(wanted)}")
+        raise DataError(f"joint_names lacks {missing}; angle extraction needs {list(wanted)}")
     return [names.index(w) for w in wanted]
 
 
@@ -114,8 +110,8 @@ def skeleton_to_angles(positions: np.ndarray, joint_names: Sequence[str] = SKELE
     """
     pos = np.asarray(positions, dtype=np.float64)
     if pos.ndim < 2 or pos.shape[-1] != 3 or pos.shape[-2] != len(joint_names):
-        raise AngleExtractionError(f"positions must be (..., {len(joint_names)}, 3) for {len(joint_names)} "
-                                   f"joint names, got shape {pos.shape}")
+        raise DataError(f"positions must be (..., {len(joint_names)}, 3) for {len(joint_names)} "
+                        f"joint names, got shape {pos.shape}")
     frame, valid = torso_frame(pos, joint_names)
     out = []
     for side, prefix in (("L", "left"), ("R", "right")):

@@ -21,7 +21,8 @@ from pathlib import Path
 import numpy as np
 
 from gwr_predictor.data.bvh import rotation_matrices
-from gwr_predictor.data.mocap_clip import MocapClip, MocapError
+from gwr_predictor.data.errors import DataError
+from gwr_predictor.data.mocap_clip import MocapClip
 from gwr_predictor.files import limits
 
 INCH_M = 0.0254
@@ -66,7 +67,7 @@ def parse_asf(path: Path) -> AsfSkeleton:
     sections: dict[str, list[list[str]]] = {}
     units: dict[str, str] = {}
     current = None
-    limits.check_file_size(path, limits.MAX_SKELETON_BYTES, "ASF skeleton", MocapError)
+    limits.check_file_size(path, limits.MAX_SKELETON_BYTES, "ASF skeleton", DataError)
     for raw in path.read_text(errors="replace").splitlines():
         line = raw.split("#", 1)[0].strip()
         if not line:
@@ -79,19 +80,19 @@ def parse_asf(path: Path) -> AsfSkeleton:
                 sections[current].append(rest)
             continue
         if current is None:
-            raise MocapError(f"{path}: text before the first ':section' (not an ASF file?)")
+            raise DataError(f"{path}: text before the first ':section' (not an ASF file?)")
         sections[current].append(line.split())
     for row in sections.get("units", []):
         if len(row) >= 2:
             units[row[0].lower()] = row[1]
     if "bonedata" not in sections or "hierarchy" not in sections:
-        raise MocapError(f"{path}: needs :bonedata and :hierarchy sections (not an ASF file?)")
+        raise DataError(f"{path}: needs :bonedata and :hierarchy sections (not an ASF file?)")
     try:
         length_unit = float(units.get("length", "1"))
     except ValueError:
-        raise MocapError(f"{path}: ':units length' must be a number, got {units['length']!r}") from None
+        raise DataError(f"{path}: ':units length' must be a number, got {units['length']!r}") from None
     if not length_unit > 0:
-        raise MocapError(f"{path}: ':units length' must be positive, got {length_unit}")
+        raise DataError(f"{path}: ':units length' must be positive, got {length_unit}")
     degrees = units.get("angle", "deg").lower().startswith("deg")
     root = {r[0].lower(): r[1:] for r in sections.get("root", []) if r}
     bones = _parse_bones(path, sections["bonedata"])
@@ -100,7 +101,7 @@ def parse_asf(path: Path) -> AsfSkeleton:
         root_pos = np.array([float(v) for v in root.get("position", ["0", "0", "0"])])
         root_ori = np.array([float(v) for v in root.get("orientation", ["0", "0", "0"])])
     except ValueError:
-        raise MocapError(f"{path}: :root position/orientation must be numbers") from None
+        raise DataError(f"{path}: :root position/orientation must be numbers") from None
     return AsfSkeleton(bones, order, tuple(v.lower() for v in root.get("order", ["TX", "TY", "TZ", "RX", "RY",
                                                                                    "RZ"])),
                        root.get("axis", ["XYZ"])[0].lower(), root_pos, root_ori, INCH_M / length_unit, degrees)
@@ -115,7 +116,7 @@ def _parse_bones(path: Path, rows: list[list[str]]) -> dict[str, AsfBone]:
             cur = {}
         elif key == "end":
             if cur is None:
-                raise MocapError(f"{path}: :bonedata 'end' without 'begin'")
+                raise DataError(f"{path}: :bonedata 'end' without 'begin'")
             name = (cur.get("name") or ["?"])[0]
             try:
                 axis = cur["axis"]
@@ -123,18 +124,18 @@ def _parse_bones(path: Path, rows: list[list[str]]) -> dict[str, AsfBone]:
                                np.array([float(v) for v in axis[:3]]), axis[3].lower() if len(axis) > 3 else "xyz",
                                tuple(d.lower() for d in cur.get("dof", [])))
             except (KeyError, ValueError, IndexError) as exc:
-                raise MocapError(f"{path}: bone {name!r}: missing or bad field ({exc}); needs direction, "
-                                 "length and axis") from None
+                raise DataError(f"{path}: bone {name!r}: missing or bad field ({exc}); needs direction, "
+                                "length and axis") from None
             if bone.direction.shape != (3,) or bone.axis.shape != (3,):
-                raise MocapError(f"{path}: bone {name!r}: direction and axis need 3 numbers")
+                raise DataError(f"{path}: bone {name!r}: direction and axis need 3 numbers")
             norm = np.linalg.norm(bone.direction)
             bone.direction = bone.direction / norm if norm > 0 else bone.direction
             bad = [d for d in bone.dof if d not in _DOF_AXIS and d not in ("tx", "ty", "tz", "l")]
             if bad:
-                raise MocapError(f"{path}: bone {name!r}: unknown dof {bad}")
+                raise DataError(f"{path}: bone {name!r}: unknown dof {bad}")
             bones[name] = bone
             limits.check_count(path, 2 * len(bones) + 1, limits.MAX_JOINTS, "joints (bone starts and ends)",
-                               MocapError)
+                               DataError)
             cur = None
         elif cur is not None:
             if key == "limits" or (row[0].startswith("(") and "limits" in cur):
@@ -152,12 +153,12 @@ def _parse_hierarchy(path: Path, rows: list[list[str]], bones: dict[str, AsfBone
             continue
         parent, children = row[0], row[1:]
         if parent != "root" and parent not in bones:
-            raise MocapError(f"{path}: :hierarchy names bone {parent!r}, which :bonedata lacks")
+            raise DataError(f"{path}: :hierarchy names bone {parent!r}, which :bonedata lacks")
         for c in children:
             if c not in bones:
-                raise MocapError(f"{path}: :hierarchy names bone {c!r}, which :bonedata lacks")
+                raise DataError(f"{path}: :hierarchy names bone {c!r}, which :bonedata lacks")
             if bones[c].parent != "root":
-                raise MocapError(f"{path}: :hierarchy gives bone {c!r} two parents")
+                raise DataError(f"{path}: :hierarchy gives bone {c!r} two parents")
             bones[c].parent = parent
             if parent != "root":
                 bones[parent].children.append(c)
@@ -169,13 +170,13 @@ def _parse_hierarchy(path: Path, rows: list[list[str]], bones: dict[str, AsfBone
         order.append(name)
         for child in bones[name].children:
             if child in depth:
-                raise MocapError(f"{path}: :hierarchy gives bone {child!r} two parents")
+                raise DataError(f"{path}: :hierarchy gives bone {child!r} two parents")
             depth[child] = limits.check_count(path, depth[name] + 1, limits.MAX_DEPTH, "levels of bone nesting",
-                                              MocapError)
+                                              DataError)
             frontier.append(child)
     missing = [n for n in bones if n not in depth]
     if missing:
-        raise MocapError(f"{path}: bones {missing[:5]} are not connected to the root in :hierarchy")
+        raise DataError(f"{path}: bones {missing[:5]} are not connected to the root in :hierarchy")
     return order
 
 
@@ -195,14 +196,14 @@ def _is_frame_number(parts: list[str]) -> bool:
 def parse_amc(path: Path, skeleton: AsfSkeleton) -> dict[str, np.ndarray]:
     """Per bone (and 'root') the (frames, dof) values of an AMC file. Read twice: once to count the
     frames (checked against the limits), once to fill tables of exactly that size."""
-    limits.check_file_size(path, limits.MAX_TEXT_BYTES, "AMC motion", MocapError)
+    limits.check_file_size(path, limits.MAX_TEXT_BYTES, "AMC motion", DataError)
     expected = {"root": len(skeleton.root_order), **{n: len(b.dof) for n, b in skeleton.bones.items()}}
     frames = sum(1 for _, parts in _amc_lines(path) if _is_frame_number(parts))
     if not frames:
-        raise MocapError(f"{path}: no frames (not an AMC file?)")
-    limits.check_shape(path, frames, 2 * len(skeleton.bones) + 1, MocapError)
+        raise DataError(f"{path}: no frames (not an AMC file?)")
+    limits.check_shape(path, frames, 2 * len(skeleton.bones) + 1, DataError)
     limits.check_count(path, frames * sum(expected.values()), limits.MAX_VALUES, "motion values (frames x dof)",
-                       MocapError)
+                       DataError)
     out = {name: np.zeros((frames, width)) for name, width in expected.items() if width or name == "root"}
     has_root = np.zeros(frames, dtype=bool)
     unknown: set[str] = set()
@@ -212,7 +213,7 @@ def parse_amc(path: Path, skeleton: AsfSkeleton) -> dict[str, np.ndarray]:
             f += 1
             continue
         if f < 0:
-            raise MocapError(f"{path}: line {n}: bone values before the first frame number")
+            raise DataError(f"{path}: line {n}: bone values before the first frame number")
         name = parts[0]
         if name not in expected:
             unknown.add(name)
@@ -220,17 +221,17 @@ def parse_amc(path: Path, skeleton: AsfSkeleton) -> dict[str, np.ndarray]:
         try:
             values = [float(v) for v in parts[1:]]
         except ValueError:
-            raise MocapError(f"{path}: line {n}: bone {name[:30]!r} has a value that is not a number") from None
+            raise DataError(f"{path}: line {n}: bone {name[:30]!r} has a value that is not a number") from None
         if expected[name] and len(values) != expected[name]:
-            raise MocapError(f"{path}: frame {f + 1}, bone {name!r}: {len(values)} values, the ASF "
-                             f"gives it {expected[name]} dof")
+            raise DataError(f"{path}: frame {f + 1}, bone {name!r}: {len(values)} values, the ASF "
+                            f"gives it {expected[name]} dof")
         if name in out:
             out[name][f] = values
         has_root[f] |= name == "root"
     if expected["root"] and not has_root.all():
-        raise MocapError(f"{path}: frame {int(np.argmin(has_root)) + 1} lacks the root")
+        raise DataError(f"{path}: frame {int(np.argmin(has_root)) + 1} lacks the root")
     if unknown:
-        raise MocapError(f"{path}: bones {sorted(unknown)[:5]} are not in the ASF skeleton")
+        raise DataError(f"{path}: bones {sorted(unknown)[:5]} are not in the ASF skeleton")
     return out
 
 
@@ -285,7 +286,7 @@ def find_asf(amc: Path, asf: str | Path | None) -> Path:
     if asf:
         p = Path(asf)
         if not p.is_file():
-            raise MocapError(f"{p}: no such ASF file (given for {amc})")
+            raise DataError(f"{p}: no such ASF file (given for {amc})")
         return p
     same = amc.with_suffix(".asf")
     if same.is_file():
@@ -296,14 +297,14 @@ def find_asf(amc: Path, asf: str | Path | None) -> Path:
     others = sorted(amc.parent.glob("*.asf"))
     if len(others) == 1:
         return others[0]
-    raise MocapError(f"{amc}: no skeleton {same.name} beside it ({len(others)} other .asf there); give --asf FILE")
+    raise DataError(f"{amc}: no skeleton {same.name} beside it ({len(others)} other .asf there); give --asf FILE")
 
 
 def load_amc(path: str | Path, asf: str | Path | None = None) -> MocapClip:
     """An AMC motion with its ASF skeleton as a `MocapClip` in metres, 120 fps (CMU), Y up."""
     path = Path(path)
     if path.suffix.lower() == ".asf":
-        raise MocapError(f"{path}: an .asf holds only the skeleton; give the .amc motion file (with --asf)")
+        raise DataError(f"{path}: an .asf holds only the skeleton; give the .amc motion file (with --asf)")
     asf_path = find_asf(path, asf)
     skeleton = parse_asf(asf_path)
     positions, names = forward_kinematics(skeleton, parse_amc(path, skeleton))

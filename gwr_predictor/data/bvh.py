@@ -22,7 +22,8 @@ from pathlib import Path
 
 import numpy as np
 
-from gwr_predictor.data.mocap_clip import MocapClip, MocapError
+from gwr_predictor.data.errors import DataError
+from gwr_predictor.data.mocap_clip import MocapClip
 from gwr_predictor.files.limits import (
     MAX_DEPTH,
     MAX_JOINTS,
@@ -74,7 +75,7 @@ def parse_bvh(path: Path) -> tuple[list[BvhJoint], np.ndarray, float]:
 
     The file is streamed line by line and every declared size (file, joints, nesting, channels,
     frames x channels) is checked against `files.limits` before the motion table is allocated."""
-    check_file_size(path, MAX_TEXT_BYTES, "BVH file", MocapError)
+    check_file_size(path, MAX_TEXT_BYTES, "BVH file", DataError)
     with path.open(errors="replace") as fh:
         lines = enumerate(fh, 1)
         joints, n_channels = _parse_hierarchy(path, _tokens(lines))
@@ -100,9 +101,9 @@ class _Hierarchy:
 
     def open(self, line: int) -> None:
         if self.pending is None:
-            raise MocapError(f"{self.path}: line {line}: '{{' without a joint")
-        check_count(self.path, len(self.joints) + 1, MAX_JOINTS, "joints", MocapError)
-        check_count(self.path, len(self.stack) + 1, MAX_DEPTH, "levels of joint nesting", MocapError)
+            raise DataError(f"{self.path}: line {line}: '{{' without a joint")
+        check_count(self.path, len(self.joints) + 1, MAX_JOINTS, "joints", DataError)
+        check_count(self.path, len(self.stack) + 1, MAX_DEPTH, "levels of joint nesting", DataError)
         self.joints.append(BvhJoint(self.pending[0], self.pending[1], np.zeros(3), (), self.n_channels))
         self.stack.append(len(self.joints) - 1)
         self.pending = None
@@ -110,8 +111,8 @@ class _Hierarchy:
     def channels(self, line: int, names: tuple[str, ...]) -> None:
         bad = [c for c in names if c.lower() not in _CHANNELS]
         if bad or not self.stack:
-            raise MocapError(f"{self.path}: line {line}: unknown channels {bad} in joint "
-                             f"{self.joints[self.stack[-1]].name if self.stack else '?'}")
+            raise DataError(f"{self.path}: line {line}: unknown channels {bad} in joint "
+                            f"{self.joints[self.stack[-1]].name if self.stack else '?'}")
         j = self.joints[self.stack[-1]]
         j.channels, j.first_channel = names, self.n_channels
         self.n_channels += len(names)
@@ -122,56 +123,56 @@ def _parse_hierarchy(path: Path, tokens: Iterator[tuple[int, str]]) -> tuple[lis
     def take() -> tuple[int, str]:
         tok = next(tokens, None)
         if tok is None:
-            raise MocapError(f"{path}: hierarchy ends early (unbalanced braces?; no MOTION section?)")
+            raise DataError(f"{path}: hierarchy ends early (unbalanced braces?; no MOTION section?)")
         return tok
 
     first = next(tokens, (0, ""))
     if first[1] != "HIERARCHY":
-        raise MocapError(f"{path}: must start with HIERARCHY")
+        raise DataError(f"{path}: must start with HIERARCHY")
     h = _Hierarchy(path)
     while True:
         line, tok = take()
         if tok == "MOTION":
             break
         if not h.stack and h.joints and tok != "ROOT":
-            raise MocapError(f"{path}: line {line}: expected MOTION after the hierarchy, got {tok[:30]!r} "
-                             "(no MOTION section?)")
+            raise DataError(f"{path}: line {line}: expected MOTION after the hierarchy, got {tok[:30]!r} "
+                            "(no MOTION section?)")
         if tok in ("ROOT", "JOINT"):
             _, name = take()
             if tok == "JOINT" and not h.stack:
-                raise MocapError(f"{path}: line {line}: JOINT {name} outside a ROOT")
+                raise DataError(f"{path}: line {line}: JOINT {name} outside a ROOT")
             h.pending = (name, h.stack[-1] if h.stack else -1)
         elif tok == "End":
             take()
             if not h.stack:
-                raise MocapError(f"{path}: line {line}: End Site outside a joint")
+                raise DataError(f"{path}: line {line}: End Site outside a joint")
             h.pending = (f"{h.joints[h.stack[-1]].name}_end", h.stack[-1])
         elif tok == "{":
             h.open(line)
         elif tok == "}":
             if not h.stack:
-                raise MocapError(f"{path}: line {line}: unbalanced '}}'")
+                raise DataError(f"{path}: line {line}: unbalanced '}}'")
             h.stack.pop()
         elif tok == "OFFSET":
             vals = [take()[1] for _ in range(3)]
             try:
                 h.joints[h.stack[-1]].offset = np.array([float(v) for v in vals])
             except (ValueError, IndexError):
-                raise MocapError(f"{path}: line {line}: OFFSET needs 3 numbers, got {vals}") from None
+                raise DataError(f"{path}: line {line}: OFFSET needs 3 numbers, got {vals}") from None
         elif tok == "CHANNELS":
             try:
                 k = int(take()[1])
             except ValueError:
-                raise MocapError(f"{path}: line {line}: CHANNELS needs a count") from None
+                raise DataError(f"{path}: line {line}: CHANNELS needs a count") from None
             if not 0 <= k <= len(_CHANNELS):
-                raise MocapError(f"{path}: line {line}: CHANNELS {k}: a joint has 0 to {len(_CHANNELS)} channels")
+                raise DataError(f"{path}: line {line}: CHANNELS {k}: a joint has 0 to {len(_CHANNELS)} channels")
             h.channels(line, tuple(take()[1] for _ in range(k)))
         else:
-            raise MocapError(f"{path}: line {line}: unexpected {tok[:30]!r} in HIERARCHY")
+            raise DataError(f"{path}: line {line}: unexpected {tok[:30]!r} in HIERARCHY")
     if h.stack:
-        raise MocapError(f"{path}: hierarchy not closed (missing '}}' for {h.joints[h.stack[-1]].name})")
+        raise DataError(f"{path}: hierarchy not closed (missing '}}' for {h.joints[h.stack[-1]].name})")
     if not h.joints:
-        raise MocapError(f"{path}: no joints in HIERARCHY")
+        raise DataError(f"{path}: no joints in HIERARCHY")
     return h.joints, h.n_channels
 
 
@@ -192,11 +193,11 @@ def _motion_header(path: Path, lines: Iterator[tuple[int, str]]) -> tuple[int, f
             else:
                 time = float(value)
         except ValueError:
-            raise MocapError(f"{path}: MOTION header {line[:60]!r} needs a number") from None
+            raise DataError(f"{path}: MOTION header {line[:60]!r} needs a number") from None
     else:
         line = None
     if frames is None or time is None:
-        raise MocapError(f"{path}: MOTION needs 'Frames:' and 'Frame Time:' lines")
+        raise DataError(f"{path}: MOTION needs 'Frames:' and 'Frame Time:' lines")
     return frames, time, line
 
 
@@ -204,22 +205,22 @@ def _parse_motion(path: Path, lines: Iterator[tuple[int, str]], n_channels: int,
                   n_joints: int) -> tuple[np.ndarray, float]:
     frames, time, first = _motion_header(path, lines)
     if not time > 0:
-        raise MocapError(f"{path}: Frame Time must be positive, got {time}")
+        raise DataError(f"{path}: Frame Time must be positive, got {time}")
     if frames < 1:
-        raise MocapError(f"{path}: no motion frames (Frames: {frames})")
-    check_shape(path, frames, n_joints, MocapError)
-    check_count(path, frames * n_channels, MAX_VALUES, "motion values (frames x channels)", MocapError)
+        raise DataError(f"{path}: no motion frames (Frames: {frames})")
+    check_shape(path, frames, n_joints, DataError)
+    check_count(path, frames * n_channels, MAX_VALUES, "motion values (frames x channels)", DataError)
     table = np.empty((frames, n_channels))
     rows = itertools.chain([] if first is None else [first], (ln.strip() for _, ln in lines))
     done = 0
     while done < frames:
         chunk = list(itertools.islice((r for r in rows if r), min(_ROWS_PER_CHUNK, frames - done)))
         if not chunk:
-            raise MocapError(f"{path}: header says {frames} frames, file has {done} (truncated?)")
+            raise DataError(f"{path}: header says {frames} frames, file has {done} (truncated?)")
         table[done:done + len(chunk)] = _rows(path, chunk, done, n_channels)
         done += len(chunk)
     if not np.all(np.isfinite(table)):
-        raise MocapError(f"{path}: motion data has NaN or infinite values")
+        raise DataError(f"{path}: motion data has NaN or infinite values")
     return table, time
 
 
@@ -228,12 +229,12 @@ def _rows(path: Path, chunk: list[str], first: int, n_channels: int) -> np.ndarr
     cells = [r.split() for r in chunk]
     for n, vals in enumerate(cells):
         if len(vals) != n_channels:
-            raise MocapError(f"{path}: motion frame {first + n}: {len(vals)} values, hierarchy has {n_channels} "
-                             "channels")
+            raise DataError(f"{path}: motion frame {first + n}: {len(vals)} values, hierarchy has {n_channels} "
+                            "channels")
     try:
         return np.array(cells, dtype=np.float64).reshape(len(chunk), n_channels)
     except ValueError:
-        raise MocapError(f"{path}: motion data has a value that is not a number") from None
+        raise DataError(f"{path}: motion data has a value that is not a number") from None
 
 
 def forward_kinematics(joints: list[BvhJoint], motion: np.ndarray) -> np.ndarray:
@@ -273,6 +274,6 @@ def load_bvh(path: str | Path) -> MocapClip:
     names = [j.name for j in joints]
     dup = sorted(n for n, count in Counter(names).items() if count > 1)
     if dup:
-        raise MocapError(f"{path}: duplicate joint names {dup}")
+        raise DataError(f"{path}: duplicate joint names {dup}")
     return MocapClip(forward_kinematics(joints, motion), tuple(names), 1.0 / frame_time, str(path), up="y",
                      metadata={"format": "bvh"})

@@ -13,13 +13,8 @@ from functools import lru_cache
 
 import numpy as np
 
-from gwr_predictor.data.demonstrator import (
-    PATTERNS,
-    DemonstratorError,
-    SubjectProfile,
-    default_subjects,
-    demonstrate_one,
-)
+from gwr_predictor.data.demonstrator import PATTERNS, SubjectProfile, default_subjects, demonstrate_one
+from gwr_predictor.data.errors import DataError
 from gwr_predictor.data.extraction import extract_angles
 
 
@@ -55,7 +50,7 @@ def demo_angle_sequences(patterns: Sequence[str] | str | None = None,
     `patterns` is one name, several, or None for all 10; `subjects` a count (default 3) or profiles.
     """
     if isinstance(repetitions, bool) or not isinstance(repetitions, int) or repetitions < 1:
-        raise DemonstratorError(f"repetitions must be an integer >= 1, got {repetitions!r}")
+        raise DataError(f"repetitions must be an integer >= 1, got {repetitions!r}")
     pats = PATTERNS if patterns is None else (patterns,) if isinstance(patterns, str) else tuple(patterns)
     subs = tuple(default_subjects(3 if subjects is None else subjects, seed=seed)
                  if subjects is None or isinstance(subjects, int) else subjects)

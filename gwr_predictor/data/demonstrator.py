@@ -31,7 +31,7 @@ from gwr_predictor.data.skeleton_files import CAMERA_CONVENTION, SkeletonSequenc
 from gwr_predictor.joints.skeleton import SKELETON_FPS, SKELETON_JOINTS
 from gwr_predictor.robot.nao import rot_x, rot_y, rot_z
 
-__all__ = ["CAMERA_HEIGHT", "HUMAN_RANGES", "PATTERNS", "ArmAngles", "DemonstratorError", "SkeletonSequence",
+__all__ = ["CAMERA_HEIGHT", "HUMAN_RANGES", "PATTERNS", "ArmAngles", "DataError", "SkeletonSequence",
            "SubjectProfile", "Variation", "arm_points", "arm_trajectories", "default_subjects", "demonstrate",
            "demonstrate_one", "duration", "min_jerk"]
 
@@ -47,10 +47,6 @@ CAMERA_HEIGHT = 1.0
 HUMAN_RANGES: dict[str, tuple[float, float]] = {
     "plane": (-0.6, 2.4), "elevation": (0.0, 3.0), "rotation": (-1.5, 1.6), "flexion": (0.0, 2.5),
 }
-
-
-#: DataError, for a bad pattern name, subject profile or generation parameter; the message names it.
-DemonstratorError = DataError
 
 
 class ArmAngles(NamedTuple):
@@ -95,14 +91,14 @@ class SubjectProfile:
 
     def __post_init__(self) -> None:
         if not isinstance(self.name, str) or not self.name or not self.name.isidentifier():
-            raise DemonstratorError(f"SubjectProfile.name must be a non-empty identifier, got {self.name!r}")
+            raise DataError(f"SubjectProfile.name must be a non-empty identifier, got {self.name!r}")
         for f in fields(self):
             if f.name == "name":
                 continue
             lo, hi, unit = _PROFILE_RANGES[f.name]
             value = getattr(self, f.name)
             if isinstance(value, bool) or not isinstance(value, (int, float)) or not lo <= value <= hi:
-                raise DemonstratorError(f"SubjectProfile.{f.name} must be in [{lo:g}, {hi:g}] {unit}, got {value!r}")
+                raise DataError(f"SubjectProfile.{f.name} must be in [{lo:g}, {hi:g}] {unit}, got {value!r}")
 
 
 _DEFAULT_PROFILES = (  # one female and two male participants, like the paper
@@ -121,7 +117,7 @@ _DEFAULT_PROFILES = (  # one female and two male participants, like the paper
 def default_subjects(n: int = 3, seed: int = 0) -> list[SubjectProfile]:
     """`n` subjects: the three fixed profiles s1-s3 first, then random ones drawn from `seed`."""
     if isinstance(n, bool) or not isinstance(n, int) or n < 1:
-        raise DemonstratorError(f"number of subjects must be an integer >= 1, got {n!r}")
+        raise DataError(f"number of subjects must be an integer >= 1, got {n!r}")
     out = list(_DEFAULT_PROFILES[:n])
     for i in range(len(out), n):
         r = np.random.default_rng([seed, i])
@@ -353,7 +349,7 @@ def _tracker_noise(shape: tuple[int, ...], subject: SubjectProfile, rng: np.rand
 
 def _check_pattern(pattern: str) -> None:
     if pattern not in PATTERNS:
-        raise DemonstratorError(f"unknown pattern {pattern!r}; choose from {', '.join(PATTERNS)}")
+        raise DataError(f"unknown pattern {pattern!r}; choose from {', '.join(PATTERNS)}")
 
 
 def demonstrate_one(pattern: str, subject: SubjectProfile, repetition: int, seed: int = 0,
@@ -364,9 +360,9 @@ def demonstrate_one(pattern: str, subject: SubjectProfile, repetition: int, seed
     """
     _check_pattern(pattern)
     if not isinstance(subject, SubjectProfile):
-        raise DemonstratorError(f"subject must be a SubjectProfile, got {type(subject).__name__}")
+        raise DataError(f"subject must be a SubjectProfile, got {type(subject).__name__}")
     if not (isinstance(fps, (int, float)) and 1.0 <= fps <= 1000.0):
-        raise DemonstratorError(f"fps must be in [1, 1000], got {fps!r}")
+        raise DataError(f"fps must be in [1, 1000], got {fps!r}")
     key = [seed, PATTERNS.index(pattern), int.from_bytes(subject.name.encode()[:8], "little"), repetition]
     rng = np.random.default_rng(key)
     total, var = duration(pattern, subject, rng)
@@ -400,6 +396,6 @@ def demonstrate(patterns: Sequence[str] | None = None, subjects: int | Sequence[
     if subjects is None or isinstance(subjects, int):
         subjects = default_subjects(3 if subjects is None else subjects, seed=seed)
     if isinstance(repetitions, bool) or not isinstance(repetitions, int) or repetitions < 1:
-        raise DemonstratorError(f"repetitions must be an integer >= 1, got {repetitions!r}")
+        raise DataError(f"repetitions must be an integer >= 1, got {repetitions!r}")
     return [demonstrate_one(p, s, r, seed=seed, fps=fps, noise=noise)
             for p in patterns for s in subjects for r in range(1, repetitions + 1)]

@@ -18,17 +18,13 @@ from gwr_predictor.joints.skeleton import ANGLE_FPS
 CHUNK_FRAMES = int(ANGLE_FPS)
 
 
-#: DataError, for a fault-injection parameter outside its range; the message names it and the range.
-FaultParameterError = DataError
-
-
 def _rng(rng: np.random.Generator | int | None) -> np.random.Generator:
     return rng if isinstance(rng, np.random.Generator) else np.random.default_rng(rng)
 
 
 def _check_int(name: str, value: int, low: int) -> None:
     if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < low:
-        raise FaultParameterError(f"{name} must be an integer >= {low}, got {value!r}")
+        raise DataError(f"{name} must be an integer >= {low}, got {value!r}")
 
 
 def drop_chunks(n_frames: int, fraction: float, chunk: int = CHUNK_FRAMES,
@@ -42,7 +38,7 @@ def drop_chunks(n_frames: int, fraction: float, chunk: int = CHUNK_FRAMES,
     _check_int("n_frames", n_frames, 0)
     _check_int("chunk", chunk, 1)
     if isinstance(fraction, bool) or not isinstance(fraction, (int, float)) or not 0.0 <= fraction <= 1.0:
-        raise FaultParameterError(f"fraction must be in [0, 1], got {fraction!r}")
+        raise DataError(f"fraction must be in [0, 1], got {fraction!r}")
     k = min(round(fraction * n_frames / chunk), n_frames // chunk)
     keep = np.ones(n_frames, dtype=bool)
     if k == 0:
@@ -65,14 +61,14 @@ def joint_dropouts(positions: np.ndarray, rate: float, max_span: int = 15,
     """
     pos = np.array(positions, dtype=np.float64)
     if pos.ndim != 3 or pos.shape[2] != 3:
-        raise FaultParameterError(f"positions must be (frames, joints, 3), got shape {pos.shape}")
+        raise DataError(f"positions must be (frames, joints, 3), got shape {pos.shape}")
     if isinstance(rate, bool) or not isinstance(rate, (int, float)) or not 0.0 <= rate <= 1.0:
-        raise FaultParameterError(f"rate must be in [0, 1], got {rate!r}")
+        raise DataError(f"rate must be in [0, 1], got {rate!r}")
     _check_int("max_span", max_span, 1)
     n, j = pos.shape[:2]
     cols = np.arange(j) if joints is None else np.asarray(joints, dtype=int)
     if cols.size and (cols.min() < 0 or cols.max() >= j):
-        raise FaultParameterError(f"joints must be indices in [0, {j - 1}], got {cols.tolist()}")
+        raise DataError(f"joints must be indices in [0, {j - 1}], got {cols.tolist()}")
     gen = _rng(rng)
     starts = gen.random((n, cols.size)) < rate
     ends = np.where(starts, np.arange(n)[:, None] + gen.integers(1, max_span + 1, (n, cols.size)), 0)

@@ -54,10 +54,6 @@ _ID_PATTERN = re.compile(r"[A-Za-z0-9_]+")
 SELECTIONS = ("first", "nearest")
 
 
-#: DataError, for joint states or ids that cannot be a REP-155 body; the message says which, `reason` the rule broken.
-HriBodiesError = DataError
-
-
 def valid_body_id(body_id: str) -> bool:
     """True if `body_id` can name a topic below the bodies namespace."""
     return bool(_ID_PATTERN.fullmatch(body_id))
@@ -66,7 +62,7 @@ def valid_body_id(body_id: str) -> bool:
 def body_topic(namespace: str, body_id: str, topic: str) -> str:
     """`<namespace>/<id>/<topic>`, e.g. /humans/bodies/b1/joint_states."""
     if not valid_body_id(body_id):
-        raise HriBodiesError(f"body id {body_id!r} cannot be part of a topic name (letters, digits, _ only)")
+        raise DataError(f"body id {body_id!r} cannot be part of a topic name (letters, digits, _ only)")
     return f"{namespace.rstrip('/')}/{body_id}/{topic}"
 
 
@@ -81,8 +77,8 @@ def check_frame(frame_id: str, body_id: str) -> None:
     """A body's joint states name no frame, or one of that body's (REP-155 suffixes a body's frames with its id:
     `body_<id>`, `torso_<id>`, ...): another body's frame means crossed topics (reason `frame_id`)."""
     if frame_id and not frame_id.endswith(f"_{body_id}"):
-        raise HriBodiesError(f"frame {frame_id[:80]!r} is not a frame of body {body_id} (expected '' or "
-                             f"'<link>_{body_id}', e.g. 'body_{body_id}')", "frame_id")
+        raise DataError(f"frame {frame_id[:80]!r} is not a frame of body {body_id} (expected '' or "
+                        f"'<link>_{body_id}', e.g. 'body_{body_id}')", "frame_id")
 
 
 def body_arm_joints(names: Sequence[str], positions: np.ndarray, body_id: str) -> np.ndarray:
@@ -91,26 +87,26 @@ def body_arm_joints(names: Sequence[str], positions: np.ndarray, body_id: str) -
     More than `MAX_JOINTS` names, or a name longer than `MAX_NAME_CHARS`, is refused before anything is
     sized by them (reason `too_large`)."""
     if len(names) > MAX_JOINTS:
-        raise HriBodiesError(f"{len(names)} joint names exceed the limit of {MAX_JOINTS}", "too_large")
+        raise DataError(f"{len(names)} joint names exceed the limit of {MAX_JOINTS}", "too_large")
     if max(map(len, names), default=0) > MAX_NAME_CHARS:
-        raise HriBodiesError(f"a joint name longer than {MAX_NAME_CHARS} characters", "too_large")
+        raise DataError(f"a joint name longer than {MAX_NAME_CHARS} characters", "too_large")
     positions = np.asarray(positions, dtype=np.float64).ravel()
     if positions.size != len(names):
-        raise HriBodiesError(f"{len(names)} joint names but {positions.size} positions", "layout")
+        raise DataError(f"{len(names)} joint names but {positions.size} positions", "layout")
     index: dict[str, int] = {}
     suffix = f"_{body_id}"
     for i, name in enumerate(names):
         bare = name[: -len(suffix)] if body_id and name.endswith(suffix) else name
         if bare in index:
-            raise HriBodiesError(f"joint {bare!r} appears twice", "layout")
+            raise DataError(f"joint {bare!r} appears twice", "layout")
         index[bare] = i
     missing = [j for j in HUMAN_ARM_JOINTS if j not in index]
     if missing:
-        raise HriBodiesError(f"missing joints {missing} (expected names like '{HUMAN_ARM_JOINTS[0]}{suffix}')",
-                             "missing_joints")
+        raise DataError(f"missing joints {missing} (expected names like '{HUMAN_ARM_JOINTS[0]}{suffix}')",
+                        "missing_joints")
     angles = positions[[index[j] for j in HUMAN_ARM_JOINTS]]
     if not np.all(np.isfinite(angles)):
-        raise HriBodiesError("NaN or inf among the arm joint positions", "non_finite")
+        raise DataError("NaN or inf among the arm joint positions", "non_finite")
     return angles
 
 
@@ -130,7 +126,7 @@ def body_to_nao(human: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     (..., 8) in `ARM_JOINTS` order, by the skeleton path's inversion and clip."""
     human = np.asarray(human, dtype=np.float64)
     if human.shape[-1:] != (len(HUMAN_ARM_JOINTS),):
-        raise HriBodiesError(f"expected (..., {len(HUMAN_ARM_JOINTS)}) human arm angles, got shape {human.shape}")
+        raise DataError(f"expected (..., {len(HUMAN_ARM_JOINTS)}) human arm angles, got shape {human.shape}")
     k = len(ARM_CHAIN)
     raw = np.concatenate([arm_angles(*arm_directions(human[..., i * k:(i + 1) * k], side), side)
                           for i, side in enumerate(SIDES)], axis=-1)
@@ -147,7 +143,7 @@ def choose_body(tracked: Sequence[str], current: str | None, selection: str = "f
     without a known distance come after those with one, and without any distance it is `first`.
     """
     if selection not in SELECTIONS:
-        raise HriBodiesError(f"selection must be one of {SELECTIONS}, got {selection!r}")
+        raise DataError(f"selection must be one of {SELECTIONS}, got {selection!r}")
     ids = [i for i in tracked if valid_body_id(i)]
     if not ids:
         return None

@@ -31,7 +31,7 @@ from pathlib import Path
 
 import numpy as np
 
-from gwr_predictor.data.mocap_clip import MocapError
+from gwr_predictor.data.errors import DataError
 from gwr_predictor.files.limits import MAX_SKELETON_BYTES
 from gwr_predictor.files.user_files import read_text
 from gwr_predictor.files.yaml_safe import load_yaml
@@ -128,15 +128,15 @@ def read_map_file(path: str | Path) -> dict:
     """The user mapping file as a dict (JSON, or YAML when the suffix says so)."""
     path = Path(path)
     if path.suffix.lower() in (".yaml", ".yml"):
-        data = load_yaml(path, MAX_SKELETON_BYTES, "joint-map file", MocapError)
+        data = load_yaml(path, MAX_SKELETON_BYTES, "joint-map file", DataError)
     else:
-        text = read_text(path, MAX_SKELETON_BYTES, "joint-map file", MocapError)
+        text = read_text(path, MAX_SKELETON_BYTES, "joint-map file", DataError)
         try:
             data = json.loads(text)
         except json.JSONDecodeError as exc:
-            raise MocapError(f"{path}: not a readable joint-map file ({exc})") from None
+            raise DataError(f"{path}: not a readable joint-map file ({exc})") from None
     if not isinstance(data, dict):
-        raise MocapError(f"{path}: a joint map is a mapping {{our joint: recording joint}}, got {type(data).__name__}")
+        raise DataError(f"{path}: a joint map is a mapping {{our joint: recording joint}}, got {type(data).__name__}")
     return data
 
 
@@ -146,7 +146,7 @@ def resolve_map(names: Sequence[str], map_file: str | Path | None = None, source
     user = {k: v for k, v in user.items() if k != "joint_names"}
     unknown = [k for k in user if k not in SKELETON_JOINTS]
     if unknown:
-        raise MocapError(f"{map_file}: keys {unknown} are not skeleton joints; use {', '.join(SKELETON_JOINTS)}")
+        raise DataError(f"{map_file}: keys {unknown} are not skeleton joints; use {', '.join(SKELETON_JOINTS)}")
     preset = detect_preset(names)
     base = preset_map(names, preset) if preset else JointMap("none", dict.fromkeys(SKELETON_JOINTS, -1))
     indices = dict(base.indices)
@@ -154,21 +154,21 @@ def resolve_map(names: Sequence[str], map_file: str | Path | None = None, source
         candidates = value if isinstance(value, list) else [value]
         idx = _match(names, candidates)
         if idx < 0 or idx >= len(names):
-            raise MocapError(f"{source}: joint map {map_file} maps {joint} to {value!r}, which the recording "
-                             f"lacks (it has {len(names)} joints: {', '.join(list(names)[:12])}...)")
+            raise DataError(f"{source}: joint map {map_file} maps {joint} to {value!r}, which the recording "
+                            f"lacks (it has {len(names)} joints: {', '.join(list(names)[:12])}...)")
         indices[joint] = idx
     missing = [j for j in REQUIRED if indices[j] < 0]
     if missing and not preset and not user:  # name the closest preset and exactly what it lacks
         closest = max(PRESETS, key=lambda p: sum(i >= 0 for i in preset_map(names, p).indices.values()))
         found = preset_map(names, closest).indices
         lacks = [f"{j} ({'/'.join(PRESETS[closest][j])})" for j in REQUIRED if found[j] < 0]
-        raise MocapError(f"{source}: joint names fit no preset; the closest, {closest}, lacks {', '.join(lacks)}; "
-                         "give a joint-map file (--joint-map)")
+        raise DataError(f"{source}: joint names fit no preset; the closest, {closest}, lacks {', '.join(lacks)}; "
+                        "give a joint-map file (--joint-map)")
     if missing:
         hint = (f"no preset ({', '.join(PRESETS)}) fits its names" if not preset else f"preset {preset}")
-        raise MocapError(f"{source}: cannot find {', '.join(missing)} ({hint}; joints: "
-                         f"{', '.join(list(names)[:20])}{'...' if len(names) > 20 else ''}); "
-                         "give a joint-map file (--joint-map)")
+        raise DataError(f"{source}: cannot find {', '.join(missing)} ({hint}; joints: "
+                        f"{', '.join(list(names)[:20])}{'...' if len(names) > 20 else ''}); "
+                        "give a joint-map file (--joint-map)")
     name = preset or "none"
     if map_file and user:  # user mappings come only from a map file
         name = f"{preset}+{Path(map_file).name}" if preset else Path(map_file).name

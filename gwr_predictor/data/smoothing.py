@@ -18,10 +18,6 @@ GROUP = 3
 MIN_TRACKED = 2
 
 
-#: DataError, for inputs whose shapes do not fit together; the message names the argument.
-SmoothingError = DataError
-
-
 def _median_groups(frames: np.ndarray) -> np.ndarray:
     """(G, 3, ...) groups -> (G, ...) NaN-aware medians following the module's rule."""
     tracked = np.all(np.isfinite(frames), axis=-1, keepdims=True)
@@ -37,9 +33,9 @@ def median_of_3(positions: np.ndarray, timestamps: np.ndarray) -> tuple[np.ndarr
     positions = np.asarray(positions, dtype=np.float64)
     timestamps = np.asarray(timestamps, dtype=np.float64)
     if positions.ndim < 2:
-        raise SmoothingError(f"positions must be (frames, ..., coords), got shape {positions.shape}")
+        raise DataError(f"positions must be (frames, ..., coords), got shape {positions.shape}")
     if timestamps.shape != positions.shape[:1]:
-        raise SmoothingError(f"timestamps must be ({positions.shape[0]},), got {timestamps.shape}")
+        raise DataError(f"timestamps must be ({positions.shape[0]},), got {timestamps.shape}")
     g = positions.shape[0] // GROUP
     groups = positions[: g * GROUP].reshape(g, GROUP, *positions.shape[1:])
     return _median_groups(groups), timestamps[1: g * GROUP: GROUP].copy()
@@ -55,9 +51,9 @@ class MedianOf3:
     def push(self, stamp: float, frame: np.ndarray) -> tuple[float, np.ndarray] | None:
         frame = np.asarray(frame, dtype=np.float64)
         if frame.ndim < 1:
-            raise SmoothingError(f"frame must have at least one axis (coords), got shape {frame.shape}")
+            raise DataError(f"frame must have at least one axis (coords), got shape {frame.shape}")
         if self._frames and frame.shape != self._frames[0].shape:
-            raise SmoothingError(f"frame shape {frame.shape} differs from the group's {self._frames[0].shape}")
+            raise DataError(f"frame shape {frame.shape} differs from the group's {self._frames[0].shape}")
         self._frames.append(frame)
         self._stamps.append(float(stamp))
         if len(self._frames) < GROUP:

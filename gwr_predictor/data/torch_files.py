@@ -22,7 +22,8 @@ from typing import Any
 
 import numpy as np
 
-from gwr_predictor.data.mocap_clip import ImportOptions, MocapClip, MocapError
+from gwr_predictor.data.errors import DataError
+from gwr_predictor.data.mocap_clip import ImportOptions, MocapClip
 from gwr_predictor.files.limits import MAX_RECORDING_BYTES, MAX_VALUES, check_archive, check_count
 
 STORAGE_DTYPES = {"FloatStorage": np.float32, "DoubleStorage": np.float64, "HalfStorage": np.float16,
@@ -48,7 +49,7 @@ class _Storage:
 
 def _ints(value: Any, what: str) -> tuple[int, ...]:
     if not isinstance(value, tuple) or not all(isinstance(v, int) and not isinstance(v, bool) for v in value):
-        raise MocapError(f"tensor {what} must be a tuple of integers, got {str(value)[:60]}")
+        raise DataError(f"tensor {what} must be a tuple of integers, got {str(value)[:60]}")
     return value
 
 
@@ -57,14 +58,14 @@ def _rebuild_tensor(storage: np.ndarray, offset: int, size: tuple[int, ...], str
     """The tensor as numpy, after checking that its shape, strides and offset stay inside its
     storage and that its element count (strides may repeat values) is within `MAX_VALUES`."""
     if not isinstance(storage, np.ndarray) or not isinstance(offset, int):
-        raise MocapError("tensor without a storage or an integer offset")
+        raise DataError("tensor without a storage or an integer offset")
     size, stride = _ints(size, "size"), _ints(stride, "stride")
     if len(size) != len(stride) or offset < 0 or any(s < 0 for s in size) or any(st < 0 for st in stride):
-        raise MocapError(f"tensor of size {size}, stride {stride}, offset {offset} reaches outside its storage")
-    check_count("tensor", int(np.prod(size, dtype=object)), MAX_VALUES, "tensor elements", MocapError)
+        raise DataError(f"tensor of size {size}, stride {stride}, offset {offset} reaches outside its storage")
+    check_count("tensor", int(np.prod(size, dtype=object)), MAX_VALUES, "tensor elements", DataError)
     need = offset + sum((s - 1) * st for s, st in zip(size, stride, strict=True)) + 1 if all(size) else 0
     if need > storage.size:
-        raise MocapError(f"tensor of size {size} at offset {offset} does not fit its storage of {storage.size}")
+        raise DataError(f"tensor of size {size} at offset {offset} does not fit its storage of {storage.size}")
     return np.lib.stride_tricks.as_strided(storage[offset:], shape=size,
                                            strides=tuple(st * storage.itemsize for st in stride)).copy()
 
@@ -81,46 +82,46 @@ class _RestrictedUnpickler(pickle.Unpickler):
             return _Storage(name)
         if (module, name) == ("collections", "OrderedDict"):
             return OrderedDict
-        raise MocapError(f"{self.path}: refuses to load {module}.{name} (only plain tensors are read; "
-                         "a .pt file can carry code)")
+        raise DataError(f"{self.path}: refuses to load {module}.{name} (only plain tensors are read; "
+                        "a .pt file can carry code)")
 
     def persistent_load(self, pid: Any) -> np.ndarray:
         if not (isinstance(pid, tuple) and len(pid) == 5 and pid[0] == "storage" and isinstance(pid[1], _Storage)):
-            raise MocapError(f"{self.path}: unexpected persistent id {str(pid)[:60]}")
+            raise DataError(f"{self.path}: unexpected persistent id {str(pid)[:60]}")
         _, kind, key, _location, numel = pid
         try:
             raw = self.archive.read(f"{self.prefix}data/{key}")
         except (KeyError, TypeError):
-            raise MocapError(f"{self.path}: storage {key!r} missing from the archive") from None
+            raise DataError(f"{self.path}: storage {key!r} missing from the archive") from None
         arr = np.frombuffer(raw, dtype=np.dtype(STORAGE_DTYPES[kind.name]).newbyteorder("<"))
         if not isinstance(numel, int) or arr.size < numel:
-            raise MocapError(f"{self.path}: storage {key!r} has {arr.size} values, expected {numel}")
+            raise DataError(f"{self.path}: storage {key!r} has {arr.size} values, expected {numel}")
         return arr
 
 
 def load_tensor(path: str | Path) -> Any:
     """The object saved in a torch zip file, tensors as numpy arrays; refuses anything but tensors."""
     path = Path(path)
-    check_archive(path, MAX_RECORDING_BYTES, "torch file", MocapError)
+    check_archive(path, MAX_RECORDING_BYTES, "torch file", DataError)
     try:
         with zipfile.ZipFile(path) as archive:
             pkl = [n for n in archive.namelist() if n.endswith("data.pkl")]
             if len(pkl) != 1:
-                raise MocapError(f"{path}: not a torch zip file (no single data.pkl; legacy .pt files are not read)")
+                raise DataError(f"{path}: not a torch zip file (no single data.pkl; legacy .pt files are not read)")
             prefix = pkl[0][: -len("data.pkl")]
             order = archive.read(f"{prefix}byteorder").decode(errors="replace").strip() \
                 if f"{prefix}byteorder" in archive.namelist() else "little"
             if order != "little":
-                raise MocapError(f"{path}: byte order {order!r} is not supported")
+                raise DataError(f"{path}: byte order {order!r} is not supported")
             with archive.open(pkl[0]) as fh:
                 return _RestrictedUnpickler(fh, archive, prefix, path).load()
-    except MocapError as exc:
-        raise MocapError(str(exc) if str(exc).startswith(str(path)) else f"{path}: {exc}") from None
+    except DataError as exc:
+        raise DataError(str(exc) if str(exc).startswith(str(path)) else f"{path}: {exc}") from None
     except (zipfile.BadZipFile, zlib.error, NotImplementedError, RuntimeError):
-        raise MocapError(f"{path}: not a torch zip file (legacy or corrupt .pt)") from None
+        raise DataError(f"{path}: not a torch zip file (legacy or corrupt .pt)") from None
     except (pickle.UnpicklingError, EOFError, TypeError, AttributeError, ValueError, KeyError, IndexError,
             OverflowError, UnicodeDecodeError, struct.error) as exc:
-        raise MocapError(f"{path}: unreadable pickle in the .pt file ({type(exc).__name__}: {exc})"[:300]) from None
+        raise DataError(f"{path}: unreadable pickle in the .pt file ({type(exc).__name__}: {exc})"[:300]) from None
 
 
 def load_torch_clip(path: str | Path, options: ImportOptions | None = None) -> MocapClip:
@@ -129,7 +130,7 @@ def load_torch_clip(path: str | Path, options: ImportOptions | None = None) -> M
     options = options or ImportOptions()
     arr = load_tensor(path)
     if not isinstance(arr, np.ndarray):
-        raise MocapError(f"{path}: holds a {type(arr).__name__}, expected one tensor")
+        raise DataError(f"{path}: holds a {type(arr).__name__}, expected one tensor")
     names = options.joint_names
     fps = options.fps
     if arr.ndim == 2 and arr.shape[1] == OMOMO_WIDTH:
@@ -140,13 +141,13 @@ def load_torch_clip(path: str | Path, options: ImportOptions | None = None) -> M
     elif arr.ndim == 3 and arr.shape[2] == 3:
         layout = "positions"
     else:
-        raise MocapError(f"{path}: tensor of shape {arr.shape} is neither (frames, {OMOMO_WIDTH}) OMOMO data nor "
-                         "(frames, joints, 3) positions")
+        raise DataError(f"{path}: tensor of shape {arr.shape} is neither (frames, {OMOMO_WIDTH}) OMOMO data nor "
+                        "(frames, joints, 3) positions")
     if names is None:
         names = tuple(f"joint{i}" for i in range(arr.shape[1]))
     if len(names) != arr.shape[1]:
-        raise MocapError(f"{path}: {len(names)} joint names for {arr.shape[1]} joints")
+        raise DataError(f"{path}: {len(names)} joint names for {arr.shape[1]} joints")
     if not fps:
-        raise MocapError(f"{path}: the file does not say its frame rate; give --fps")
+        raise DataError(f"{path}: the file does not say its frame rate; give --fps")
     return MocapClip(arr.astype(np.float64), tuple(names), float(fps), str(path),
                      metadata={"format": "pt", "layout": layout})

@@ -19,7 +19,6 @@ _EXPORTS = {
     "IntervalStats": "metrics",
     "interval_stats": "metrics",
     "future_windows": "metrics",
-    "MetricsError": "metrics",
 }
 __all__ = sorted(_EXPORTS)
 __getattr__, __dir__ = lazy_exports(__name__, _EXPORTS)

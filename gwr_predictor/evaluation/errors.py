@@ -8,6 +8,6 @@ from gwr_predictor.errors import GwrPredictorError
 class EvaluationError(GwrPredictorError, ValueError, RuntimeError):
     """What the evaluation cannot do: sequences, horizons or predictor outputs the online loop cannot
     use, arrays whose shapes or contents cannot be scored, an experiment output that cannot be written.
-    The message names the culprit (the file, for an output). `MetricsError` and
-    `ExperimentOutputError` are this class; it is a ValueError and a RuntimeError, as they were.
+    The message names the culprit (the file, for an output). It is also a ValueError and a RuntimeError,
+    what a caller that does not know the package's classes would catch.
     """

@@ -15,9 +15,6 @@ import numpy as np
 from gwr_predictor.evaluation.errors import EvaluationError
 from gwr_predictor.learning.pending import target_steps
 
-#: EvaluationError, for arrays whose shapes or contents cannot be scored; the message names what differs.
-MetricsError = EvaluationError
-
 
 @dataclass(frozen=True)
 class HorizonStats:
@@ -30,7 +27,7 @@ class HorizonStats:
     @classmethod
     def empty(cls, horizon: int, joints: int = 8) -> HorizonStats:
         if horizon < 1 or joints < 1:
-            raise MetricsError(f"horizon and joints must be >= 1, got {horizon}, {joints}")
+            raise EvaluationError(f"horizon and joints must be >= 1, got {horizon}, {joints}")
         z = np.zeros((horizon, joints))
         return cls(np.zeros((horizon, joints), dtype=np.int64), z, z.copy())
 
@@ -40,7 +37,7 @@ class HorizonStats:
 
     def merge(self, other: HorizonStats) -> HorizonStats:
         if other.count.shape != self.count.shape:
-            raise MetricsError(f"cannot merge stats of shapes {self.count.shape} and {other.count.shape}")
+            raise EvaluationError(f"cannot merge stats of shapes {self.count.shape} and {other.count.shape}")
         return HorizonStats(self.count + other.count, self.sum_abs + other.sum_abs, self.sum_sq + other.sum_sq)
 
     @property
@@ -89,13 +86,13 @@ class IntervalStats:
     @classmethod
     def empty(cls, horizon: int, joints: int = 8) -> IntervalStats:
         if horizon < 1 or joints < 1:
-            raise MetricsError(f"horizon and joints must be >= 1, got {horizon}, {joints}")
+            raise EvaluationError(f"horizon and joints must be >= 1, got {horizon}, {joints}")
         zeros = np.zeros((horizon, joints), dtype=np.int64)
         return cls(zeros, zeros.copy(), np.zeros((horizon, joints)))
 
     def merge(self, other: IntervalStats) -> IntervalStats:
         if other.count.shape != self.count.shape:
-            raise MetricsError(f"cannot merge interval stats of shapes {self.count.shape} and {other.count.shape}")
+            raise EvaluationError(f"cannot merge interval stats of shapes {self.count.shape} and {other.count.shape}")
         return IntervalStats(self.count + other.count, self.inside + other.inside, self.sum_width + other.sum_width)
 
     @property
@@ -118,7 +115,7 @@ def interval_stats(lower: np.ndarray, upper: np.ndarray, truth: np.ndarray) -> I
     An angle on a bound is inside."""
     lower, upper, truth = (np.asarray(a, float) for a in (lower, upper, truth))
     if not lower.shape == upper.shape == truth.shape or truth.ndim != 3:
-        raise MetricsError(f"bounds {lower.shape}, {upper.shape} and truth {truth.shape} must all be (N, h, J)")
+        raise EvaluationError(f"bounds {lower.shape}, {upper.shape} and truth {truth.shape} must all be (N, h, J)")
     ok = np.isfinite(lower) & np.isfinite(upper) & np.isfinite(truth)
     inside = ok & (truth >= lower) & (truth <= upper)
     return IntervalStats(ok.sum(axis=0).astype(np.int64), inside.sum(axis=0).astype(np.int64),
@@ -140,7 +137,7 @@ def horizon_stats(predictions: np.ndarray, truth: np.ndarray) -> HorizonStats:
     """Stats of predictions (N, h, J) against truth (N, h, J); NaN in either is not scored."""
     predictions, truth = np.asarray(predictions, float), np.asarray(truth, float)
     if predictions.shape != truth.shape or predictions.ndim != 3:
-        raise MetricsError(f"predictions {predictions.shape} and truth {truth.shape} must both be (N, h, J)")
+        raise EvaluationError(f"predictions {predictions.shape} and truth {truth.shape} must both be (N, h, J)")
     err = predictions - truth
     ok = np.isfinite(err)
     err = np.where(ok, err, 0.0)
@@ -152,7 +149,7 @@ def future_windows(values: np.ndarray, horizon: int) -> np.ndarray:
     made at t targets (`pending.target_steps`), NaN past the end."""
     values = np.asarray(values, float)
     if values.ndim != 2:
-        raise MetricsError(f"expected a (T, J) array, got {values.shape}")
+        raise EvaluationError(f"expected a (T, J) array, got {values.shape}")
     t, j = values.shape
     padded = np.concatenate([values, np.full((horizon + 1, j), np.nan)])
     return padded[target_steps(np.arange(t), horizon)]
@@ -166,7 +163,7 @@ def moving_average(values: np.ndarray, window: int, centered: bool = False) -> n
     """
     values = np.asarray(values, float)
     if window < 1:
-        raise MetricsError(f"window must be >= 1, got {window}")
+        raise EvaluationError(f"window must be >= 1, got {window}")
     ok = np.isfinite(values)
     csum = np.concatenate([[0.0], np.cumsum(np.where(ok, values, 0.0))])
     ccnt = np.concatenate([[0], np.cumsum(ok)])
@@ -193,7 +190,7 @@ def linear_trend(values: np.ndarray, frames: np.ndarray | None = None) -> Trend:
     frames = np.arange(values.size, dtype=float) if frames is None else np.asarray(frames, float)
     ok = np.isfinite(values) & np.isfinite(frames)
     if ok.sum() < 2:
-        raise MetricsError(f"a trend needs at least 2 finite values, got {int(ok.sum())}")
+        raise EvaluationError(f"a trend needs at least 2 finite values, got {int(ok.sum())}")
     x, y = frames[ok], values[ok]
     xm = x.mean()
     var = ((x - xm) ** 2).sum()
@@ -215,7 +212,7 @@ def settling_frame(values: np.ndarray, window: int = 20, tolerance: float = 0.2,
     """
     values = np.asarray(values, float)
     if not 0.0 < final_fraction <= 1.0:
-        raise MetricsError(f"final_fraction must be in (0, 1], got {final_fraction}")
+        raise EvaluationError(f"final_fraction must be in (0, 1], got {final_fraction}")
     smooth = moving_average(values, window, centered=True)
     ok = np.isfinite(smooth)
     if not ok.any():
@@ -227,7 +224,7 @@ def settling_frame(values: np.ndarray, window: int = 20, tolerance: float = 0.2,
     else:
         reference = np.asarray(reference, float)
         if reference.size == 0 or values.size % reference.size:
-            raise MetricsError(f"reference of {reference.size} frames does not tile {values.size} frames")
+            raise EvaluationError(f"reference of {reference.size} frames does not tile {values.size} frames")
         level = moving_average(np.tile(reference, values.size // reference.size), window, centered=True)
         ok &= np.isfinite(level)
     band = level * (1.0 + tolerance) + floor

@@ -2,7 +2,7 @@
 
 Every experiment returns an `ExperimentOutput`; `write_output` turns it into
 `<out>/results.json` (machine-readable, NaN as null) and `<out>/results.md` (the human summary that
-docs/experiments.md quotes). Figures are saved by the experiment through `save_figure` so that
+research/experiments.md quotes). Figures are saved by the experiment through `save_figure` so that
 they stay small (PNG, modest dpi) and matplotlib never keeps figures open.
 """
 
@@ -23,9 +23,6 @@ import numpy as np
 from gwr_predictor.evaluation.errors import EvaluationError
 from gwr_predictor.files import json_safe, user_files
 
-#: EvaluationError, for an output that cannot be written; the message names the file.
-ExperimentOutputError = EvaluationError
-
 
 @dataclass
 class ExperimentOutput:
@@ -41,18 +38,18 @@ class ExperimentOutput:
 
 
 def to_jsonable(obj: Any) -> Any:
-    """`json_safe.to_jsonable`, raising ExperimentOutputError for an object with no JSON form."""
+    """`json_safe.to_jsonable`, raising EvaluationError for an object with no JSON form."""
     try:
         return json_safe.to_jsonable(obj)
     except TypeError as exc:
-        raise ExperimentOutputError(str(exc)) from None
+        raise EvaluationError(str(exc)) from None
 
 
 def write_json(path: Path, obj: Any) -> Path:
     text = json.dumps(to_jsonable(obj), indent=1)
     if len(text) > 100_000:  # long traces: compact, to keep results small enough to commit
         text = json.dumps(to_jsonable(obj), separators=(",", ":"))
-    return user_files.write_output(path, text + "\n", "results file", ExperimentOutputError)
+    return user_files.write_output(path, text + "\n", "results file", EvaluationError)
 
 
 def fmt(value: Any, digits: int = 3) -> str:
@@ -69,7 +66,7 @@ def markdown_table(headers: Sequence[str], rows: Sequence[Sequence[Any]], digits
     lines = ["| " + " | ".join(headers) + " |", "|" + "|".join("---" for _ in headers) + "|"]
     for row in rows:
         if len(row) != len(headers):
-            raise ExperimentOutputError(f"table row has {len(row)} cells for {len(headers)} headers")
+            raise EvaluationError(f"table row has {len(row)} cells for {len(headers)} headers")
         lines.append("| " + " | ".join(fmt(c, digits) for c in row) + " |")
     return "\n".join(lines)
 
@@ -83,7 +80,7 @@ def save_figure(fig: Any, out: Path, name: str, dpi: int = 80) -> str:
     path = Path(out) / f"{name}.png"
     buf = io.BytesIO()
     try:
-        with user_files.replacing(path, "figure", ExperimentOutputError) as tmp:
+        with user_files.replacing(path, "figure", EvaluationError) as tmp:
             fig.savefig(buf, format="png", dpi=dpi, bbox_inches="tight")
             with Image.open(buf) as img:
                 img.convert("RGB").quantize(colors=64).save(tmp, format="PNG", optimize=True)
@@ -118,5 +115,5 @@ def write_output(out: Path, output: ExperimentOutput, seed: int, quick: bool,
     md = [f"# {output.title}", "", f"`{command}` ({output.elapsed_s:.0f} s).", "", *output.markdown, ""]
     md += [f"![{f}]({f})" for f in output.figures]
     md_path = user_files.write_output(out / "results.md", "\n".join(md).rstrip() + "\n", "results file",
-                                      ExperimentOutputError)
+                                      EvaluationError)
     return json_path, md_path

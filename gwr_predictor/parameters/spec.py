@@ -156,7 +156,7 @@ def check_fields(instance: Any, specs: Iterable[ParamSpec], error: type[Exceptio
 
 
 def markdown_table(specs: Iterable[ParamSpec]) -> str:
-    """The docs' parameter table of `specs` (docs/pipeline.md shows these, and a test keeps them equal)."""
+    """The docs' parameter table of `specs` (docs/parameters.md shows these, and a test keeps them equal)."""
     rows = ["| parameter | default | allowed | what |", "|---|---|---|---|"]
     for s in specs:
         default = json.dumps(s.default)

@@ -1,4 +1,4 @@
-"""What the ROS pipeline shares without ROS: message conventions, input gates, bags, run reports, latency, plots,
+"""What the ROS pipeline shares without ROS: message conventions, input rules, bags, run reports, latency, plots,
 videos. Its one error class is `PipelineError` (`errors.py`; `reason` tells a too-large message apart).
 
 Bags, one module per job: `bag_messages` (the type store, message objects, CDR), `bag_qos` (offered and
@@ -14,16 +14,14 @@ _EXPORTS = {
     "unpack_skeleton": "conventions",
     "pack_predictions": "conventions",
     "unpack_predictions": "conventions",
-    "LayoutError": "conventions",
     "split_stamp": "conventions",
     "stamp_seconds": "conventions",
     "select_joints": "conventions",
-    "ArmAnglesGate": "gates",
-    "RejectionCounter": "gates",
-    "SkeletonReorder": "gates",
-    "missing_frames": "gates",
+    "ArmAnglesCheck": "input_rules",
+    "RejectionCounter": "input_rules",
+    "SkeletonReorder": "input_rules",
+    "missing_frames": "input_rules",
     "BagWriter": "bag_writer",
-    "BagError": "bag_messages",
     "BagMessage": "bag_reader",
     "read_bag": "bag_reader",
     "bag_info": "bag_reader",
@@ -36,13 +34,10 @@ _EXPORTS = {
     "read_run": "run_report",
     "plot_run": "run_report",
     "PipelineReport": "run_report",
-    "BagSummaryError": "run_report",
     "plot_angle_series": "plotting",
-    "PlotError": "plotting",
     "read_video_run": "video",
     "render_video": "video",
     "FrameRenderer": "video",
-    "VideoError": "video_files",
     "VideoWriter": "video_files",
 }
 __all__ = sorted(_EXPORTS)

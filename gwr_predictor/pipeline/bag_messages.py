@@ -1,6 +1,6 @@
 """The messages a bag holds, as `rosbags` objects: the ROS 2 Jazzy type store, the types the pipeline
-records, builders and converters of JointState and labelled Float64MultiArray, CDR (de)serialisation,
-and `BagError`, which every bag module raises.
+records, builders and converters of JointState and labelled Float64MultiArray, CDR (de)serialisation.
+Every bag module raises `PipelineError`.
 """
 
 from __future__ import annotations
@@ -22,10 +22,6 @@ DIAGNOSTIC_ARRAY = "diagnostic_msgs/msg/DiagnosticArray"
 TYPESTORE = get_typestore(Stores.ROS2_JAZZY)
 
 
-#: PipelineError, for a bag that cannot be written or read; the message names the bag path and the cause.
-BagError = PipelineError
-
-
 def time_msg(seconds: float) -> Any:
     """Seconds -> a rosbags builtin_interfaces/Time (`conventions.split_stamp`)."""
     sec, nanosec = conventions.split_stamp(seconds)
@@ -41,7 +37,7 @@ def joint_state_msg(names: Iterable[str], positions: np.ndarray, stamp: float, *
     names = list(names)
     pos = np.ascontiguousarray(positions, dtype=np.float64).ravel()
     if pos.size != len(names):
-        raise BagError(f"JointState needs one position per name: {len(names)} names, {pos.size} positions")
+        raise PipelineError(f"JointState needs one position per name: {len(names)} names, {pos.size} positions")
     vel = np.empty(0) if velocities is None else np.ascontiguousarray(velocities, dtype=np.float64).ravel()
     t = TYPESTORE.types
     header = t["std_msgs/msg/Header"](stamp=time_msg(stamp), frame_id=frame_id)

@@ -11,7 +11,7 @@ from typing import Any
 
 from rosbags.interfaces import Qos, QosDurability, QosHistory, QosLiveliness, QosReliability, QosTime
 
-from gwr_predictor.pipeline.bag_messages import BagError
+from gwr_predictor.pipeline.errors import PipelineError
 
 _INFINITE_NS = 2**63 - 1  # RMW_DURATION_INFINITE
 
@@ -27,13 +27,13 @@ def qos_profile(*, history: str, depth: int, reliability: str, durability: str, 
     """One offered QoS profile as stored in a bag, from policy names ('keep_last', 'reliable', ...).
 
     Policy names are rclpy's enum names in any case, so a node converts with `policy.name`.
-    BagError names a policy value that ROS 2 does not have.
+    PipelineError names a policy value that ROS 2 does not have.
     """
     def policy(enum: Any, kind: str, value: str) -> Any:
         try:
             return enum[str(value).upper()]
         except KeyError:
-            raise BagError(f"QoS {kind} {value!r} is not one of {[m.name.lower() for m in enum]}") from None
+            raise PipelineError(f"QoS {kind} {value!r} is not one of {[m.name.lower() for m in enum]}") from None
 
     return Qos(policy(QosHistory, "history", history), max(0, int(depth)),
                policy(QosReliability, "reliability", reliability), policy(QosDurability, "durability", durability),

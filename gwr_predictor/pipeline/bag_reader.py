@@ -20,7 +20,8 @@ from rosbags.rosbag2.errors import ReaderError
 
 from gwr_predictor.files.user_files import regular_file_size
 from gwr_predictor.files.yaml_safe import load_yaml
-from gwr_predictor.pipeline.bag_messages import TYPESTORE, BagError
+from gwr_predictor.pipeline.bag_messages import TYPESTORE
+from gwr_predictor.pipeline.errors import PipelineError
 from gwr_predictor.pipeline.mcap_limits import check_mcap
 
 #: A bag's metadata.yaml: about 1 kB per topic (with its QoS profiles) and 150 bytes per split file.
@@ -59,31 +60,31 @@ def _open_reader(path: Path) -> Reader:
     """A rosbags Reader of a bag directory or of a bare .mcap file, its files checked first
     (`check_bag_files`)."""
     if path.suffix == ".mcap" and not path.is_dir():
-        check_mcap(path, BagError)
+        check_mcap(path, PipelineError)
         try:
             reader = Reader(path)
             reader.open()
         except (ReaderError, OSError, KeyError, ValueError, struct.error) as err:
-            raise BagError(f"{path}: unreadable MCAP file: {err}") from err
+            raise PipelineError(f"{path}: unreadable MCAP file: {err}") from err
         return reader
     if not path.is_dir():
-        raise BagError(f"{path}: neither a bag directory nor a .mcap file")
+        raise PipelineError(f"{path}: neither a bag directory nor a .mcap file")
     if not (path / "metadata.yaml").exists():
-        raise BagError(f"{path}: no metadata.yaml (writer not closed? try recover_bag({str(path)!r}))")
+        raise PipelineError(f"{path}: no metadata.yaml (writer not closed? try recover_bag({str(path)!r}))")
     check_bag_files(path)
     try:
         reader = Reader(path)
         reader.open()
     except (ReaderError, OSError, KeyError, ValueError) as err:
-        raise BagError(f"{path}: unreadable bag: {err}") from err
+        raise PipelineError(f"{path}: unreadable bag: {err}") from err
     return reader
 
 
 def check_bag_files(path: Path) -> None:
-    """BagError unless the bag folder's metadata.yaml is a regular file of at most `MAX_METADATA_BYTES`
+    """PipelineError unless the bag folder's metadata.yaml is a regular file of at most `MAX_METADATA_BYTES`
     without YAML aliases and every storage file it names is a regular file (an MCAP one within its
     declared sizes, `mcap_limits`): what rosbags then reads cannot block or exhaust memory."""
-    metadata = load_yaml(path / "metadata.yaml", MAX_METADATA_BYTES, "bag's metadata.yaml", BagError)
+    metadata = load_yaml(path / "metadata.yaml", MAX_METADATA_BYTES, "bag's metadata.yaml", PipelineError)
     info = metadata.get("rosbag2_bagfile_information") if isinstance(metadata, dict) else None
     if not isinstance(info, dict) or not isinstance(info.get("relative_file_paths"), list):
         return  # rosbags says what is missing
@@ -92,16 +93,16 @@ def check_bag_files(path: Path) -> None:
         if not storage.exists():
             continue  # rosbags names the missing files
         if info.get("storage_identifier") == "mcap":
-            check_mcap(storage, BagError)
+            check_mcap(storage, PipelineError)
         else:
-            regular_file_size(storage, None, "bag storage file", BagError)
+            regular_file_size(storage, None, "bag storage file", PipelineError)
 
 
 def read_bag(path: str | os.PathLike[str], topics: Iterable[str] | None = None, *,
              decode: bool = True, undecodable: dict[str, int] | None = None) -> Iterator[BagMessage]:
     """Messages of a bag in time order; `topics` restricts, `decode` adds the message objects.
 
-    A message that does not decode raises BagError naming it, unless a dict `undecodable` is
+    A message that does not decode raises PipelineError naming it, unless a dict `undecodable` is
     given: then such messages (a hostile publisher recorded raw, a few corrupt bytes) are skipped
     and counted there per topic, and the rest of the bag is read (`decode=False` decodes them
     only for this check).
@@ -120,19 +121,19 @@ def read_bag(path: str | os.PathLike[str], topics: Iterable[str] | None = None, 
                     msg = TYPESTORE.deserialize_cdr(raw, conn.msgtype)
                 except Exception as err:  # rosbags raises plain exceptions on malformed CDR
                     if undecodable is None:
-                        raise BagError(f"{path}: cannot decode a {conn.msgtype} on {conn.topic} at {timestamp} "
-                                       f"ns: {err}") from err
+                        raise PipelineError(f"{path}: cannot decode a {conn.msgtype} on {conn.topic} at {timestamp} "
+                                            f"ns: {err}") from err
                     undecodable[conn.topic] = undecodable.get(conn.topic, 0) + 1
                     continue
             yield BagMessage(conn.topic, conn.msgtype, int(timestamp), bytes(raw), msg if decode else None)
     except ReaderError as err:
-        raise BagError(f"{path}: {err}") from err
+        raise PipelineError(f"{path}: {err}") from err
     finally:
         reader.close()
 
 
 def check_counts(info: BagInfo, read: Mapping[str, int]) -> None:
-    """BagError if the messages read per topic (decoded or not) differ from what metadata.yaml
+    """PipelineError if the messages read per topic (decoded or not) differ from what metadata.yaml
     claims: a metadata.yaml that lies (edited, or copied from another bag) would make every count
     derived from it wrong."""
     claimed = {t: n for t, (_, n) in info.topics.items() if n or read.get(t)}
@@ -140,8 +141,8 @@ def check_counts(info: BagInfo, read: Mapping[str, int]) -> None:
     if claimed != actual:
         diff = ", ".join(f"{t}: metadata {claimed.get(t, 0)}, file {actual.get(t, 0)}"
                          for t in sorted(set(claimed) | set(actual)) if claimed.get(t, 0) != actual.get(t, 0))
-        raise BagError(f"{info.path}: metadata.yaml does not match the messages in the file ({diff}); "
-                       "move metadata.yaml away and run recover_bag to rebuild it")
+        raise PipelineError(f"{info.path}: metadata.yaml does not match the messages in the file ({diff}); "
+                            "move metadata.yaml away and run recover_bag to rebuild it")
 
 
 def bag_info(path: str | os.PathLike[str]) -> BagInfo:

@@ -17,9 +17,10 @@ from mcap.stream_reader import StreamReader, breakup_chunk
 from rosbags.rosbag2.metadata import parse_qos
 
 from gwr_predictor.files.user_files import open_to_read
-from gwr_predictor.pipeline.bag_messages import TYPESTORE, BagError
+from gwr_predictor.pipeline.bag_messages import TYPESTORE
 from gwr_predictor.pipeline.bag_reader import BagInfo, bag_info
 from gwr_predictor.pipeline.bag_writer import BagWriter
+from gwr_predictor.pipeline.errors import PipelineError
 from gwr_predictor.pipeline.mcap_limits import MAGIC as MCAP_MAGIC
 from gwr_predictor.pipeline.mcap_limits import MAX_CHUNK_BYTES
 
@@ -51,7 +52,7 @@ def _salvage_mcap(mcap_path: Path) -> _Salvage:
         elif isinstance(record, Message) and record.channel_id in channels:
             messages.append((record.channel_id, record.log_time, bytes(record.data)))
 
-    with open_to_read(mcap_path, None, "MCAP file", BagError) as stream:
+    with open_to_read(mcap_path, None, "MCAP file", PipelineError) as stream:
         try:
             for record in StreamReader(stream, emit_chunks=True, record_size_limit=MAX_CHUNK_BYTES).records:
                 if isinstance(record, Chunk):
@@ -72,13 +73,13 @@ def _salvage_mcap(mcap_path: Path) -> _Salvage:
 def _mcap_complete(mcap_path: Path) -> bool:
     """The file ends with the MCAP magic (its writer closed it), without reading it."""
     try:
-        with open_to_read(mcap_path, None, "MCAP file", BagError) as f:
+        with open_to_read(mcap_path, None, "MCAP file", PipelineError) as f:
             f.seek(0, os.SEEK_END)
             if f.tell() < 2 * len(_MCAP_MAGIC):
                 return False
             f.seek(-len(_MCAP_MAGIC), os.SEEK_END)
             return f.read() == _MCAP_MAGIC
-    except (OSError, BagError):
+    except (OSError, PipelineError):
         return False
 
 
@@ -89,18 +90,18 @@ def recover_bag(path: str | os.PathLike[str]) -> BagInfo:
     complete MCAP file plus metadata.yaml. The damaged file is kept as `<name>.mcap.damaged`.
     A bag with metadata.yaml and a complete MCAP file (it ends with the MCAP magic) is left
     untouched; with a truncated MCAP file its metadata.yaml is kept as `metadata.yaml.damaged` and
-    rewritten from what was recovered. Any failure (a full disk...) is a BagError: the new bag is
+    rewritten from what was recovered. Any failure (a full disk...) is a PipelineError: the new bag is
     written next to the old one first, so the damaged bag stays as it was.
     """
     path = Path(path)
     if not path.is_dir():
-        raise BagError(f"{path}: not a bag directory")
+        raise PipelineError(f"{path}: not a bag directory")
     files = sorted(path.glob("*.mcap"))
     metadata = path / "metadata.yaml"
     if metadata.is_file() and (len(files) != 1 or _mcap_complete(files[0])):
         return bag_info(path)
     if len(files) != 1:
-        raise BagError(f"{path}: expected one .mcap file to recover, found {len(files)}")
+        raise PipelineError(f"{path}: expected one .mcap file to recover, found {len(files)}")
     damaged = files[0]
     salvage = _read_salvage(damaged)
     staging_root = path.parent / f".{path.name}.recovering"
@@ -111,25 +112,25 @@ def recover_bag(path: str | os.PathLike[str]) -> BagInfo:
 
 
 def _os_reason(err: BaseException) -> str:
-    """The OS's words for an error (for BagError wrapping an OSError, its cause's)."""
+    """The OS's words for an error (for PipelineError wrapping an OSError, its cause's)."""
     cause = err if isinstance(err, OSError) else err.__cause__
     return (cause.strerror or str(cause)) if isinstance(cause, OSError) else str(err)
 
 
 def _read_salvage(damaged: Path) -> _Salvage:
-    """What `_salvage_mcap` finds in a damaged file; BagError when nothing is recoverable."""
+    """What `_salvage_mcap` finds in a damaged file; PipelineError when nothing is recoverable."""
     try:
-        with open_to_read(damaged, None, "MCAP file", BagError) as f:
+        with open_to_read(damaged, None, "MCAP file", PipelineError) as f:
             if f.read(8) != _MCAP_MAGIC:
-                raise BagError(f"{damaged}: no MCAP header; nothing recoverable (the writer never flushed)")
+                raise PipelineError(f"{damaged}: no MCAP header; nothing recoverable (the writer never flushed)")
         salvage = _salvage_mcap(damaged)
     except OSError as err:
-        raise BagError(f"{damaged}: cannot read it ({_os_reason(err)})") from err
+        raise PipelineError(f"{damaged}: cannot read it ({_os_reason(err)})") from err
     if not salvage.channels:
-        raise BagError(f"{damaged}: no complete chunk on disk; nothing recoverable (the writer never flushed)")
+        raise PipelineError(f"{damaged}: no complete chunk on disk; nothing recoverable (the writer never flushed)")
     unknown = {t for _, t in salvage.channels.values() if t not in TYPESTORE.types}
     if unknown:
-        raise BagError(f"{damaged}: cannot recover message types unknown to the Jazzy store: {sorted(unknown)}")
+        raise PipelineError(f"{damaged}: cannot recover message types unknown to the Jazzy store: {sorted(unknown)}")
     return salvage
 
 
@@ -149,10 +150,10 @@ def _write_staging(path: Path, staging_root: Path, salvage: _Salvage) -> Path:
         with BagWriter(staging, topics, offered_qos=lambda topic: offered.get(topic, [])) as writer:
             for cid, log_time, data in sorted(salvage.messages, key=lambda m: m[1]):
                 writer.write_raw(cid_topic[cid], log_time, data)
-    except (OSError, BagError) as err:
+    except (OSError, PipelineError) as err:
         shutil.rmtree(staging_root, ignore_errors=True)
-        raise BagError(f"{path}: cannot write the recovered bag next to it ({_os_reason(err)}); "
-                       "the bag is unchanged") from err
+        raise PipelineError(f"{path}: cannot write the recovered bag next to it ({_os_reason(err)}); "
+                            "the bag is unchanged") from err
     return staging
 
 
@@ -175,5 +176,5 @@ def _swap_in(path: Path, staging: Path, damaged: Path, metadata: Path) -> None:
             except OSError:
                 undone = False
         state = "the bag is unchanged" if undone else "the bag is half moved"
-        raise BagError(f"{path}: cannot move the recovered bag into place ({_os_reason(err)}); {state}, the "
-                       f"recovered copy is kept in {staging}") from err
+        raise PipelineError(f"{path}: cannot move the recovered bag into place ({_os_reason(err)}); {state}, the "
+                            f"recovered copy is kept in {staging}") from err

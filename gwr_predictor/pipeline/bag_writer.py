@@ -27,7 +27,8 @@ from rosbags.rosbag2 import StoragePlugin, Writer
 from rosbags.rosbag2.errors import WriterError
 from rosbags.rosbag2.storage_mcap import McapWriter
 
-from gwr_predictor.pipeline.bag_messages import TYPESTORE, BagError, serialize
+from gwr_predictor.pipeline.bag_messages import TYPESTORE, serialize
+from gwr_predictor.pipeline.errors import PipelineError
 
 #: what rosbag2 writes as `ros_distro` into a bag's metadata on Jazzy; rosbags writes "rosbags"
 ROS_DISTRO = "jazzy"
@@ -63,11 +64,11 @@ class BagWriter:
                  offered_qos: Callable[[str], Sequence[Qos]] | None = None) -> None:
         self.path = Path(path)
         if not topics:
-            raise BagError(f"{self.path}: BagWriter needs at least one topic")
+            raise PipelineError(f"{self.path}: BagWriter needs at least one topic")
         for topic, msgtype in topics.items():
             self._check_type(topic, msgtype)
         if isinstance(flush_every, bool) or not isinstance(flush_every, int) or flush_every < 0:
-            raise BagError(f"{self.path}: flush_every must be an int >= 0, got {flush_every!r}")
+            raise PipelineError(f"{self.path}: flush_every must be an int >= 0, got {flush_every!r}")
         self.topics = dict(topics)
         self.flush_every = flush_every
         self.offered_qos = offered_qos
@@ -82,7 +83,7 @@ class BagWriter:
 
     def _check_type(self, topic: str, msgtype: str) -> None:
         if msgtype not in TYPESTORE.types:
-            raise BagError(f"{self.path}: topic {topic!r} has type {msgtype!r}, unknown to the ROS 2 Jazzy store")
+            raise PipelineError(f"{self.path}: topic {topic!r} has type {msgtype!r}, unknown to the ROS 2 Jazzy store")
 
     def add_topic(self, topic: str, msgtype: str) -> None:
         """Declare one more topic while writing: one that appeared after the start (a tracked body's)."""
@@ -99,12 +100,12 @@ class BagWriter:
 
     def open(self) -> None:
         if self.path.exists():
-            raise BagError(f"{self.path}: bag path exists already; choose a new directory")
+            raise PipelineError(f"{self.path}: bag path exists already; choose a new directory")
         try:
             writer = Writer(self.path, version=9, storage_plugin=StoragePlugin.MCAP)
             writer.open()
         except (OSError, WriterError) as err:
-            raise BagError(f"{self.path}: cannot create bag: {err}") from err
+            raise PipelineError(f"{self.path}: cannot create bag: {err}") from err
         self._writer = writer
 
     def _connection(self, topic: str) -> Any:
@@ -115,13 +116,13 @@ class BagWriter:
         writer = self._require_open()
         msgtype = self.topics.get(topic)
         if msgtype is None:
-            raise BagError(f"{self.path}: topic {topic!r} was not declared (declared: {sorted(self.topics)})")
+            raise PipelineError(f"{self.path}: topic {topic!r} was not declared (declared: {sorted(self.topics)})")
         qos = list(self.offered_qos(topic)) if self.offered_qos is not None else []
         try:
             conn = writer.add_connection(topic, msgtype, typestore=TYPESTORE, offered_qos_profiles=qos)
         except (OSError, WriterError) as err:
             self._abort()
-            raise BagError(f"{self.path}: cannot add topic {topic!r}: {err}") from err
+            raise PipelineError(f"{self.path}: cannot add topic {topic!r}: {err}") from err
         self._connections[topic] = conn
         return conn
 
@@ -130,13 +131,13 @@ class BagWriter:
         writer = self._require_open()
         conn = self._connection(topic)
         if isinstance(timestamp_ns, bool) or not isinstance(timestamp_ns, (int, np.integer)) or timestamp_ns < 0:
-            raise BagError(f"{self.path}: timestamp_ns must be an int >= 0, got {timestamp_ns!r}")
+            raise PipelineError(f"{self.path}: timestamp_ns must be an int >= 0, got {timestamp_ns!r}")
         try:
             writer.write(conn, int(timestamp_ns), data)
         except OSError as err:
             self._abort()
-            raise BagError(f"{self.path}: write failed ({err.strerror or err}); bag aborted, "
-                           f"recover what was flushed with recover_bag") from err
+            raise PipelineError(f"{self.path}: write failed ({err.strerror or err}); bag aborted, "
+                                f"recover what was flushed with recover_bag") from err
         self.messages_written[topic] += 1
         self._since_flush += 1
         if self.flush_every and self._since_flush >= self.flush_every:
@@ -158,7 +159,7 @@ class BagWriter:
                 os.fsync(storage.bio.fileno())
         except OSError as err:
             self._abort()
-            raise BagError(f"{self.path}: flush failed ({err.strerror or err}); bag aborted") from err
+            raise PipelineError(f"{self.path}: flush failed ({err.strerror or err}); bag aborted") from err
         self._since_flush = 0
 
     def close(self) -> None:
@@ -172,7 +173,7 @@ class BagWriter:
             _close_as_rosbag2(writer)
         except (OSError, WriterError) as err:
             writer.abort()
-            raise BagError(f"{self.path}: closing the bag failed ({err}); recover with recover_bag") from err
+            raise PipelineError(f"{self.path}: closing the bag failed ({err}); recover with recover_bag") from err
 
     def _abort(self) -> None:
         writer, self._writer = self._writer, None
@@ -181,5 +182,5 @@ class BagWriter:
 
     def _require_open(self) -> Writer:
         if self._writer is None:
-            raise BagError(f"{self.path}: bag writer is not open (use it as a context manager)")
+            raise PipelineError(f"{self.path}: bag writer is not open (use it as a context manager)")
         return self._writer

@@ -1,7 +1,7 @@
 """Every message convention of the pipeline in one place: topics, joint names, array layouts.
 
 Nodes and tests import from here, so that a rename happens once. The pipeline flows one way:
-skeleton -> angles -> hierarchy -> predictions -> compensator -> robot.
+skeleton -> angles -> predictor -> predictions -> compensator -> robot.
 
 "Custom arrays" are std_msgs/Float64MultiArray messages whose layout dims are labelled. A
 MultiArray has no header, so the stamp of the frame travels in the data itself: the layout's
@@ -105,28 +105,25 @@ HORIZON_LABEL = "horizon"
 INTERVAL_PREFIX = "interval:"
 
 
-#: PipelineError, for a MultiArray whose layout does not match the convention; the message says what differs.
-LayoutError = PipelineError
-
-
 def check_size(what: str, n: int, limit: int) -> None:
-    """LayoutError with reason `too_large` when a message declares more than `limit` of `what`: refused
+    """PipelineError with reason `too_large` when a message declares more than `limit` of `what`: refused
     before anything is sized by it, and counted apart from other layout errors."""
     if n > limit:
-        raise LayoutError(f"{n} {what} exceeds the limit of {limit}", reason="too_large")
+        raise PipelineError(f"{n} {what} exceeds the limit of {limit}", reason="too_large")
 
 
 def check_joint_names(names: Sequence[str]) -> None:
     """Joint names as a message gives them: at most MAX_JOINTS, none longer than MAX_NAME_CHARS, none
-    empty or twice (a joint named twice has no one position). Raises LayoutError (reason `too_large` for the bounds)."""
+    empty or twice (a joint named twice has no one position). Raises PipelineError (reason `too_large`
+    for the bounds)."""
     check_size("joint names", len(names), MAX_JOINTS)
     longest = max(map(len, names), default=0)
     check_size("characters in a joint name", longest, MAX_NAME_CHARS)
     if len(set(names)) != len(names):
         twice = next(n for n, count in Counter(names).items() if count > 1)
-        raise LayoutError(f"joint name {twice!r} appears twice")
+        raise PipelineError(f"joint name {twice!r} appears twice")
     if not all(names):
-        raise LayoutError("empty joint name")
+        raise PipelineError("empty joint name")
 
 
 @dataclass(frozen=True)
@@ -154,11 +151,11 @@ def joint_label(names: tuple[str, ...] | list[str]) -> str:
 def parse_joint_label(label: str) -> tuple[str, ...]:
     """The joint names of a `joint:a|b|...` label, checked by `check_joint_names`."""
     if not label.startswith(JOINT_DIM_PREFIX):
-        raise LayoutError(f"joint dim label must start with {JOINT_DIM_PREFIX!r}, got {label[:40]!r}")
+        raise PipelineError(f"joint dim label must start with {JOINT_DIM_PREFIX!r}, got {label[:40]!r}")
     check_size("characters in a joint label", len(label), len(JOINT_DIM_PREFIX) + MAX_JOINTS * (MAX_NAME_CHARS + 1))
     names = tuple(label[len(JOINT_DIM_PREFIX):].split("|"))
     if any(not n for n in names):
-        raise LayoutError(f"empty joint name in label {label[:80]!r}")
+        raise PipelineError(f"empty joint name in label {label[:80]!r}")
     check_joint_names(names)
     return names
 
@@ -168,19 +165,19 @@ def pack_skeleton(stamp: float, positions: np.ndarray,
     """One skeleton frame (joints x 3, metres, camera frame) -> labelled array with its stamp."""
     positions = np.asarray(positions, dtype=np.float64)
     if positions.shape != (len(names), 3):
-        raise LayoutError(f"skeleton positions must be ({len(names)}, 3), got {positions.shape}")
+        raise PipelineError(f"skeleton positions must be ({len(names)}, 3), got {positions.shape}")
     dims = (ArrayDim(joint_label(names), len(names), 3 * len(names)), ArrayDim(XYZ_LABEL, 3, 3))
     return PackedArray(dims, 1, np.concatenate(([float(stamp)], positions.ravel())))
 
 
 def unpack_skeleton(packed: PackedArray) -> tuple[float, tuple[str, ...], np.ndarray]:
-    """Labelled array -> (stamp, joint names, positions joints x 3). Raises LayoutError."""
+    """Labelled array -> (stamp, joint names, positions joints x 3). Raises PipelineError."""
     dims = packed.dims
     if len(dims) != 2 or dims[1].label != XYZ_LABEL or dims[1].size != 3:
-        raise LayoutError(f"skeleton layout must be [joint:..., xyz(3)], got {[d.label[:20] for d in dims]}")
+        raise PipelineError(f"skeleton layout must be [joint:..., xyz(3)], got {[d.label[:20] for d in dims]}")
     names = parse_joint_label(dims[0].label)
     if dims[0].size != len(names):
-        raise LayoutError(f"joint dim size {dims[0].size} != {len(names)} names in its label")
+        raise PipelineError(f"joint dim size {dims[0].size} != {len(names)} names in its label")
     return _unpack(packed, names, 3)
 
 
@@ -189,9 +186,9 @@ def _unpack(packed: PackedArray, names: tuple[str, ...], width: int) -> tuple[fl
     data = np.asarray(packed.data, dtype=np.float64)
     expected = packed.data_offset + rows * width
     if packed.data_offset != 1:
-        raise LayoutError(f"data_offset must be 1 (the stamp), got {packed.data_offset}")
+        raise PipelineError(f"data_offset must be 1 (the stamp), got {packed.data_offset}")
     if data.size != expected:
-        raise LayoutError(f"expected {expected} values (1 stamp + {rows}x{width}), got {data.size}")
+        raise PipelineError(f"expected {expected} values (1 stamp + {rows}x{width}), got {data.size}")
     return float(data[0]), names, data[1:].reshape(rows, width)
 
 
@@ -200,17 +197,17 @@ def pack_predictions(stamp: float, predictions: np.ndarray,
     """Predictions (horizon x joints, rad) for t+1..t+h made at frame `stamp` -> labelled array."""
     predictions = np.asarray(predictions, dtype=np.float64)
     if predictions.ndim != 2 or predictions.shape[1] != len(names):
-        raise LayoutError(f"predictions must be (horizon, {len(names)}), got {predictions.shape}")
+        raise PipelineError(f"predictions must be (horizon, {len(names)}), got {predictions.shape}")
     h, j = predictions.shape
     dims = (ArrayDim(HORIZON_LABEL, h, h * j), ArrayDim(joint_label(names), j, j))
     return PackedArray(dims, 1, np.concatenate(([float(stamp)], predictions.ravel())))
 
 
 def unpack_predictions(packed: PackedArray) -> tuple[float, tuple[str, ...], np.ndarray]:
-    """Labelled array -> (stamp, joint names, predictions horizon x joints). Raises LayoutError."""
+    """Labelled array -> (stamp, joint names, predictions horizon x joints). Raises PipelineError."""
     dims = packed.dims
     if len(dims) != 2 or dims[0].label != HORIZON_LABEL:
-        raise LayoutError(f"prediction layout must be [horizon, joint:...], got {[d.label[:20] for d in dims]}")
+        raise PipelineError(f"prediction layout must be [horizon, joint:...], got {[d.label[:20] for d in dims]}")
     stamp, names, rows = _horizon_rows(packed, dims[0], dims[1], 1, "prediction")
     return stamp, names, rows[0]
 
@@ -218,16 +215,16 @@ def unpack_predictions(packed: PackedArray) -> tuple[float, tuple[str, ...], np.
 def _horizon_rows(packed: PackedArray, horizon: ArrayDim, joints: ArrayDim, planes: int, what: str
                   ) -> tuple[float, tuple[str, ...], np.ndarray]:
     """(stamp, joint names, the values as (planes, horizon, joints)) of an array whose last two dims are a
-    horizon and labelled joints, after checking both against the data. Raises LayoutError."""
+    horizon and labelled joints, after checking both against the data. Raises PipelineError."""
     names = parse_joint_label(joints.label)
     if joints.size != len(names):
-        raise LayoutError(f"joint dim size {joints.size} != {len(names)} names in its label")
+        raise PipelineError(f"joint dim size {joints.size} != {len(names)} names in its label")
     h = horizon.size
     check_size(f"{what} rows (horizon)", h, MAX_HORIZON)
     data = np.asarray(packed.data, dtype=np.float64)
     expected = 1 + planes * h * len(names)
     if packed.data_offset != 1 or data.size != expected or h < 1:
-        raise LayoutError(f"expected data_offset 1 and {expected} values, got {packed.data_offset} and {data.size}")
+        raise PipelineError(f"expected data_offset 1 and {expected} values, got {packed.data_offset} and {data.size}")
     return float(data[0]), names, data[1:].reshape(planes, h, len(names))
 
 
@@ -238,9 +235,10 @@ def pack_interval(stamp: float, lower: np.ndarray, upper: np.ndarray, nominal: f
     joint:...], rows lower then upper."""
     lower, upper = np.asarray(lower, dtype=np.float64), np.asarray(upper, dtype=np.float64)
     if lower.shape != upper.shape or lower.ndim != 2 or lower.shape[1] != len(names):
-        raise LayoutError(f"interval bounds must both be (horizon, {len(names)}), got {lower.shape} and {upper.shape}")
+        raise PipelineError(f"interval bounds must both be (horizon, {len(names)}), got {lower.shape} and "
+                            f"{upper.shape}")
     if not 0.0 < nominal < 1.0:
-        raise LayoutError(f"an interval's stated share must be in (0, 1), got {nominal}")
+        raise PipelineError(f"an interval's stated share must be in (0, 1), got {nominal}")
     h, j = lower.shape
     dims = (ArrayDim(f"{INTERVAL_PREFIX}{nominal!r}", 2, 2 * h * j), ArrayDim(HORIZON_LABEL, h, h * j),
             ArrayDim(joint_label(names), j, j))
@@ -249,17 +247,17 @@ def pack_interval(stamp: float, lower: np.ndarray, upper: np.ndarray, nominal: f
 
 def unpack_interval(packed: PackedArray) -> tuple[float, tuple[str, ...], float, np.ndarray, np.ndarray]:
     """Labelled interval array -> (stamp, joint names, stated share, lower, upper (horizon x joints each)).
-    Raises LayoutError."""
+    Raises PipelineError."""
     dims = packed.dims
     if len(dims) != 3 or not dims[0].label.startswith(INTERVAL_PREFIX) or dims[1].label != HORIZON_LABEL:
-        raise LayoutError(f"interval layout must be [interval:<share>, horizon, joint:...], got "
-                          f"{[d.label[:20] for d in dims]}")
+        raise PipelineError(f"interval layout must be [interval:<share>, horizon, joint:...], got "
+                            f"{[d.label[:20] for d in dims]}")
     try:
         nominal = float(dims[0].label[len(INTERVAL_PREFIX):])
     except ValueError:
-        raise LayoutError(f"interval label {dims[0].label[:40]!r} does not state a share") from None
+        raise PipelineError(f"interval label {dims[0].label[:40]!r} does not state a share") from None
     if not 0.0 < nominal < 1.0 or dims[0].size != 2:
-        raise LayoutError(f"an interval has 2 bounds and a share in (0, 1), got {dims[0].size} and {nominal}")
+        raise PipelineError(f"an interval has 2 bounds and a share in (0, 1), got {dims[0].size} and {nominal}")
     stamp, names, bounds = _horizon_rows(packed, dims[1], dims[2], 2, "interval")
     return stamp, names, nominal, bounds[0], bounds[1]
 
@@ -272,6 +270,11 @@ QOS_DEPTH_STREAM = 50
 QOS_DEPTH_STATUS = 10
 #: The bag recorder's subscription queue (raw CDR): several seconds of every stream.
 QOS_DEPTH_RECORDER = 500
+#: The learner node (learns the person's arm movements and predicts them), and the name it had before: its
+#: deprecated executable `gwr_hierarchy` starts it under that name, so that params-file sections, parameter
+#: calls and recorded /diagnostics of that name still match (removed in the next release).
+LEARNER_NODE = "arm_predictor"
+DEPRECATED_LEARNER_NODE = "gwr_hierarchy"
 #: Key/value names in the learner status (DiagnosticArray on TOPIC_LEARNER_STATUS).
 LEARNER_STATUS_NAME = "learner"  # the status name is "<node>/learner"
 NEURON_KEYS = {"gwr1": "neurons.gwr1", "gwr2": "neurons.gwr2", "pgwr": "neurons.pgwr"}
@@ -282,9 +285,9 @@ NEURON_KEYS = {"gwr1": "neurons.gwr1", "gwr2": "neurons.gwr2", "pgwr": "neurons.
 
 def split_stamp(seconds: float) -> tuple[int, int]:
     """Seconds -> (sec, nanosec) of a builtin_interfaces/Time; negative or non-finite stamps are a
-    caller bug (LayoutError, a ValueError)."""
+    caller bug (PipelineError, a ValueError)."""
     if not math.isfinite(seconds) or seconds < 0.0:
-        raise LayoutError(f"stamp must be finite and >= 0, got {seconds}")
+        raise PipelineError(f"stamp must be finite and >= 0, got {seconds}")
     sec = math.floor(seconds)
     nanosec = round((seconds - sec) * 1e9)
     if nanosec >= 1_000_000_000:
@@ -303,12 +306,12 @@ def stamp_seconds(stamp: object) -> float:
 def select_joints(names: Sequence[str], positions: np.ndarray, wanted: Sequence[str]) -> np.ndarray:
     """Positions of `wanted` in that order, from a message with `names` in any order.
 
-    Raises LayoutError naming the missing joints or a duplicated name; extra joints are ignored
-    (a full-body JointState carries more than the arms).
+    Raises PipelineError naming the missing joints (reason `missing_joints`) or a duplicated name; extra
+    joints are ignored (a full-body JointState carries more than the arms).
     """
     check_joint_names(names)
     index = {name: i for i, name in enumerate(names)}
     missing = [n for n in wanted if n not in index]
     if missing:
-        raise LayoutError(f"missing joints {missing}")
+        raise PipelineError(f"missing joints {missing}", reason="missing_joints")
     return np.asarray([positions[index[n]] for n in wanted], dtype=np.float64)

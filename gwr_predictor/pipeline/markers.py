@@ -12,7 +12,8 @@ from typing import NamedTuple
 
 import numpy as np
 
-from gwr_predictor.pipeline.conventions import SKELETON_JOINTS, LayoutError
+from gwr_predictor.pipeline.conventions import SKELETON_JOINTS
+from gwr_predictor.pipeline.errors import PipelineError
 from gwr_predictor.robot.nao import ARM_JOINTS, forward_kinematics
 
 #: Frame of the skeleton markers: the skeleton camera convention (x towards the person's right, y up,
@@ -52,7 +53,7 @@ def skeleton_figure(positions: np.ndarray, names: tuple[str, ...] = SKELETON_JOI
     """One skeleton frame (joints x 3, m) -> its tracked joints and the bones between tracked joints."""
     positions = np.asarray(positions, dtype=np.float64)
     if positions.shape != (len(names), 3):
-        raise LayoutError(f"skeleton positions must be ({len(names)}, 3), got {positions.shape}")
+        raise PipelineError(f"skeleton positions must be ({len(names)}, 3), got {positions.shape}")
     bones = _DEFAULT_BONES if names == SKELETON_JOINTS else _bone_index(names)
     tracked = np.all(np.isfinite(positions), axis=1)
     bones = bones[tracked[bones].all(axis=1)]
@@ -64,7 +65,7 @@ def arm_figure(angles: np.ndarray) -> Figure:
     the two arms as segments shoulder-elbow, elbow-hand: how the robot would stand in that pose."""
     angles = np.asarray(angles, dtype=np.float64).ravel()
     if angles.size != len(ARM_JOINTS):
-        raise LayoutError(f"expected {len(ARM_JOINTS)} arm angles, got {angles.size}")
+        raise PipelineError(f"expected {len(ARM_JOINTS)} arm angles, got {angles.size}")
     arms = forward_kinematics(angles)
     points = np.stack([p for side in ("L", "R") for p in (arms[side].shoulder, arms[side].elbow, arms[side].hand)])
     segments = points[[0, 1, 1, 2, 3, 4, 4, 5]]

@@ -16,7 +16,7 @@ Definitions (seconds; reported as milliseconds):
   median-of-3 group (one skeleton period, 33 ms); for joint_commands it is the prediction's stamp.
 - ``hop angle_extractor``: arm_angles receive - receive of the skeleton that completed the group
   (the first skeleton stamped after the group's middle frame).
-- ``hop gwr_hierarchy``: predictions receive - receive of the arm_angles frame with the same stamp.
+- ``hop arm_predictor``: predictions receive - receive of the arm_angles frame with the same stamp.
 - ``hop delay_compensator``: publish stamp of the command nearest to a prediction's receive (within
   half a frame period) - that receive; ``source -> joint_commands`` is that command's receive - the
   prediction's source stamp.
@@ -196,7 +196,7 @@ RESTART_GRACE_S = 0.5
 def read_series(bag: str | os.PathLike[str]
                 ) -> tuple[dict[str, TopicSeries], DiagnosticsHistory, float, dict[str, int]]:
     """({topic: TopicSeries}, every /diagnostics status per node, duration s, {topic: undecodable
-    messages skipped}) of a pipeline bag; BagError if metadata.yaml disagrees with the file."""
+    messages skipped}) of a pipeline bag; PipelineError if metadata.yaml disagrees with the file."""
     bag = Path(bag)
     info = bag_reader.bag_info(bag)
     rows: dict[str, tuple[list[float], list[float]]] = {}
@@ -296,7 +296,7 @@ def compute_latencies(series: Mapping[str, TopicSeries], namespace: str | None =
     if angles.receive.size:
         out["hop angle_extractor"] = latency_stats(extractor_hop(skel, angles))
     if preds.receive.size:
-        out["hop gwr_hierarchy"] = latency_stats(same_stamp_hop(angles, preds))
+        out["hop arm_predictor"] = latency_stats(same_stamp_hop(angles, preds))
     if cmds.receive.size:
         hop, total = command_hop(preds, cmds)
         out["hop delay_compensator"] = latency_stats(hop)
@@ -405,16 +405,20 @@ def hop_counts(series: Mapping[str, TopicSeries], history: DiagnosticsHistory, n
                         after, instances=len(insts), consumer_instances=got[1], concurrent=mixed)
 
     comp, sim = f"{namespace}/delay_compensator", f"{namespace}/nao_sim"
+    # a run of the learner's deprecated executable has its statuses under the old name
+    learner = own(conventions.LEARNER_NODE)
+    if _fq(learner) not in split and _fq(own(conventions.DEPRECATED_LEARNER_NODE)) in split:
+        learner = own(conventions.DEPRECATED_LEARNER_NODE)
     counts = [
         hop(f"{pipeline}/skeleton", own("skeleton_source"), "frames.published", own("angle_extractor"),
             consumed(own("angle_extractor"), "skeleton.accepted", prefix="rejected.skeleton.")),
-        hop(f"{pipeline}/arm_angles", own("angle_extractor"), "angles.published", own("gwr_hierarchy"),
-            consumed(own("gwr_hierarchy"), "frames.learned", "frames.seen", prefix="rejected.arm_angles.")),
+        hop(f"{pipeline}/arm_angles", own("angle_extractor"), "angles.published", learner,
+            consumed(learner, "frames.learned", "frames.seen", prefix="rejected.arm_angles.")),
         hop(f"{pipeline}/arm_angles", own("angle_extractor"), "angles.published", comp,
             consumed(comp, "arm_angles.received", prefix="rejected.arm_angles.")),
-        hop(f"{pipeline}/predictions", own("gwr_hierarchy"), "predictions.published", comp,
+        hop(f"{pipeline}/predictions", learner, "predictions.published", comp,
             consumed(comp, "predictions.received", prefix="rejected.predictions.")),
-        hop(f"{pipeline}/predicted_angles", own("gwr_hierarchy"), "predictions.published"),
+        hop(f"{pipeline}/predicted_angles", learner, "predictions.published"),
         hop(f"{namespace}/joint_commands", comp, "commands.published", sim,
             consumed(sim, "commands.accepted", prefix="rejected.joint_commands.")),
         hop(f"{namespace}/joint_states", sim, "states.published"),
@@ -430,7 +434,7 @@ def _fq(name: str) -> str:
 
 def latency_report(bag: str | os.PathLike[str], namespace: str | None = None) -> LatencyReport:
     """Read a pipeline bag and compute latencies and message counts of the pipeline in `namespace` (by
-    default the bag's only one). Raises bag_messages.BagError."""
+    default the bag's only one). Raises PipelineError."""
     series, diagnostics, duration, undecodable = read_series(bag)
     pipeline = namespaces.choose_pipeline(series, namespace, bag)
     report = LatencyReport(Path(bag), duration, compute_latencies(series, pipeline=pipeline),

@@ -21,10 +21,6 @@ from gwr_predictor.pipeline.errors import PipelineError
 MAX_PARAMS_FILE_BYTES = 1 << 20
 
 
-#: PipelineError, for a params file that cannot be used; the message names the file and what is wrong.
-ParamsFileError = PipelineError
-
-
 def params_files(argv: Sequence[str]) -> list[Path]:
     """The `--params-file` paths among the ROS arguments of `argv` (inside `--ros-args ... --`)."""
     files: list[Path] = []
@@ -38,22 +34,22 @@ def params_files(argv: Sequence[str]) -> list[Path]:
         elif in_ros and arg == "--params-file":
             value = next(it, None)
             if value is None:
-                raise ParamsFileError("--params-file needs a file name")
+                raise PipelineError("--params-file needs a file name")
             files.append(Path(value))
     return files
 
 
 def load_params_file(path: Path) -> dict[str, dict[str, Any]]:
-    """{node name pattern: {parameter: value}} of a ROS 2 params file, or ParamsFileError (the file
+    """{node name pattern: {parameter: value}} of a ROS 2 params file, or PipelineError (the file
     read and parsed by `files.yaml_safe.load_yaml`: a regular file, size-limited, without YAML aliases)."""
-    doc = load_yaml(path, MAX_PARAMS_FILE_BYTES, "params file", ParamsFileError)
+    doc = load_yaml(path, MAX_PARAMS_FILE_BYTES, "params file", PipelineError)
     if not isinstance(doc, dict) or not doc:
-        raise ParamsFileError(f"params file {path}: expected '<node name>: {{ros__parameters: {{...}}}}' "
-                              f"sections, got {type(doc).__name__}")
+        raise PipelineError(f"params file {path}: expected '<node name>: {{ros__parameters: {{...}}}}' "
+                            f"sections, got {type(doc).__name__}")
     sections: dict[str, dict[str, Any]] = {}
     for node, body in doc.items():
         if not isinstance(body, dict) or not isinstance(body.get("ros__parameters"), dict):
-            raise ParamsFileError(f"params file {path}: section {node!r} must hold a 'ros__parameters' mapping")
+            raise PipelineError(f"params file {path}: section {node!r} must hold a 'ros__parameters' mapping")
         sections[str(node)] = flatten(body["ros__parameters"])
     return sections
 
@@ -71,11 +67,29 @@ def flatten(tree: Mapping[str, Any], prefix: str = "") -> dict[str, Any]:
 
 
 def check_params_files(argv: Sequence[str]) -> list[Path]:
-    """Load every params file of `argv` (ParamsFileError on the first bad one); the files found."""
+    """Load every params file of `argv` (PipelineError on the first bad one); the files found."""
     files = params_files(argv)
     for path in files:
         load_params_file(path)
     return files
+
+
+def names_node(section: str, node: str) -> bool:
+    """Whether a params-file section key names a node called `node` (`node`, `/node`, `/**/node`,
+    `/ns/node`); wildcards for every node (`/**`) do not count."""
+    return section == node or section.endswith("/" + node)
+
+
+def sections_for_other_name(argv: Sequence[str], node: str, other: str) -> list[Path]:
+    """The params files of `argv` with a section for a node named `other` and none for `node`: rcl applies
+    none of that section to `node` and says nothing, e.g. a `gwr_hierarchy:` section read by the learner
+    under its new name."""
+    found = []
+    for path in params_files(argv):
+        keys = load_params_file(path)
+        if any(names_node(k, other) for k in keys) and not any(names_node(k, node) for k in keys):
+            found.append(path)
+    return found
 
 
 def unknown_parameters(given: Iterable[str], declared: Iterable[str]) -> list[str]:

@@ -16,9 +16,6 @@ from gwr_predictor.files.user_files import replacing
 from gwr_predictor.pipeline.errors import PipelineError
 from gwr_predictor.robot.nao import ARM_JOINTS, JOINT_LIMITS
 
-#: PipelineError, for a series whose shape does not fit the joint names; the message names the series.
-PlotError = PipelineError
-
 
 def _checked(series: Mapping[str, tuple[np.ndarray, np.ndarray]], n: int) -> dict[str, tuple[np.ndarray, np.ndarray]]:
     out = {}
@@ -28,7 +25,7 @@ def _checked(series: Mapping[str, tuple[np.ndarray, np.ndarray]], n: int) -> dic
         if a.ndim == 1 and n == 1:
             a = a[:, None]
         if t.ndim != 1 or a.shape != (t.shape[0], n):
-            raise PlotError(f"series {label!r}: expected t (T,) and angles (T, {n}), got {t.shape} and {a.shape}")
+            raise PipelineError(f"series {label!r}: expected t (T,) and angles (T, {n}), got {t.shape} and {a.shape}")
         out[label] = (t, a)
     return out
 
@@ -86,6 +83,6 @@ def plot_angle_series(path: str | Path, series: Mapping[str, tuple[np.ndarray, n
         ax.set_xlabel("time (s)")
     if title:
         fig.suptitle(title)
-    with replacing(path, "plot", PlotError) as tmp:
+    with replacing(path, "plot", PipelineError) as tmp:
         fig.savefig(tmp, dpi=100)
     return Path(path)

@@ -89,7 +89,7 @@ def hri_input(info: bag_reader.BagInfo, available: Callable[[str], bool] = type_
 
 
 def replay_plan(bag: str, topic: str | None = None, hri: bool = False, namespace: str = "") -> ReplayPlan:
-    """The plan for `bag` (see the module docstring). Raises PipelineError / BagError (`bag_messages`)."""
+    """The plan for `bag` (see the module docstring). Raises PipelineError / PipelineError (`bag_messages`)."""
     info = bag_reader.bag_info(bag)
     if hri:
         return hri_input(info)

@@ -31,13 +31,10 @@ import numpy as np
 
 from gwr_predictor.files.json_safe import to_jsonable
 from gwr_predictor.pipeline import bag_messages, bag_reader, conventions, namespaces, plotting
-from gwr_predictor.pipeline.conventions import LayoutError
 from gwr_predictor.pipeline.errors import PipelineError
+from gwr_predictor.robot.errors import RobotError
 from gwr_predictor.robot.nao import ARM_JOINTS
-from gwr_predictor.robot.tracking import LagError, estimate_lag, tracking_error
-
-#: PipelineError, for a bag that cannot be summarised (missing topics, too little data); the message names it.
-BagSummaryError = PipelineError
+from gwr_predictor.robot.tracking import estimate_lag, tracking_error
 
 
 @dataclass
@@ -176,7 +173,7 @@ def _counter(value: str) -> int | None:
 
 def read_run(bag: str | Path, namespace: str | None = None) -> RunData:
     """Read the topics a report needs from a pipeline bag: the pipeline in `namespace` (e.g. "/robot1"), by
-    default the bag's only one. Raises bag_messages.BagError / BagSummaryError."""
+    default the bag's only one. Raises PipelineError / PipelineError."""
     bag = Path(bag)
     info = bag_reader.bag_info(bag)
     pipeline = namespaces.choose_pipeline([t for t, (_, n) in info.topics.items() if n], namespace, bag)
@@ -210,7 +207,7 @@ def read_run(bag: str | Path, namespace: str | None = None) -> RunData:
         elif m.topic == preds_topic:
             try:
                 stamp, names, p = conventions.unpack_predictions(bag_messages.packed_array(m.msg))
-            except LayoutError:
+            except PipelineError:
                 continue
             if names == ARM_JOINTS and (not preds or p.shape == preds[0].shape):
                 pred_t.append(stamp)
@@ -218,7 +215,7 @@ def read_run(bag: str | Path, namespace: str | None = None) -> RunData:
         elif m.topic == interval_topic:
             try:
                 stamp, names, share, lower, upper = conventions.unpack_interval(bag_messages.packed_array(m.msg))
-            except LayoutError:
+            except PipelineError:
                 continue
             if names == ARM_JOINTS and (not intervals or lower.shape == intervals[0][2].shape[1:]):
                 intervals.append((stamp, share, np.stack([lower, upper])))
@@ -238,8 +235,8 @@ def read_run(bag: str | Path, namespace: str | None = None) -> RunData:
             modes[name[: -len("/delay_compensator")]] = values["mode"]
     bag_reader.check_counts(info, {t: read.get(t, 0) + undecodable.get(t, 0) for t in set(read) | set(undecodable)})
     if angles_topic in wrong:
-        raise BagSummaryError(f"{bag}: {wrong_type_text(angles_topic, *wrong[angles_topic])}; "
-                              "the report cannot read the person's angles")
+        raise PipelineError(f"{bag}: {wrong_type_text(angles_topic, *wrong[angles_topic])}; "
+                            "the report cannot read the person's angles")
     warnings = [f"{bag}: {wrong_type_text(topic, *types)}; skipped" for topic, types in sorted(wrong.items())
                 if topic not in (preds_topic, namespaces.in_pipeline(pipeline, conventions.TOPIC_SKELETON))]
     intervals.sort(key=lambda row: row[0])
@@ -294,10 +291,10 @@ def prediction_errors(run: RunData, period: float) -> tuple[np.ndarray, float, i
     n, h = run.predictions.shape[:2]
     topic = namespaces.in_pipeline(run.namespace, conventions.TOPIC_PREDICTIONS)
     if n == 0 and topic in run.wrong_types:
-        raise BagSummaryError(f"{run.bag}: {wrong_type_text(topic, *run.wrong_types[topic])}; "
-                              "the report cannot read the predictions")
+        raise PipelineError(f"{run.bag}: {wrong_type_text(topic, *run.wrong_types[topic])}; "
+                            "the report cannot read the predictions")
     if n == 0:
-        raise BagSummaryError(f"{run.bag}: no {topic} recorded")
+        raise PipelineError(f"{run.bag}: no {topic} recorded")
     mae = np.full(h, np.nan)
     for k in range(1, h + 1):
         idx = match_frames(run.person, run.predictions_t + k * period, 0.5 * period)
@@ -358,7 +355,7 @@ def robot_summary(run: RunData, ns: str, dt: float, max_lag_s: float, max_gap_s:
     try:
         result["lag_s"] = estimate_lag(person, follower, dt, max_lag_s)
         result["tracking_mae_rad"] = tracking_error(person, follower)["mae"]
-    except LagError:
+    except RobotError:
         pass
     return result
 
@@ -367,8 +364,8 @@ def compute_report(run: RunData, period: float = 1.0 / conventions.ANGLE_FPS, dt
                    max_lag_s: float = 1.5, max_gap_s: float = conventions.MAX_GAP_S) -> PipelineReport:
     """The report of a run (see the module docstring for the definitions)."""
     if run.person.t.size == 0:
-        raise BagSummaryError(f"{run.bag}: no {namespaces.in_pipeline(run.namespace, conventions.TOPIC_ANGLES)} "
-                              "recorded")
+        raise PipelineError(f"{run.bag}: no {namespaces.in_pipeline(run.namespace, conventions.TOPIC_ANGLES)} "
+                            "recorded")
     mae, hold, scored = prediction_errors(run, period)
     neurons = {layer: count for layer, key in conventions.NEURON_KEYS.items()
                if (count := _counter(run.learner.get(key, ""))) is not None}

@@ -19,7 +19,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from gwr_predictor.pipeline.conventions import LayoutError
+from gwr_predictor.pipeline.errors import PipelineError
 from gwr_predictor.robot.nao import ARM_JOINTS, clip_to_limits
 
 
@@ -34,9 +34,9 @@ def prediction_trajectory(predictions: np.ndarray, frame_period_s: float) -> Tra
     """P(t+1..t+h) (h, joints) -> a trajectory with point k at k * frame_period_s (k = 1..h)."""
     predictions = np.asarray(predictions, dtype=np.float64)
     if predictions.ndim != 2 or predictions.shape[0] < 1:
-        raise LayoutError(f"predictions must be (horizon >= 1, joints), got {predictions.shape}")
+        raise PipelineError(f"predictions must be (horizon >= 1, joints), got {predictions.shape}")
     if not frame_period_s > 0.0:
-        raise LayoutError(f"frame period must be > 0 s, got {frame_period_s}")
+        raise PipelineError(f"frame period must be > 0 s, got {frame_period_s}")
     times = frame_period_s * np.arange(1, predictions.shape[0] + 1, dtype=np.float64)
     return Trajectory(times, predictions)
 
@@ -47,5 +47,5 @@ def command_trajectory(angles: np.ndarray, time_from_start_s: float,
     the joint limits, `time_from_start_s` after its start."""
     angles = np.asarray(angles, dtype=np.float64).ravel()
     if not time_from_start_s > 0.0:
-        raise LayoutError(f"time_from_start must be > 0 s, got {time_from_start_s}")
+        raise PipelineError(f"time_from_start must be > 0 s, got {time_from_start_s}")
     return Trajectory(np.array([float(time_from_start_s)]), clip_to_limits(angles, names)[None, :])

@@ -28,14 +28,16 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from gwr_predictor.data.angles import AngleExtractionError, torso_frame
+from gwr_predictor.data.angles import torso_frame
+from gwr_predictor.data.errors import DataError
 from gwr_predictor.pipeline import bag_messages, bag_reader, conventions, namespaces
-from gwr_predictor.pipeline.conventions import LayoutError
+from gwr_predictor.pipeline.errors import PipelineError
 from gwr_predictor.pipeline.run_report import RunData, Series, read_run, resample, wrong_type_text
-from gwr_predictor.pipeline.video_files import VideoError, open_video
+from gwr_predictor.pipeline.video_files import open_video
+from gwr_predictor.robot.errors import RobotError
 from gwr_predictor.robot.nao import SIDES, UPPER_ARM_LENGTH, forward_kinematics
 from gwr_predictor.robot.pybullet_nao import Camera, NaoSimulator
-from gwr_predictor.robot.tracking import LagError, estimate_lag
+from gwr_predictor.robot.tracking import estimate_lag
 
 if TYPE_CHECKING:
     from PIL.Image import Image as PILImage
@@ -98,7 +100,7 @@ def _read_skeleton(bag: Path, pipeline: str = "") -> tuple[np.ndarray, np.ndarra
             continue  # another type: read_run reported it
         try:
             stamp, these, pos = conventions.unpack_skeleton(bag_messages.packed_array(m.msg))
-        except LayoutError:
+        except PipelineError:
             continue  # a malformed frame is skipped here as the angle extractor rejects it live
         if not names:
             names = these
@@ -112,15 +114,14 @@ def _read_skeleton(bag: Path, pipeline: str = "") -> tuple[np.ndarray, np.ndarra
 
 
 def video_run(run: RunData, skeleton: tuple[np.ndarray, np.ndarray, tuple[str, ...]] | None = None) -> VideoRun:
-    """A VideoRun from a report's RunData (and the skeleton, if recorded). Raises VideoError."""
+    """A VideoRun from a report's RunData (and the skeleton, if recorded). Raises PipelineError."""
     topics = ", ".join(sorted(run.counts)) or "nothing"
     if not run.robots or all(r.t.size == 0 for r in run.robots.values()):
-        raise VideoError(f"{run.bag}: no robot in the bag (no <namespace>/{conventions.TOPIC_ROBOT_STATE} with the "
-                         f"8 arm joints); it holds: {topics}")
+        raise PipelineError(f"{run.bag}: no robot in the bag (no <namespace>/{conventions.TOPIC_ROBOT_STATE} with the "
+                            f"8 arm joints); it holds: {topics}")
     if run.person.t.size < 2:
-        raise VideoError(f"{run.bag}: fewer than 2 {namespaces.in_pipeline(run.namespace, conventions.TOPIC_ANGLES)} "
-                         "frames (the person's angles); "
-                         f"it holds: {topics}")
+        angles = namespaces.in_pipeline(run.namespace, conventions.TOPIC_ANGLES)
+        raise PipelineError(f"{run.bag}: fewer than 2 {angles} frames (the person's angles); it holds: {topics}")
     modes = {ns: run.modes.get(ns, "unknown") for ns in run.robots}
     order = sorted((ns for ns, r in run.robots.items() if r.t.size), key=lambda ns: (modes[ns] == "none", ns))
     st, sk, names = skeleton if skeleton is not None else (np.zeros(0), np.zeros((0, 0, 3)), ())
@@ -132,7 +133,7 @@ def video_run(run: RunData, skeleton: tuple[np.ndarray, np.ndarray, tuple[str, .
 
 def read_video_run(bag: str | Path, namespace: str | None = None) -> VideoRun:
     """Read what a video needs from a pipeline bag (the pipeline in `namespace`, by default the bag's only
-    one). Raises bag_messages.BagError / VideoError."""
+    one). Raises PipelineError / PipelineError."""
     bag = Path(bag)
     run = read_run(bag, namespace)
     return video_run(run, _read_skeleton(bag, run.namespace))
@@ -144,17 +145,17 @@ def parse_span(text: str | None, duration_s: float) -> tuple[float, float]:
         return 0.0, duration_s
     parts = text.split(":")
     if len(parts) != 2:
-        raise VideoError(f"--seconds must be A:B (e.g. 10:30, -20: for the last 20 s), got {text!r}")
+        raise PipelineError(f"--seconds must be A:B (e.g. 10:30, -20: for the last 20 s), got {text!r}")
     try:
         a = float(parts[0]) if parts[0].strip() else 0.0
         b = float(parts[1]) if parts[1].strip() else duration_s
     except ValueError:
-        raise VideoError(f"--seconds must be A:B with numbers, got {text!r}") from None
+        raise PipelineError(f"--seconds must be A:B with numbers, got {text!r}") from None
     a = a + duration_s if a < 0 else a
     b = b + duration_s if b < 0 else b
     a, b = max(0.0, a), min(duration_s, b)
     if not b > a:
-        raise VideoError(f"--seconds {text!r} selects nothing of the run's {duration_s:.1f} s")
+        raise PipelineError(f"--seconds {text!r} selects nothing of the run's {duration_s:.1f} s")
     return a, b
 
 
@@ -192,7 +193,7 @@ def _metrics(person: Series, robot: Series, start: float, end: float) -> _Metric
         if a.shape[0] > 2 * round(MAX_LAG_S / METRIC_DT) + 3:
             try:
                 lag[i] = estimate_lag(a, b, METRIC_DT, MAX_LAG_S)
-            except LagError:
+            except RobotError:
                 pass
     return _Metrics(grid, error, lag_t, lag)
 
@@ -255,7 +256,7 @@ def person_points(skeleton: np.ndarray, names: tuple[str, ...]) -> np.ndarray | 
     """
     try:
         rot, valid = torso_frame(skeleton, names)
-    except AngleExtractionError:
+    except DataError:
         return None
     if not bool(valid):
         return None
@@ -278,7 +279,7 @@ class FrameRenderer:
     def __init__(self, run: VideoRun, start: float, end: float, *, scale: float = 1.0, ghost: bool = True,
                  camera: Camera = VIDEO_CAMERA) -> None:
         if not (0.1 <= scale <= 4.0):
-            raise VideoError(f"scale must be within 0.1..4, got {scale!r}")
+            raise PipelineError(f"scale must be within 0.1..4, got {scale!r}")
         self.run = run
         self.ghost = ghost
         self.scale = scale
@@ -474,11 +475,11 @@ def render_video(run: VideoRun, path: str | Path, *, span: str | None = None, fp
     frame with the number written so far, `progress_total(n)` once with the frame count.
     """
     if not (0.5 <= fps <= 60.0):
-        raise VideoError(f"fps must be within 0.5..60, got {fps!r}")
+        raise PipelineError(f"fps must be within 0.5..60, got {fps!r}")
     start, end = parse_span(span, run.duration_s)
     times = np.arange(start, end, 1.0 / fps)
     if times.size == 0:
-        raise VideoError(f"the span {start:.2f}..{end:.2f} s holds no frame at {fps} fps")
+        raise PipelineError(f"the span {start:.2f}..{end:.2f} s holds no frame at {fps} fps")
     if progress_total is not None:
         progress_total(int(times.size))
     began = time.perf_counter()

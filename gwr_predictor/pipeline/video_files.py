@@ -26,10 +26,6 @@ MP4_CRF = 28  # H.264 quality: flat colours and few moving pixels compress far b
 GIF_COLOURS = 64
 GIF_MAX_FRAMES = 4000  # frames are held in memory until close: bounded
 
-#: PipelineError, for a run that cannot be rendered (missing topics, bad time span or size) or a video that cannot be
-#: written (`video` raises it too); the message names the cause.
-VideoError = PipelineError
-
 
 def mp4_available() -> bool:
     """Whether the MP4 encoder (imageio-ffmpeg's bundled ffmpeg) can be used."""
@@ -53,14 +49,14 @@ class VideoWriter:
         self.path = Path(path)
         self.suffix = self.path.suffix.lower()
         if self.suffix not in FORMATS:
-            raise VideoError(f"{self.path}: unknown video format {self.path.suffix!r}; use one of {FORMATS}")
+            raise PipelineError(f"{self.path}: unknown video format {self.path.suffix!r}; use one of {FORMATS}")
         if not (0.5 <= fps <= 60.0):
-            raise VideoError(f"{self.path}: fps must be within 0.5..60, got {fps!r}")
+            raise PipelineError(f"{self.path}: fps must be within 0.5..60, got {fps!r}")
         self.width, self.height = int(size[0]), int(size[1])
         if self.suffix == ".mp4" and (self.width % 16 or self.height % 16):
-            raise VideoError(f"{self.path}: MP4 frames must be multiples of 16 px, got {self.width}x{self.height}")
+            raise PipelineError(f"{self.path}: MP4 frames must be multiples of 16 px, got {self.width}x{self.height}")
         if self.suffix == ".mp4" and not mp4_available():
-            raise VideoError(f"{self.path}: no MP4 encoder: `pip install imageio-ffmpeg==0.6.0` or write a .gif")
+            raise PipelineError(f"{self.path}: no MP4 encoder: `pip install imageio-ffmpeg==0.6.0` or write a .gif")
         self.fps = float(fps)
         self.frames = 0
         self._pending: PendingFile | None = None
@@ -81,7 +77,7 @@ class VideoWriter:
 
     def open(self) -> None:
         """Check the path and create the temporary file the frames go to (`user_files.PendingFile`)."""
-        self._pending = PendingFile(self.path, "video", VideoError)
+        self._pending = PendingFile(self.path, "video", PipelineError)
         if self.suffix == ".mp4":
             import imageio_ffmpeg
 
@@ -95,22 +91,22 @@ class VideoWriter:
     def write(self, frame: np.ndarray) -> None:
         """Append one frame."""
         if not self._open:
-            raise VideoError(f"{self.path}: video writer is not open (use it as a context manager)")
+            raise PipelineError(f"{self.path}: video writer is not open (use it as a context manager)")
         frame = np.ascontiguousarray(frame, dtype=np.uint8)
         if frame.shape != (self.height, self.width, 3):
-            raise VideoError(f"{self.path}: frame {self.frames} is {frame.shape}, expected "
-                             f"{(self.height, self.width, 3)}")
+            raise PipelineError(f"{self.path}: frame {self.frames} is {frame.shape}, expected "
+                                f"{(self.height, self.width, 3)}")
         if self._mp4 is not None:
             try:
                 self._mp4.send(frame)
             except (OSError, RuntimeError) as err:
                 self.abort()
-                raise VideoError(f"{self.path}: the encoder failed at frame {self.frames}: {err}") from err
+                raise PipelineError(f"{self.path}: the encoder failed at frame {self.frames}: {err}") from err
         else:
             if len(self._gif) >= GIF_MAX_FRAMES:
                 self.abort()
-                raise VideoError(f"{self.path}: more than {GIF_MAX_FRAMES} GIF frames; shorten --seconds, lower "
-                                 f"--fps or write an .mp4")
+                raise PipelineError(f"{self.path}: more than {GIF_MAX_FRAMES} GIF frames; shorten --seconds, lower "
+                                    f"--fps or write an .mp4")
             from PIL import Image
 
             image = Image.fromarray(frame)
@@ -130,7 +126,7 @@ class VideoWriter:
                 self._mp4 = None
             else:
                 if not self._gif:
-                    raise VideoError(f"{self.path}: no frame written")
+                    raise PipelineError(f"{self.path}: no frame written")
                 first, *rest = self._gif
                 # GIF delays are whole hundredths of a second: spread the rounding so time stays real
                 ticks = np.round(np.arange(len(self._gif) + 1) * 100.0 / self.fps)
@@ -141,7 +137,7 @@ class VideoWriter:
                 self._gif = []
         except (OSError, RuntimeError) as err:
             self.abort()
-            raise VideoError(f"{self.path}: cannot finish the video: {err}") from err
+            raise PipelineError(f"{self.path}: cannot finish the video: {err}") from err
         if self._pending is not None:
             self._pending.commit()
 

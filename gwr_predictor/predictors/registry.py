@@ -88,7 +88,7 @@ def names() -> tuple[str, ...]:
 predictor_names = names  # the name exported at the package's top level
 
 
-#: What the gwr_hierarchy node, pretrain and demo.sh run unless told otherwise (`-p predictor:=...`):
+#: What the arm_predictor node, pretrain and demo.sh run unless told otherwise (`-p predictor:=...`):
 #: the gated experts (registered below); `evaluate` and `experiment real` always score it and name it
 #: (`default_method`).
 DEFAULT_PREDICTOR = "gwr_experts"

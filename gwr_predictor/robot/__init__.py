@@ -14,7 +14,6 @@ _EXPORTS = {
     "default_urdf_path": "urdf",
     "write_urdf": "urdf",
     "NaoSimulator": "pybullet_nao",
-    "SimulatorError": "pybullet_nao",
     "SimulatedRobot": "delayed_arm",
     "RobotParams": "delayed_arm",
     "MotorParams": "delayed_arm",
@@ -23,12 +22,10 @@ _EXPORTS = {
     "DelayCompensator": "compensator",
     "CompensatorParams": "compensator",
     "CompensatorOutput": "compensator",
-    "CompensatorError": "compensator",
     "run_closed_loop": "closed_loop",
     "ClosedLoopResult": "closed_loop",
     "estimate_lag": "tracking",
     "tracking_error": "tracking",
-    "LagError": "tracking",
 }
 __all__ = sorted(_EXPORTS)
 __getattr__, __dir__ = lazy_exports(__name__, _EXPORTS)

@@ -67,10 +67,6 @@ STALE_PREDICTIONS = "stale_predictions"
 NO_ROBOT_STATE = "no_robot_state"
 
 
-#: RobotError, for invalid compensator parameters or input shapes; the message names the field and range.
-CompensatorError = RobotError
-
-
 #: The compensator's parameters, declared once: `CompensatorParams` validates with them and the
 #: delay_compensator node declares its ROS parameters from them.
 PARAM_SPECS: dict[str, ParamSpec] = {s.name: s for s in (
@@ -120,7 +116,7 @@ class CompensatorParams:
     spread_shrink: float = PARAM_SPECS["spread_shrink"].default
 
     def __post_init__(self) -> None:
-        check_fields(self, PARAM_SPECS.values(), CompensatorError)
+        check_fields(self, PARAM_SPECS.values(), RobotError)
 
 
 class CompensatorOutput(NamedTuple):
@@ -273,8 +269,8 @@ class DelayCompensator:
             return self._output(pose)
         lower, upper = (np.asarray(b, dtype=float) for b in interval)
         if lower.shape != upper.shape or lower.ndim != 2 or lower.shape[0] < step or lower.shape[1] != pose.size:
-            raise CompensatorError(f"interval bounds must be (horizon >= {step}, {pose.size}) each, got "
-                                   f"{lower.shape} and {upper.shape}")
+            raise RobotError(f"interval bounds must be (horizon >= {step}, {pose.size}) each, got "
+                             f"{lower.shape} and {upper.shape}")
         half = 0.5 * (upper[step - 1] - lower[step - 1])
         move = pose - obs
         moved = move * move
@@ -313,7 +309,7 @@ class DelayCompensator:
             return NO_PREDICTIONS
         preds = np.asarray(predictions, dtype=float)
         if preds.ndim != 2 or preds.shape[1] != len(self.joint_names) or preds.shape[0] < 1:
-            raise CompensatorError(f"predictions must be (horizon >= 1, {len(self.joint_names)}), got {preds.shape}")
+            raise RobotError(f"predictions must be (horizon >= 1, {len(self.joint_names)}), got {preds.shape}")
         if not np.all(np.isfinite(preds)):
             return NO_PREDICTIONS
         if self.stale(latest, pred_stamp):
@@ -328,7 +324,7 @@ class DelayCompensator:
     def _vector(self, values: np.ndarray, name: str) -> np.ndarray:
         arr = np.asarray(values, dtype=float)
         if arr.shape != (len(self.joint_names),):
-            raise CompensatorError(f"{name} must have {len(self.joint_names)} joint angles, got shape {arr.shape}")
+            raise RobotError(f"{name} must have {len(self.joint_names)} joint angles, got shape {arr.shape}")
         return arr
 
     @staticmethod

@@ -42,18 +42,14 @@ PARAM_SPECS = {
 }
 
 
-#: RobotError, for a naoqi command that cannot be made (missing message package, bad angles); the message says which.
-NaoqiOutputError = RobotError
-
-
 def message_type() -> type:
     """The JointAnglesWithSpeed class, imported only when the naoqi output is chosen."""
     package, _, name = MESSAGE_TYPE.partition("/msg/")
     try:
         return getattr(importlib.import_module(f"{package}.msg"), name)
     except (ImportError, AttributeError) as exc:
-        raise NaoqiOutputError(f"output 'naoqi' needs the {MESSAGE_TYPE} message ({exc}): install naoqi_bridge_msgs "
-                               "(apt: ros-jazzy-naoqi-bridge-msgs) and source its setup file") from None
+        raise RobotError(f"output 'naoqi' needs the {MESSAGE_TYPE} message ({exc}): install naoqi_bridge_msgs "
+                         "(apt: ros-jazzy-naoqi-bridge-msgs) and source its setup file") from None
 
 
 def speed_warning(naoqi_speed: float, max_joint_speed: float, names: Sequence[str] = ARM_JOINTS) -> str | None:
@@ -88,7 +84,7 @@ class SafeArmCommands:
         `robot_pose` (the robot's reported angles) is the reference of the first command only."""
         target = np.asarray(target, dtype=np.float64).ravel()
         if target.size != len(self.names) or not np.all(np.isfinite(target)):
-            raise NaoqiOutputError(f"a command needs {len(self.names)} finite angles, got {target}")
+            raise RobotError(f"a command needs {len(self.names)} finite angles, got {target}")
         goal = clip_to_limits(target, self.names)
         reference, elapsed = self.last_angles_, self.max_step_s
         if reference is None and robot_pose is not None and np.all(np.isfinite(robot_pose)):

@@ -20,9 +20,6 @@ from gwr_predictor.robot.errors import RobotError
 from gwr_predictor.robot.nao import ARM_JOINTS, ROBOT_ARM_JOINTS, SIDES, VELOCITY_LIMITS, ArmPoints, clip_to_limits
 from gwr_predictor.robot.urdf import ELBOW_LINKS, HAND_LINKS, SHOULDER_LINKS, WRIST_LINKS, default_urdf_path
 
-#: RobotError, for a simulator that cannot start or is used wrongly; the message names the cause.
-SimulatorError = RobotError
-
 
 @dataclass(frozen=True)
 class Camera:
@@ -46,19 +43,19 @@ class NaoSimulator:
     def __init__(self, gui: bool = False, time_step: float = 1.0 / 240.0, urdf_path: str | Path | None = None,
                  *, gravity: bool = True, floor: bool = True) -> None:
         if not (0.0 < time_step <= 0.05):
-            raise SimulatorError(f"time_step must be in (0, 0.05] s, got {time_step!r}")
+            raise RobotError(f"time_step must be in (0, 0.05] s, got {time_step!r}")
         self.time_step = float(time_step)
         self.urdf_path = Path(urdf_path) if urdf_path is not None else default_urdf_path()
         if not self.urdf_path.is_file():
-            raise SimulatorError(f"URDF not found: {self.urdf_path}")
+            raise RobotError(f"URDF not found: {self.urdf_path}")
         if gui and not os.environ.get("DISPLAY"):
             # PyBullet's GUI would exit the whole process without an X display: refuse instead.
-            raise SimulatorError("gui=True needs a display, but DISPLAY is not set (run headless with gui=False)")
+            raise RobotError("gui=True needs a display, but DISPLAY is not set (run headless with gui=False)")
         p = _pybullet()
         self._p = p
         self.client = p.connect(p.GUI if gui else p.DIRECT)
         if self.client < 0:
-            raise SimulatorError(f"PyBullet could not connect ({'GUI' if gui else 'DIRECT'})")
+            raise RobotError(f"PyBullet could not connect ({'GUI' if gui else 'DIRECT'})")
         try:
             self._setup(gravity, floor)
             if gui:  # the live view looks at the robot from the front, as the videos do
@@ -82,7 +79,7 @@ class NaoSimulator:
                 self._joint_index[info[1].decode()] = j
         missing = [n for n in ROBOT_ARM_JOINTS if n not in self._joint_index]
         if missing:
-            raise SimulatorError(f"{self.urdf_path}: joints {missing} missing")
+            raise RobotError(f"{self.urdf_path}: joints {missing} missing")
         self._arm_ids = [self._joint_index[n] for n in ARM_JOINTS]
         self._all_ids = [self._joint_index[n] for n in ROBOT_ARM_JOINTS]
         self._forces = [float(p.getJointInfo(self.robot, j, physicsClientId=c)[10]) for j in self._all_ids]
@@ -108,7 +105,7 @@ class NaoSimulator:
 
     def _require(self) -> int:
         if self.client < 0:
-            raise SimulatorError("simulator is closed")
+            raise RobotError("simulator is closed")
         return self.client
 
     # --- joints ---------------------------------------------------------------------------------
@@ -122,7 +119,7 @@ class NaoSimulator:
         if isinstance(positions, Mapping):
             unknown = set(positions) - set(ROBOT_ARM_JOINTS)
             if unknown:
-                raise SimulatorError(f"unknown joints {sorted(unknown)}; known: {ROBOT_ARM_JOINTS}")
+                raise RobotError(f"unknown joints {sorted(unknown)}; known: {ROBOT_ARM_JOINTS}")
             for name, value in positions.items():
                 full[ROBOT_ARM_JOINTS.index(name)] = float(value)
         else:
@@ -133,10 +130,10 @@ class NaoSimulator:
             elif arr.shape == (len(ROBOT_ARM_JOINTS),):
                 full = arr.copy()
             else:
-                raise SimulatorError(f"expected {len(ARM_JOINTS)} (ARM_JOINTS) or {len(ROBOT_ARM_JOINTS)} "
-                                     f"(ROBOT_ARM_JOINTS) angles, got shape {arr.shape}")
+                raise RobotError(f"expected {len(ARM_JOINTS)} (ARM_JOINTS) or {len(ROBOT_ARM_JOINTS)} "
+                                 f"(ROBOT_ARM_JOINTS) angles, got shape {arr.shape}")
         if not np.all(np.isfinite(full)):
-            raise SimulatorError(f"joint targets must be finite, got {full}")
+            raise RobotError(f"joint targets must be finite, got {full}")
         return full
 
     def command(self, positions: Mapping[str, float] | np.ndarray | Sequence[float]) -> None:
@@ -196,7 +193,7 @@ class NaoSimulator:
         out = {}
         for name in names:
             if name not in self._link_index:
-                raise SimulatorError(f"unknown link {name!r}; known: {sorted(self._link_index)}")
+                raise RobotError(f"unknown link {name!r}; known: {sorted(self._link_index)}")
             state = self._p.getLinkState(self.robot, self._link_index[name], computeForwardKinematics=True,
                                          physicsClientId=c)
             out[name] = np.array(state[4])
@@ -214,7 +211,7 @@ class NaoSimulator:
         """An offscreen RGB picture (height x width x 3, uint8) from TinyRenderer."""
         c = self._require()
         if not (16 <= width <= 4096 and 16 <= height <= 4096):
-            raise SimulatorError(f"render size must be within 16..4096 pixels, got {width}x{height}")
+            raise RobotError(f"render size must be within 16..4096 pixels, got {width}x{height}")
         cam = camera or Camera()
         view = self._p.computeViewMatrix(cam.eye, cam.target, cam.up, physicsClientId=c)
         proj = self._p.computeProjectionMatrixFOV(cam.fov_deg, width / height, 0.02, 5.0, physicsClientId=c)
@@ -238,12 +235,12 @@ def contact_sheet(images: Sequence[np.ndarray], path: str | Path, columns: int =
     from PIL import Image, ImageDraw
 
     if not images:
-        raise SimulatorError("contact_sheet needs at least one image")
+        raise RobotError("contact_sheet needs at least one image")
     h, w = images[0].shape[:2]
     if any(im.shape[:2] != (h, w) for im in images):
-        raise SimulatorError("contact_sheet images must all have one size")
+        raise RobotError("contact_sheet images must all have one size")
     if labels is not None and len(labels) != len(images):
-        raise SimulatorError(f"{len(labels)} labels for {len(images)} images")
+        raise RobotError(f"{len(labels)} labels for {len(images)} images")
     cols = max(1, min(columns, len(images)))
     rows = math.ceil(len(images) / cols)
     sheet = Image.new("RGB", (cols * w, rows * h), "white")

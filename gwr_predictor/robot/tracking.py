@@ -13,9 +13,6 @@ import numpy as np
 
 from gwr_predictor.robot.errors import RobotError
 
-#: RobotError, for inputs that cannot be compared (shapes, lengths, parameters); the message says which.
-LagError = RobotError
-
 
 def _pair(reference: np.ndarray, follower: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     ref = np.asarray(reference, dtype=float)
@@ -25,7 +22,7 @@ def _pair(reference: np.ndarray, follower: np.ndarray) -> tuple[np.ndarray, np.n
     if fol.ndim == 1:
         fol = fol[:, None]
     if ref.shape != fol.shape or ref.ndim != 2:
-        raise LagError(f"reference and follower must both be (T, J) of one shape, got {ref.shape} and {fol.shape}")
+        raise RobotError(f"reference and follower must both be (T, J) of one shape, got {ref.shape} and {fol.shape}")
     return ref, fol
 
 
@@ -50,14 +47,14 @@ def estimate_lag(reference: np.ndarray, follower: np.ndarray, dt: float, max_lag
     through the MSE at that shift and its two neighbours.
     """
     if not (dt > 0 and math.isfinite(dt)):
-        raise LagError(f"dt must be > 0, got {dt!r}")
+        raise RobotError(f"dt must be > 0, got {dt!r}")
     ref, _ = _pair(reference, follower)
     max_shift = round(max_lag_s / dt)
     if not (1 <= max_shift < ref.shape[0] - 2):
-        raise LagError(f"max_lag_s={max_lag_s!r} must span 1..{ref.shape[0] - 3} samples of dt={dt!r}")
+        raise RobotError(f"max_lag_s={max_lag_s!r} must span 1..{ref.shape[0] - 3} samples of dt={dt!r}")
     mse = shift_mse(reference, follower, max_shift)
     if not np.isfinite(mse).any():
-        raise LagError("no overlapping finite samples to compare")
+        raise RobotError("no overlapping finite samples to compare")
     i = int(np.argmin(mse))
     frac = 0.0
     if 0 < i < mse.size - 1 and np.isfinite(mse[i - 1]) and np.isfinite(mse[i + 1]):
@@ -72,5 +69,5 @@ def tracking_error(reference: np.ndarray, follower: np.ndarray) -> dict[str, flo
     ref, fol = _pair(reference, follower)
     diff = (fol - ref)[np.isfinite(fol).all(axis=1) & np.isfinite(ref).all(axis=1)]
     if diff.size == 0:
-        raise LagError("no finite samples to compare")
+        raise RobotError("no finite samples to compare")
     return {"mae": float(np.mean(np.abs(diff))), "rmse": float(np.sqrt(np.mean(diff**2)))}

@@ -4,7 +4,7 @@ The default states a central interval (80 % by default) around every predicted a
 (`default_predictor/spread.py`); `hold` and `rls_ar` state one of their own residuals, learned the same way.
 Per method and horizon step: the share of the true angles inside their stated interval (coverage) and the
 interval's mean width (rad), every method scored on the same frames, on data the spread was not tuned on
-(its tuning set: `research/spread_tuning.py`, docs/tuning.md):
+(its tuning set: `research/spread_tuning.py`, research/tuning.md):
 
 - the demonstrator's held-out repetitions and held-out person (`experiment compare`'s protocol, seed 0: 5
   online epochs over the training split, then each split frozen and still learning);

@@ -29,7 +29,7 @@ BLEND_FLAT = "blend_flat_rls"
 LLM = "llm_gwr"
 GATED = "gated_llm_gwr"
 EXPERTS_UNGATED = "experts_ungated"
-#: The predictor the gwr_hierarchy node, demo.sh, pretrain and evaluate's `default_method` run by default.
+#: The predictor the arm_predictor node, demo.sh, pretrain and evaluate's `default_method` run by default.
 DEFAULT = registry.DEFAULT_PREDICTOR
 #: Ablation variants of the default (experiment ablation, not in `compare`): the gate around the
 #: paper's hierarchy, and the gate around the P-GWR with displacement targets but no local models ...

@@ -102,7 +102,7 @@ def _finest_insertion(settings: dict[str, Any]) -> float:
 def _prior_near_one(settings: dict[str, Any]) -> float:
     """After 5 epochs the demonstrator cannot tell the linear model's prior variances apart (equal MAE to 4
     digits): they only matter while it learns from its first frames. One pass from scratch over the
-    repetition tuning streams (`docs/tuning.md`) ranks delta 1 first (0.692 x hold at 600 ms against
+    repetition tuning streams (`research/tuning.md`) ranks delta 1 first (0.692 x hold at 600 ms against
     0.722 for 0.1 and 0.744 for 10), so among near-ties the prior variance nearest 1 wins."""
     return abs(math.log10(settings["delta"]))
 

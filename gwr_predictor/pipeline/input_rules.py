@@ -4,7 +4,7 @@
   once per `throttle_s` per reason, so a flood of bad input cannot flood the log.
 - `missing_frames`: the gap rule, how many frames a stamp gap stands for (or a new sequence);
 - `SkeletonReorder`: skeleton joints in any order -> `SKELETON_JOINTS` order;
-- `ArmAnglesGate`: checks one stream of arm joint angles (layout, missing joints, non-finite values,
+- `ArmAnglesCheck`: checks one stream of arm joint angles (layout, missing joints, non-finite values,
   stamps, joint limits) and counts every rejection under its reason.
 Nodes convert the message (`gwr_predictor.nodes.messages.joint_state_fields`) and pass the fields.
 """
@@ -19,7 +19,8 @@ from typing import Any
 import numpy as np
 
 from gwr_predictor.pipeline import stamps
-from gwr_predictor.pipeline.conventions import SKELETON_JOINTS, LayoutError, select_joints
+from gwr_predictor.pipeline.conventions import SKELETON_JOINTS, select_joints
+from gwr_predictor.pipeline.errors import PipelineError
 from gwr_predictor.robot.nao import ARM_JOINTS, limits_array
 
 # --- counters and throttled warnings ---------------------------------------------------------------
@@ -73,7 +74,7 @@ class RejectionCounter:
         return dict(sorted(self._counts.items()))
 
 
-# --- input gates ---------------------------------------------------------------------------------
+# --- input checks --------------------------------------------------------------------------------
 
 
 def check_stamp(counters: RejectionCounter, check: stamps.StampCheck, input_name: str, stamp: float,
@@ -94,8 +95,7 @@ def check_stamp(counters: RejectionCounter, check: stamps.StampCheck, input_name
     return False
 
 
-
-class ArmAnglesGate:
+class ArmAnglesCheck:
     """Checks one JointState input stream of the arm joints and returns (stamp, angles) or None.
 
     Rules, each counted as `rejected.<input>.<reason>` (with a throttled warning):
@@ -109,7 +109,7 @@ class ArmAnglesGate:
     - angles beyond the joint limits by more than `limit_margin` rad: `out_of_limits`; closer
       ones are clipped to the limits and counted as `<input>.clipped` (a repair, not a rejection).
       This is the clip of observed angles (arm_angles, joint_states). With `limit_margin=None`
-      the gate applies no limit rule and returns the angles unclipped: nao_sim's robot commands,
+      the check applies no limit rule and returns the angles unclipped: nao_sim's robot commands,
       which the robot's input (`SimulatedRobot.command`) clips, once, whatever their source; they
       are the predictor's poses, which may overshoot a limit by any amount and must reach the
       robot as the offline closed loop's do.
@@ -135,13 +135,10 @@ class ArmAnglesGate:
         try:
             positions = np.asarray(positions, dtype=np.float64)
             if positions.size != len(names):
-                raise LayoutError(f"{len(names)} joint names but {positions.size} positions")
+                raise PipelineError(f"{len(names)} joint names but {positions.size} positions")
             angles = select_joints(names, positions, self._names)
-        except LayoutError as exc:
-            if exc.reason == "too_large":
-                self._reject("too_large", str(exc))
-            else:
-                self._reject("missing_joints" if "missing joints" in str(exc) else "layout", str(exc))
+        except PipelineError as exc:
+            self._reject(exc.reason if exc.reason in ("too_large", "missing_joints") else "layout", str(exc))
             return None
         if not np.all(np.isfinite(angles)):
             self._reject("non_finite", f"non-finite angles {np.array2string(angles, precision=3, separator=', ')}")

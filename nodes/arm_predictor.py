@@ -1,7 +1,7 @@
-"""gwr_hierarchy: learns the person's arm movements online and predicts the next `horizon` frames.
+"""arm_predictor: learns the person's arm movements online and predicts the next `horizon` frames.
 
-Every accepted JointState of the arm angles is one `Hierarchy.step` (learn, then predict, as in
-the paper: training never stops). Each step publishes P(t+1..t+h) on `predictions` (stamped t)
+Every accepted JointState of the arm angles is one step of the chosen predictor (learn, then predict,
+as in the paper: training never stops). Each step publishes P(t+1..t+h) on `predictions` (stamped t)
 and the h-step prediction as a JointState on `predicted_angles` (stamped t + h * frame period);
 for standard tools also as a `trajectory_msgs/JointTrajectory` on `predicted_trajectory` (stamped t,
 points at t+1..t+h) and the predicted arm at t+h as a MarkerArray on `predicted_arm_markers`
@@ -26,19 +26,25 @@ see gwr_predictor/default_predictor/; its status carries each expert's weight at
 at its capacity, `snippets_replaced_<memory>`), `gated_llm_gwr` (that network alone behind one
 gate) or `hierarchy` (the paper). The node declares the chosen predictor's own settings and no other's, named
 `<predictor>.<setting>` (`gwr_experts.memory.k`, `hierarchy.gwr1.eps_b`): one params file can hold a
-section for each (config/gwr_hierarchy.yaml does), the others' are ignored without a warning.
+section for each (config/arm_predictor.yaml does), the others' are ignored without a warning.
 A checkpoint of another kind than `predictor` stops the node (it is neither used nor moved aside).
+
+The executable `gwr_hierarchy` (the node's old name) starts the same node named `gwr_hierarchy`, with a
+deprecation warning; it goes in the next release. Either name warns about a params file whose
+section names only the other one, which rcl would skip without a word.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import sys
 import time
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+import rclpy
 
 from gwr_predictor.default_predictor.gate import GatedPredictor, inner_model
 from gwr_predictor.default_predictor.recognition import RecognitionSwitch
@@ -55,8 +61,8 @@ from gwr_predictor.learning.params import HIERARCHY_SPECS, HierarchyParams
 from gwr_predictor.learning.protocol import Spreading
 from gwr_predictor.learning.saver import CheckpointSaver
 from gwr_predictor.parameters.spec import ParameterError, ParamSpec
-from gwr_predictor.pipeline import conventions
-from gwr_predictor.pipeline.gates import missing_frames
+from gwr_predictor.pipeline import conventions, params_file
+from gwr_predictor.pipeline.input_rules import missing_frames
 from gwr_predictor.pipeline.markers import ROBOT_FRAME, arm_figure
 from gwr_predictor.pipeline.trajectory import prediction_trajectory
 from gwr_predictor.predictors import registry
@@ -99,8 +105,10 @@ def predictor_specs(name: str) -> tuple[ParamSpec, ...]:
     return tuple(dataclasses.replace(s, name=f"{name}.{s.name}") for s in registry.entry(name).settings())
 
 
-class GwrHierarchyNode(PipelineNode):
-    NODE_NAME = "gwr_hierarchy"
+class ArmPredictorNode(PipelineNode):
+    NODE_NAME = conventions.LEARNER_NODE
+    #: The learner's other name: a params file with a section for it only is warned about at start.
+    OTHER_NAME = conventions.DEPRECATED_LEARNER_NODE
 
     def __init__(self) -> None:
         super().__init__(self.NODE_NAME, PARAMS)
@@ -116,7 +124,7 @@ class GwrHierarchyNode(PipelineNode):
             raise
         self.gwr = inner_model(self.model)  # the GWR learner (behind the gate, if any)
         self.horizon = self.model.horizon
-        self.gate = self.arm_gate("arm_angles")
+        self.angles = self.arm_check("arm_angles")
         self.step_times: list[float] = []
         self.step_max = 0.0
         self.pred_pub = self.create_publisher(messages.Float64MultiArray, conventions.TOPIC_PREDICTIONS, stream_qos())
@@ -136,6 +144,7 @@ class GwrHierarchyNode(PipelineNode):
         self.save_times: dict[str, float] = {}  # the last save's snapshot and write (ms), its size (MB)
         self.checkpoint_timer = None
         self.schedule_checkpoints(p["checkpoint_interval_s"])
+        self.warn_about_other_name()
 
     def claim_checkpoint(self, path: Path) -> CheckpointLock:
         """Check the place, lock it for this node's life (a second learner on the path refuses to
@@ -218,8 +227,8 @@ class GwrHierarchyNode(PipelineNode):
 
     def on_angles(self, msg: messages.JointState) -> None:
         """One frame: bridge a short gap with missing samples or end the sequence, learn, predict, publish."""
-        last = self.gate.last_stamp
-        accepted = self.gate.accept(*messages.joint_state_fields(msg))
+        last = self.angles.last_stamp
+        accepted = self.angles.accept(*messages.joint_state_fields(msg))
         if accepted is None:
             return
         stamp, angles = accepted
@@ -369,8 +378,35 @@ class GwrHierarchyNode(PipelineNode):
             self.release_checkpoint()
         self.get_logger().info(f"checkpoint saved to {self.checkpoint} (neurons {self.model.neuron_counts})")
 
+    def warn_about_other_name(self) -> None:
+        """A params file with a section for the learner's other name only: rcl applies none of it, silently."""
+        for path in params_file.sections_for_other_name(sys.argv, self.get_name(), self.OTHER_NAME):
+            self.get_logger().warning(f"params file {path} has a section for '{self.OTHER_NAME}' and none for "
+                                      f"'{self.get_name()}': none of its settings apply to this node; name the "
+                                      f"section '{self.get_name()}:' (or '/**:')")
+
+
+class GwrHierarchyNode(ArmPredictorNode):
+    """The learner under its old name, for one release: params-file sections, parameter calls and
+    /diagnostics names of `gwr_hierarchy` go on working; the start says it is deprecated."""
+
+    NODE_NAME = conventions.DEPRECATED_LEARNER_NODE
+    OTHER_NAME = conventions.LEARNER_NODE
+
+    def __init__(self) -> None:
+        rclpy.logging.get_logger(self.NODE_NAME).warning(
+            f"the executable '{self.NODE_NAME}' is deprecated and goes in the next release: run "
+            f"'{self.OTHER_NAME}' (the same node, named '{self.OTHER_NAME}': rename a params file's "
+            f"'{self.NODE_NAME}:' section to '{self.OTHER_NAME}:')")
+        super().__init__()
+
 
 def main(args: list[str] | None = None) -> int:
+    return run_node(ArmPredictorNode, args)
+
+
+def main_gwr_hierarchy(args: list[str] | None = None) -> int:
+    """The deprecated executable `gwr_hierarchy`."""
     return run_node(GwrHierarchyNode, args)
 
 
