@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 import tempfile
 import time
@@ -142,7 +143,7 @@ def run_session(name: str, hours: float, seed: int, settings: dict[str, Any], fo
         c2 = time.process_time_ns()
         cpu.append(c1 - c0)
         rls_cpu.append(c2 - c1)
-        worst = max(worst, (w1 - w0) / 1e6)
+        worst = max(worst, (w1 - w0) / 1e6)  # wall clock: what a node would wait, preemption included
         for m, p in (("default", prediction), ("rls_ar", rls_prediction)):
             pending[m][slot] = np.nan if p is None else p[-1]
         pending["hold"][slot] = x
@@ -173,6 +174,7 @@ def _hour_row(hour: int, model: Any, cpu: list[int], rls_cpu: list[int], worst: 
         "cpu_us_mean": round(float(cpu_us.mean()), 1),
         "rls_ar_cpu_us_mean": round(float(np.mean(rls_cpu)) / 1e3, 1),
         "worst_frame_ms": round(worst, 2),
+        "worst_frame_cpu_ms": round(float(cpu_us.max()) / 1e3, 2),
         "snapshot_ms": round(1e3 * snapshot_s, 2),
         **{k: (None if v is None else round(v, 4)) for k, v in scores.ratios().items()},
     }
@@ -194,11 +196,13 @@ def _add_write(row: dict[str, Any], results: list[Any], previous: bool = False) 
 
 def markdown(results: dict[str, Any]) -> str:
     cols = ("hour", "neurons", "snippets_memory", "snippets_long_memory", "rss_mb", "cpu_us_p50", "cpu_us_p99",
-            "cpu_vs_rls_ar", "worst_frame_ms", "snapshot_ms", "previous_save_mb", "previous_save_write_ms",
-            "mae_vs_hold", "mae_vs_rls_ar", "repeated_mae_vs_hold")
+            "cpu_vs_rls_ar", "worst_frame_ms", "worst_frame_cpu_ms", "snapshot_ms", "previous_save_mb",
+            "previous_save_write_ms", "mae_vs_hold", "mae_vs_rls_ar", "repeated_mae_vs_hold")
     settings = results["settings"] or "the defaults"
     lines = [f"# A robot's day: {results['hours']} h per session at {FPS} fps, seed {results['seed']}", "",
-             f"`{results['command']}`; BLAS threads {results['blas_threads']}; settings: {settings}.", ""]
+             f"`{results['command']}`; BLAS threads {results['blas_threads']}; settings: {settings}; 1-minute load "
+             f"average {results['load_average'][0]} at the start, {results['load_average'][1]} at the end on "
+             f"{results['cpus']} CPUs (other processes inflate the wall-clock figures; CPU time less so).", ""]
     for name, rows in results["sessions"].items():
         present = [c for c in cols if any(c in r for r in rows)]
         lines += [f"## {name}", "", "| " + " | ".join(present) + " |", "|" + "---|" * len(present)]
@@ -255,7 +259,8 @@ def run(args: argparse.Namespace) -> int:
     settings = _settings(args.setting)
     command = " ".join(["gwr-predictor bench day", *sys.argv[3:]])
     results: dict[str, Any] = {"hours": hours, "seed": args.seed, "settings": settings, "blas_threads": blas_threads(),
-                               "command": command, "sessions": {}}
+                               "command": command, "cpus": os.cpu_count(), "load_average": [round(os.getloadavg()[0], 2)],
+                               "sessions": {}}
     with tempfile.TemporaryDirectory(prefix="gwr-day-") as tmp:
         for name in args.sessions:
             rows = run_session(name, hours, args.seed, settings, Path(tmp), progress=not args.quiet)
@@ -267,6 +272,7 @@ def run(args: argparse.Namespace) -> int:
                           f"CPU {row['cpu_us_p50']}/{row['cpu_us_p99']} us (p50/p99, {row['cpu_vs_rls_ar']} x "
                           f"RLS-AR), worst {row['worst_frame_ms']} ms, snapshot {row['snapshot_ms']} ms, "
                           f"MAE {row['mae_vs_hold']} x hold, {row['mae_vs_rls_ar']} x RLS-AR", flush=True)
+    results["load_average"].append(round(os.getloadavg()[0], 2))
     if args.out is not None:
         args.out.mkdir(parents=True, exist_ok=True)
         for name, text in (("results.json", json.dumps(results, indent=1) + "\n"), ("results.md", markdown(results))):
