@@ -259,8 +259,8 @@ def run(args: argparse.Namespace) -> int:
     settings = _settings(args.setting)
     command = " ".join(["gwr-predictor bench day", *sys.argv[3:]])
     results: dict[str, Any] = {"hours": hours, "seed": args.seed, "settings": settings, "blas_threads": blas_threads(),
-                               "command": command, "cpus": os.cpu_count(), "load_average": [round(os.getloadavg()[0], 2)],
-                               "sessions": {}}
+                               "command": command, "cpus": os.cpu_count(),
+                               "load_average": [round(os.getloadavg()[0], 2)], "sessions": {}}
     with tempfile.TemporaryDirectory(prefix="gwr-day-") as tmp:
         for name in args.sessions:
             rows = run_session(name, hours, args.seed, settings, Path(tmp), progress=not args.quiet)
