@@ -4,8 +4,9 @@ The library is pure Python + numpy (no rclpy), one subpackage per concern, in th
 
 - `data`: demonstrator, skeleton files, median of 3, the 8 Nao arm angles;
 - `learning`: the paper's GWR -> Predictive GWR -> hierarchy, parameters, checkpoints;
-- `default_predictor`: the default predictor, beyond the paper (`make_default`);
-- `predictors`: the baselines and the one registry of predictors by name (`make_predictor`);
+- `default_predictor`: the default predictor, beyond the paper (`make_default`, composed in `default.py`);
+- `predictors`: the baselines the learners must beat;
+- `registry`: every predictor by name, above the paper's model and the default (`make_predictor`);
 - `evaluation`: the online evaluation loop, metrics and result tables;
 - `robot`: Nao kinematics/URDF, PyBullet simulator, delayed arm, delay compensator;
 - `pipeline`: message conventions, MCAP bags, run reports and latency (ROS-free);
@@ -39,8 +40,8 @@ _EXPORTS = {
     "make_default": "default_predictor",
     "GatedPredictor": "default_predictor.gate",
     "LocalLinearPredictor": "default_predictor.predictor",
-    "make_predictor": "predictors.registry",
-    "load_predictor": "predictors.registry",
+    "make_predictor": "registry",
+    "load_predictor": "registry",
     "compare_online": "evaluation.online",
     "skeleton_to_angles": "data.angles",
     "extract_angles": "data.extraction",
@@ -49,8 +50,8 @@ _EXPORTS = {
     "ARM_JOINTS": "robot.nao",
     "GwrPredictorError": "errors",
     "Predictor": "learning.protocol",
-    "register": "predictors.registry",
-    "predictor_names": "predictors.registry",
+    "register": "registry",
+    "predictor_names": "registry",
     "demo_angle_sequences": "data.datasets",
 }
 __all__ = ["__version__", *sorted(_EXPORTS)]

@@ -46,8 +46,9 @@ from typing import Any
 import numpy as np
 import rclpy
 
+from gwr_predictor import registry
+from gwr_predictor.default_predictor import DefaultPredictor
 from gwr_predictor.default_predictor.gate import GatedPredictor, inner_model
-from gwr_predictor.default_predictor.recognition import RecognitionSwitch
 from gwr_predictor.learning.blas import blas_threads
 from gwr_predictor.learning.checkpoint import (
     CheckpointError,
@@ -65,8 +66,7 @@ from gwr_predictor.pipeline import conventions, params_file
 from gwr_predictor.pipeline.input_rules import missing_frames
 from gwr_predictor.pipeline.markers import ROBOT_FRAME, arm_figure
 from gwr_predictor.pipeline.trajectory import prediction_trajectory
-from gwr_predictor.predictors import registry
-from gwr_predictor.predictors.registry import DEFAULT_PREDICTOR, learner_names, load_predictor, make_predictor
+from gwr_predictor.registry import DEFAULT_PREDICTOR, learner_names, load_predictor, make_predictor
 from gwr_predictor.robot.nao import ARM_JOINTS
 
 from . import messages, standard_messages
@@ -185,13 +185,13 @@ class ArmPredictorNode(PipelineNode):
         if name == "checkpoint_interval_s":
             self.schedule_checkpoints(float(value))
 
-    def create(self, settings: dict[str, Any]) -> Hierarchy | GatedPredictor | RecognitionSwitch:
+    def create(self, settings: dict[str, Any]) -> Hierarchy | GatedPredictor | DefaultPredictor:
         try:
             return make_predictor(self.params["predictor"], settings, seed=self.params["seed"])
         except ValueError as exc:  # a setting this predictor cannot take (ParameterError and the like)
             raise ParameterError(f"predictor {self.params['predictor']!r}: {exc}") from None
 
-    def load_or_create(self, settings: dict[str, Any]) -> Hierarchy | GatedPredictor | RecognitionSwitch:
+    def load_or_create(self, settings: dict[str, Any]) -> Hierarchy | GatedPredictor | DefaultPredictor:
         """The checkpoint's model if there is a readable one, else a fresh one with `settings`."""
         path = self.checkpoint
         if path is None or not path.exists():

@@ -37,7 +37,6 @@ import argparse
 import json
 import math
 import os
-import resource
 import sys
 import time
 from typing import Any
@@ -50,10 +49,9 @@ from gwr_predictor.learning.gwr import GWR
 from gwr_predictor.learning.gwr_loop import LoopGWR
 from gwr_predictor.learning.hierarchy import Hierarchy
 from gwr_predictor.learning.params import GWRParams, HierarchyParams
-
-
-def peak_rss_mb() -> float:
-    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
+from research import day
+from research.memory_use import peak_rss_mb
+from research.streams import random_walk_stream
 
 
 def _log(quiet: bool, text: str) -> None:
@@ -125,7 +123,7 @@ def measure_default(reference: Hierarchy, stream: np.ndarray, frames: int,
     """(median, best) frames/s of the node's default predictor (the registry's), its speed over
     `reference`'s (`measure_against`), its neurons, after it learned the rest of `stream` first (it
     grows to the size the data asks for), and the seconds its spread took in the timed frames."""
-    from gwr_predictor.predictors.registry import DEFAULT_PREDICTOR, make_predictor
+    from research.registry import DEFAULT_PREDICTOR, make_predictor
 
     model = make_predictor(DEFAULT_PREDICTOR)
     for x in stream[frames:]:
@@ -143,23 +141,11 @@ def measure_default(reference: Hierarchy, stream: np.ndarray, frames: int,
     return fps, best, ratio, int(model.neuron_counts[0]), spent[0]
 
 
-def random_walk_stream(n_frames: int, seed: int = 0) -> np.ndarray:
-    """(n_frames, 8) smooth motion that never repeats: each joint's velocity a damped random walk."""
-    rng = np.random.default_rng(seed)
-    kicks = rng.normal(scale=0.01, size=(n_frames, 8))
-    velocity, pose, out = np.zeros(8), np.zeros(8), np.empty((n_frames, 8))
-    for t in range(n_frames):
-        velocity = 0.9 * velocity + kicks[t]
-        pose = 0.995 * pose + velocity
-        out[t] = pose
-    return out
-
-
 def measure_default_full(reference: Hierarchy, learned: int, frames: int, chunk: int,
                          progress: bool) -> tuple[float, float, int]:
     """(median frames/s, speed over `reference`'s, snippets stored) of the default predictor after
     `learned` frames of motion that never repeats (`random_walk_stream`)."""
-    from gwr_predictor.predictors.registry import DEFAULT_PREDICTOR, make_predictor
+    from research.registry import DEFAULT_PREDICTOR, make_predictor
 
     stream = random_walk_stream(learned + frames)
     model = make_predictor(DEFAULT_PREDICTOR)
@@ -252,8 +238,6 @@ def measure_bmu_cost(dims: tuple[int, ...] = (8, 24, 72), sizes: tuple[int, ...]
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
-    from research import day
-
     sub = parser.add_subparsers(dest="what", metavar="day", help="`day`: a robot's day, compressed (research/day.py)")
     day.configure(sub.add_parser("day", description=day.__doc__.splitlines()[0]))
     parser.add_argument("--quick", action="store_true", help="small sizes and few frames (a smoke run)")
@@ -267,8 +251,6 @@ def configure(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     if args.what == "day":
-        from research import day
-
         return day.run(args)
     size, pgwr_size, frames = args.size, args.pgwr_size, args.frames
     if args.quick:

@@ -327,7 +327,7 @@ def _member_class(kind: Any) -> type | None:
     return _member_classes().get(kind) if isinstance(kind, str) else None
 
 
-#: Registry name of each blend (predictors/registry.py) -> the name of its GWR member.
+#: Registry name of each blend (research/registry.py) -> the name of its GWR member.
 BLENDS = {"blend_hierarchy_rls": "hierarchy", "blend_flat_rls": "flat"}
 
 
@@ -351,7 +351,8 @@ def make_blend(kind: str = "blend_hierarchy_rls", params: Any = None, seed: int 
         params = params.replace(horizon=horizon)
     gwr_cls = Hierarchy if BLENDS[kind] == "hierarchy" else FlatPredictor
     members = {BLENDS[kind]: gwr_cls(params, seed=seed),
-               "rls": RLSAutoregressive(RLSParams(order=params.span), params.horizon, params.n_joints)}
+               "rls": RLSAutoregressive(RLSParams(order=params.span, forgetting=0.999), params.horizon,
+                                        params.n_joints)}
     bp = blend or BlendParams()
     if bp.horizon != params.horizon:
         bp = BlendParams(decay=bp.decay, floor=bp.floor, horizon=params.horizon, adapt_frozen=bp.adapt_frozen)

@@ -1,6 +1,6 @@
 """Candidate defaults for motion that repeats with variation, composed from the package's parts.
 
-Each is registered as `cand_<name>` (`gwr_predictor.predictors.registry`) so the experiments score it
+Each is registered as `cand_<name>` (`research/registry.py`) so the experiments score it
 like any other method. They differ from the default in what the linear read-out sees and in how fast
 the gate trusts the model; the network (the local-linear P-GWR) is the default's, unchanged:
 
@@ -37,9 +37,9 @@ from gwr_predictor.default_predictor.predictor import LocalLinearPredictor
 from gwr_predictor.errors import GwrPredictorError
 from gwr_predictor.learning.protocol import Predictor
 from gwr_predictor.learning.rls import RecursiveLeastSquares, window_features
-from gwr_predictor.predictors import registry
-from gwr_predictor.predictors.registry import hierarchy_params
+from research import registry
 from research.blend import BlendedPredictor
+from research.registry import hierarchy_params
 
 #: frames the candidates' global read-out spans (RLS-AR's and the direct linear model's order)
 GLOBAL_FRAMES = 12
@@ -133,14 +133,14 @@ def experts(params: Any, seed: int, decay: float = 0.99, members: tuple[str, ...
             model: Mapping[str, Any] | None = None, power: float = 1.0) -> Predictor:
     """The neurons' model, the direct linear model and RLS-AR, blended per step by recent squared error
     (weights 1 / MSE^power)."""
-    from gwr_predictor.predictors.baselines import TUNED_RLS, RLSAutoregressive
-    from gwr_predictor.predictors.direct_linear import TUNED_LINEAR, DirectLinear
+    from gwr_predictor.predictors.baselines import RLSAutoregressive, RLSParams
+    from gwr_predictor.predictors.direct_linear import DirectLinear, DirectLinearParams
     from research.blend import BlendParams
 
     hp = hierarchy_params(params)
     make = {"llm": lambda: long_model(params, seed, **(model or {})),
-            "linear": lambda: DirectLinear(TUNED_LINEAR.replace(horizon=hp.horizon, joints=hp.n_joints)),
-            "rls": lambda: RLSAutoregressive(TUNED_RLS, hp.horizon, hp.n_joints)}
+            "linear": lambda: DirectLinear(DirectLinearParams(horizon=hp.horizon, joints=hp.n_joints)),
+            "rls": lambda: RLSAutoregressive(RLSParams(), hp.horizon, hp.n_joints)}
     return _sharp_blend({m: make[m]() for m in members}, BlendParams(decay=decay, horizon=hp.horizon), power)
 
 
@@ -235,13 +235,13 @@ class ChooseExperts(BlendedPredictor):
 def members(params: Any, seed: int, names: tuple[str, ...] = ("llm", "linear", "rls", "hold"),
             member_gate: Mapping[str, float] | None = None, model: Mapping[str, Any] | None = None) -> dict[str, Any]:
     """The experts by name, each behind its own gate with `member_gate`'s settings if given (hold never)."""
-    from gwr_predictor.predictors.baselines import TUNED_RLS, HoldLast, RLSAutoregressive
-    from gwr_predictor.predictors.direct_linear import TUNED_LINEAR, DirectLinear
+    from gwr_predictor.predictors.baselines import HoldLast, RLSAutoregressive, RLSParams
+    from gwr_predictor.predictors.direct_linear import DirectLinear, DirectLinearParams
 
     hp = hierarchy_params(params)
     make = {"llm": lambda: long_model(params, seed, **(model or {})),
-            "linear": lambda: DirectLinear(TUNED_LINEAR.replace(horizon=hp.horizon, joints=hp.n_joints)),
-            "rls": lambda: RLSAutoregressive(TUNED_RLS, hp.horizon, hp.n_joints),
+            "linear": lambda: DirectLinear(DirectLinearParams(horizon=hp.horizon, joints=hp.n_joints)),
+            "rls": lambda: RLSAutoregressive(RLSParams(), hp.horizon, hp.n_joints),
             "hold": lambda: HoldLast(hp.horizon, hp.n_joints)}
     out = {m: make[m]() for m in names}
     if member_gate is not None:

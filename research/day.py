@@ -39,9 +39,9 @@ from gwr_predictor.evaluation.output import figure, save_figure
 from gwr_predictor.files.user_files import write_output
 from gwr_predictor.learning.blas import blas_threads, single_threaded_blas
 from gwr_predictor.learning.saver import CheckpointSaver
-from gwr_predictor.predictors.baselines import TUNED_RLS, RLSAutoregressive
-from research.bench import random_walk_stream
-from research.soak import current_rss_mb
+from gwr_predictor.predictors.baselines import RLSAutoregressive, RLSParams
+from research.memory_use import current_rss_mb
+from research.streams import random_walk_stream
 
 FPS = 10
 HORIZON = 6
@@ -121,7 +121,7 @@ def run_session(name: str, hours: float, seed: int, settings: dict[str, Any], fo
     frames = round(hours * 3600 * FPS)
     angles, repeated = session_stream(name, frames, seed)
     model = make_default(settings=settings)
-    rls = RLSAutoregressive(TUNED_RLS, HORIZON)
+    rls = RLSAutoregressive(RLSParams(), HORIZON)
     saver = CheckpointSaver(folder / f"{name}.npz")
     hour = 3600 * FPS
     pending = {m: np.full((HORIZON, angles.shape[1]), np.nan) for m in ("default", "rls_ar", "hold")}

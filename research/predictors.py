@@ -1,8 +1,9 @@
 """The research predictors, registered beside the product's: the paper's P-GWR alone on raw frames,
 the per-step blends with RLS-AR, the default's ungated model and the ablations of the default.
 
-Each is a name in `gwr_predictor.predictors.registry`, so experiments, `evaluate` run from a checkout
-and the tables use them like the product's; the learner node offers only the product's names.
+Each is a name in research's own registry (`research/registry.py`, beside the product's), so the
+experiments and the tables use them like the product's; the product's registry, and so the learner node,
+knows none of them.
 """
 
 from __future__ import annotations
@@ -11,8 +12,8 @@ import os
 from typing import Any
 
 from gwr_predictor.learning.protocol import Predictor
-from gwr_predictor.predictors import registry
-from gwr_predictor.predictors.registry import Factory, Loader, gate_loader, hierarchy_params
+from research import registry
+from research.registry import Factory, Loader, gate_loader, hierarchy_params
 
 
 def local_linear_params(params: Any, **changes: Any) -> Any:

@@ -43,7 +43,7 @@ R5 = {"recognition.separate_gates": False, "gate.confidence": 1.0, **R6}
 #: by its 1-step record, its bound one standard error.
 BEFORE_ROUND5 = {"recognition.radius": 0.0, "gate.decay": 0.99, "gate.fast_step": 1, "gate.confidence": 1.0, **R6}
 #: The network's settings `experiment tune` chose for the gated network, which every round-4 variant
-#: used (the default's own network keeps rate 0.1 and recruit_surprise 9: `settings.EXPERT_NETWORK`).
+#: used (the default's own network keeps rate 0.1 and recruit_surprise 9: `DefaultParams().network`).
 TUNED_NETWORK = {"network.rate": 0.2, "network.recruit_surprise": 6.0, **BEFORE_ROUND5}
 #: Round 3's member gates (the default before round 4): a fixed ~20-frame memory.
 R3 = {"expert_gate.decay": 0.95, "expert_gate.warmup": 0, **TUNED_NETWORK}

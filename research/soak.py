@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import resource
 import sys
 import time
 from collections.abc import Iterator
@@ -23,17 +22,7 @@ from tqdm import tqdm
 from gwr_predictor.data.synthetic import synthetic_demonstrations
 from gwr_predictor.learning.hierarchy import Hierarchy
 from gwr_predictor.learning.params import HierarchyParams
-from research.bench import peak_rss_mb
-
-
-def current_rss_mb() -> float:
-    """Resident memory now (Linux /proc), else the peak so far."""
-    try:
-        with open("/proc/self/statm") as f:
-            pages = int(f.read().split()[1])
-    except (OSError, ValueError, IndexError):
-        return peak_rss_mb()
-    return pages * resource.getpagesize() / 2**20
+from research.memory_use import current_rss_mb, peak_rss_mb
 
 
 def soak_stream(seed: int, missing_rate: float) -> Iterator[np.ndarray | None]:

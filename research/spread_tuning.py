@@ -79,7 +79,7 @@ def _feed(models: dict[str, Any], seq: np.ndarray, learn: bool, rep: np.ndarray 
 
 
 def _models() -> dict[str, Any]:
-    from gwr_predictor.predictors import registry
+    from research import registry
 
     models = {m: registry.make_predictor(m) for m in METHODS}
     return {m: getattr(model, "model", model) for m, model in models.items()}  # the baselines without a spread

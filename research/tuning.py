@@ -284,7 +284,7 @@ def _left_out(methods: tuple[str, ...], held: dict[str, Any], others: list[np.nd
 def _demo_heldout(methods: tuple[str, ...]) -> dict[str, float]:
     """The demonstrator check (`--demo`): per pattern, 5 epochs over 3 repetitions of 2 people, then the
     unseen repetitions frozen; MSE at the last step as a share of holding the pose (seed 7's recordings)."""
-    from gwr_predictor.predictors import registry
+    from research import registry
     from research.experiments import dataloss
 
     names = {m: re.sub(r"\W", "_", m) for m in methods}  # registry names are identifiers

@@ -91,7 +91,7 @@ def fingerprints(predictions: list[np.ndarray | None]) -> tuple[np.ndarray, np.n
 
 
 def run(predictor: str, name: str) -> list[np.ndarray | None]:
-    from gwr_predictor.predictors.registry import make_predictor
+    from gwr_predictor.registry import make_predictor
 
     return list(frames(make_predictor(predictor), stream(name)))
 
@@ -126,7 +126,7 @@ def test_predictions_are_those_the_fixture_holds(saved, predictor, name):
 
 def test_the_default_recognises_the_repeated_stream():
     """Both of the default's weightings (ungated where it recognises the motion) are in the fixture."""
-    from gwr_predictor.predictors.registry import make_predictor
+    from gwr_predictor.registry import make_predictor
 
     model = make_predictor("gwr_experts")
     list(frames(model, repeated()))
@@ -135,7 +135,7 @@ def test_the_default_recognises_the_repeated_stream():
 
 @pytest.mark.parametrize("predictor", ("gwr_experts", "gated_llm_gwr", "hierarchy"))
 def test_a_checkpoint_midway_continues_bit_for_bit(tmp_path, predictor):
-    from gwr_predictor.predictors.registry import load_predictor, make_predictor
+    from gwr_predictor.registry import load_predictor, make_predictor
 
     sequence = real()[0]
     whole = list(frames(make_predictor(predictor), [sequence]))

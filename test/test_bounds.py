@@ -7,7 +7,7 @@ import numpy as np
 
 from gwr_predictor.default_predictor import make_default
 from gwr_predictor.default_predictor.memory import MemoryParams, TrajectoryMemory
-from gwr_predictor.predictors.registry import load_predictor
+from gwr_predictor.registry import load_predictor
 
 SMALL = {"network.gwr.max_neurons": 40, "memory.capacity": 120, "long_memory.capacity": 120}
 

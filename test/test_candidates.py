@@ -7,9 +7,8 @@ import numpy as np
 import pytest
 
 from gwr_predictor.evaluation.online import compare_online
-from gwr_predictor.predictors import registry
 from gwr_predictor.predictors.baselines import HoldLast
-from research import candidates
+from research import candidates, registry
 from research.experiments import common
 
 NAMES = tuple(candidates.CANDIDATES)

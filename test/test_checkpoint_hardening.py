@@ -36,7 +36,7 @@ from gwr_predictor.learning.params import HierarchyParams
 from gwr_predictor.nodes import messages
 from gwr_predictor.nodes.messages import DiagnosticArray
 from gwr_predictor.nodes.qos import status_qos
-from gwr_predictor.predictors.registry import DEFAULT_PREDICTOR, load_predictor, make_predictor
+from gwr_predictor.registry import DEFAULT_PREDICTOR, load_predictor, make_predictor
 
 
 def _npy(array: np.ndarray) -> bytes:

@@ -13,7 +13,7 @@ import pytest
 
 import gwr_predictor as gp
 from gwr_predictor.learning.hierarchy import FlatPredictor, Hierarchy
-from gwr_predictor.predictors.registry import make_predictor
+from gwr_predictor.registry import make_predictor
 
 LEARNERS = {"hierarchy": Hierarchy, "flat": FlatPredictor, "gated_llm_gwr": lambda: make_predictor("gated_llm_gwr"),
             "gwr_experts": lambda: make_predictor("gwr_experts")}

@@ -20,7 +20,7 @@ from gwr_predictor.default_predictor.gate import GatedPredictor, GateError, Gate
 from gwr_predictor.evaluation.online import compare_online, run_sequence
 from gwr_predictor.learning.checkpoint import CheckpointError
 from gwr_predictor.predictors.baselines import HoldLast
-from gwr_predictor.predictors.registry import DEFAULT_PREDICTOR, PRODUCT, load_predictor, make_predictor
+from gwr_predictor.registry import DEFAULT_PREDICTOR, PRODUCT, load_predictor, make_predictor
 from gwr_predictor.robot.closed_loop import run_closed_loop
 from gwr_predictor.robot.compensator import DelayCompensator
 from research.experiments import common

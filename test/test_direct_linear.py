@@ -12,7 +12,7 @@ from gwr_predictor.learning.checkpoint import CheckpointError
 from gwr_predictor.learning.rls import RecursiveLeastSquares, window_features
 from gwr_predictor.predictors.baselines import HoldLast
 from gwr_predictor.predictors.direct_linear import DirectLinear, DirectLinearError, DirectLinearParams
-from gwr_predictor.predictors.registry import make_predictor
+from gwr_predictor.registry import make_predictor
 
 
 def _damped(n: int = 400, seed: int = 0) -> np.ndarray:
@@ -50,7 +50,7 @@ def test_learns_a_linear_system_down_to_its_noise():
     of the system (the driving noise accumulated over 6 steps)."""
     x = _damped(800)
     floor = 0.002 ** 2 * sum(sum(0.99 ** i for i in range(j)) ** 2 for j in range(1, 7))
-    model = DirectLinear(DirectLinearParams(delta=1e4))
+    model = DirectLinear(DirectLinearParams(order=2, delta=1e4))
     train_online(model, [x[:500]], progress=False)
     res = compare_online({"hold": HoldLast(), "linear": model}, [x[500:]], learn=False, progress=False)
     assert res["linear"].stats.mse[-1] < 1.5 * floor < 0.1 * res["hold"].stats.mse[-1]
@@ -71,7 +71,7 @@ def test_no_peeking_and_gaps_clear_the_window():
     x = _damped(200)
     y = x.copy()
     y[120:] += 1.0
-    a, b = DirectLinear(), DirectLinear()
+    a, b = DirectLinear(DirectLinearParams(order=2)), DirectLinear(DirectLinearParams(order=2))
     for t in range(120):
         pa, pb = a.step(x[t]), b.step(y[t])
     np.testing.assert_array_equal(pa, pb)

@@ -8,7 +8,7 @@ from pathlib import Path
 import pytest
 
 from gwr_predictor.parameters.spec import markdown_table
-from gwr_predictor.predictors.registry import learner_names
+from gwr_predictor.registry import learner_names
 
 ROOT = Path(__file__).resolve().parents[1]
 DOC = ROOT / "docs" / "parameters.md"
@@ -49,3 +49,14 @@ def test_the_parameters_every_node_declares_are_documented():
     from gwr_predictor.nodes.pipeline_node import COMMON_PARAMS
 
     assert documented_table("every node") == markdown_table(COMMON_PARAMS)
+
+
+def test_the_params_file_holds_each_predictors_settings_as_rendered_from_the_dataclasses():
+    """config/arm_predictor.yaml's predictor sections are rendered from the settings dataclasses: a default
+    changed there and not here (or here by hand) fails."""
+    import subprocess
+    import sys
+
+    done = subprocess.run([sys.executable, str(ROOT / "scripts" / "parameter_reference.py")], capture_output=True,
+                          text=True, timeout=120)
+    assert done.returncode == 0, done.stdout + done.stderr

@@ -288,7 +288,7 @@ def test_blend_with_unsaveable_members_refuses_to_save(tmp_path):
 def test_every_learner_says_its_horizon_and_keeps_it_through_a_checkpoint(name, tmp_path):
     """The learner node publishes as many steps as the model predicts, which a loaded checkpoint decides."""
     from gwr_predictor.learning.protocol import Learner
-    from gwr_predictor.predictors.registry import learner_names, load_predictor, make_predictor
+    from gwr_predictor.registry import learner_names, load_predictor, make_predictor
 
     assert name in learner_names()
     model = make_predictor(name, {"horizon": 4, "n_joints": 8})
@@ -301,23 +301,29 @@ def test_every_learner_says_its_horizon_and_keeps_it_through_a_checkpoint(name, 
 
 
 def test_make_predictor_names_the_hierarchy_and_both_blends():
+    from gwr_predictor import registry as product
     from gwr_predictor.learning.hierarchy import FlatPredictor, Hierarchy
-    from gwr_predictor.predictors.registry import UnknownPredictorError, learner_names, make_predictor, names
+    from gwr_predictor.predictors.errors import PredictorError
     from research.blend import gwr_member
+    from research.registry import make_predictor, names
 
     assert isinstance(make_predictor("hierarchy"), Hierarchy)
     assert isinstance(gwr_member(make_predictor("blend_hierarchy_rls")), Hierarchy)
     assert isinstance(gwr_member(make_predictor("blend_flat_rls")), FlatPredictor)
-    # research names are registered (research/ is imported here) but the node and pretrain offer the product's
+    # research names are in research's registry, beside the product's; the product's, which the node and
+    # pretrain offer, knows none of them
     assert {"blend_flat_rls", "llm_gwr", "gated_hierarchy"} <= set(names())
-    assert set(learner_names()) == {"hierarchy", "gated_llm_gwr", "gwr_experts"}
-    with pytest.raises(UnknownPredictorError, match="unknown predictor 'nope'"):
+    assert set(product.names()) <= set(names()) and not {"blend_flat_rls", "llm_gwr"} & set(product.names())
+    assert set(product.learner_names()) == {"hierarchy", "gated_llm_gwr", "gwr_experts"}
+    with pytest.raises(PredictorError, match="unknown predictor 'nope'"):
         make_predictor("nope")
+    with pytest.raises(PredictorError, match="unknown predictor 'llm_gwr'"):
+        product.make_predictor("llm_gwr")
 
 
 def test_load_predictor_refuses_a_blend_of_other_members(tmp_path):
     from gwr_predictor.learning.checkpoint import CheckpointError
-    from gwr_predictor.predictors.registry import load_predictor, make_predictor
+    from research.registry import load_predictor, make_predictor
 
     path = tmp_path / "flat.npz"
     make_predictor("blend_flat_rls").save(path)
@@ -335,9 +341,9 @@ def test_load_predictor_refuses_a_blend_of_other_members(tmp_path):
 def test_registered_predictor_is_available_to_evaluate_by_name(tmp_path, capsys):
     import json
 
+    from gwr_predictor import registry
     from gwr_predictor.commands.cli import main
     from gwr_predictor.errors import GwrPredictorError
-    from gwr_predictor.predictors import registry
 
     class Zero:
         """Predicts the origin: worse than hold-last on any motion away from it."""
@@ -369,4 +375,4 @@ def test_registered_predictor_is_available_to_evaluate_by_name(tmp_path, capsys)
         mae = json.loads(out.strip().splitlines()[-1])["mae_rad"]
         assert mae[name][0] > mae["hold"][0]
     finally:
-        registry._REGISTRY.pop(name, None)
+        registry.PRODUCT.unregister(name)

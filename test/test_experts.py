@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from gwr_predictor.default_predictor import (
+    DefaultPredictor,
     DefaultPredictorError,
     Experts,
     ExpertsParams,
@@ -13,9 +14,9 @@ from gwr_predictor.default_predictor import (
     TrajectoryMemory,
     make_default,
 )
+from gwr_predictor.default_predictor.default import default_specs
 from gwr_predictor.default_predictor.memory import EXACT
 from gwr_predictor.default_predictor.recognition import RecognitionSwitch
-from gwr_predictor.default_predictor.settings import experts_parameter_specs
 from gwr_predictor.errors import GwrPredictorError
 from gwr_predictor.evaluation.online import compare_online
 from gwr_predictor.learning.params import MAX_HORIZON
@@ -443,7 +444,7 @@ def test_the_experts_checkpoint_continues_bit_for_bit(tmp_path, settings, member
     for f in x[:150]:
         model.step(f)
     model.save(tmp_path / "m.npz")
-    again = RecognitionSwitch.load(tmp_path / "m.npz")
+    again = DefaultPredictor.load(tmp_path / "m.npz")
     assert set(again.experts.members) == set(model.experts.members) == members
     memory = again.experts.members["memory"].model
     assert memory.size == model.experts.members["memory"].model.size > 0
@@ -462,7 +463,7 @@ def test_the_default_wins_on_a_repeated_movement_varied_in_speed():
 
 
 def test_the_default_takes_its_settings_by_flat_name():
-    specs = {s.name for s in experts_parameter_specs()}
+    specs = {s.name for s in default_specs()}
     assert {"network.order", "network.gwr.eps_b", "memory.k", "experts.power", "expert_gate.decay",
             "gate.confidence", "recognition.radius"} <= specs
     model = make_default(settings={"memory.k": 5, "experts.power": 2.0, "network.order": 3,

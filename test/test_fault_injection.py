@@ -15,7 +15,7 @@ from gwr_predictor.nodes.messages import DiagnosticArray, Float64MultiArray, Joi
 from gwr_predictor.pipeline import bag_messages, bag_reader, bag_recovery
 from gwr_predictor.pipeline.conventions import NEURON_KEYS
 from gwr_predictor.pipeline.errors import PipelineError
-from gwr_predictor.predictors.registry import DEFAULT_PREDICTOR, load_predictor
+from gwr_predictor.registry import DEFAULT_PREDICTOR, load_predictor
 
 FAST = {"diagnostics_period_s": 0.5}
 CHECKPOINT_INTERVAL_S = 2.0

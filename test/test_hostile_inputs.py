@@ -16,7 +16,7 @@ from test_node_bad_input import FAST, POSE, joint_state, skeleton, wait_counters
 from gwr_predictor.data.demonstrator import default_subjects, demonstrate_one
 from gwr_predictor.nodes import messages
 from gwr_predictor.nodes.messages import DiagnosticArray, Float64MultiArray, JointState
-from gwr_predictor.predictors.registry import DEFAULT_PREDICTOR, make_predictor
+from gwr_predictor.registry import DEFAULT_PREDICTOR, make_predictor
 
 POISON_S = 1e6  # the "now + 1e6 s"
 

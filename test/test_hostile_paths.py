@@ -34,7 +34,7 @@ from gwr_predictor.pipeline import bag_reader
 from gwr_predictor.pipeline.errors import PipelineError
 from gwr_predictor.pipeline.params_file import check_params_files
 from gwr_predictor.pipeline.video_files import default_suffix
-from gwr_predictor.predictors.registry import make_predictor
+from gwr_predictor.registry import make_predictor
 
 ROOT = Path(__file__).resolve().parents[1]
 SAMPLE_BAG = ROOT / "bags" / "demo_sample"
@@ -114,7 +114,7 @@ def test_a_checkpoint_declaring_a_huge_network_is_refused_before_anything_is_all
     path = huge_network_checkpoint(tmp_path / "model.npz")
     assert path.stat().st_size < 100_000
     output = refusal("from gwr_predictor.learning.checkpoint import CheckpointError\n"
-                     "from gwr_predictor.predictors.registry import load_predictor",
+                     "from gwr_predictor.registry import load_predictor",
                      f"load_predictor('hierarchy', {str(path)!r})", "CheckpointError")
     assert "40,000 neurons" in output and f"{MAX_NETWORK_NEURONS:,}" in output, output
     angles = tmp_path / "angles.csv"
@@ -131,7 +131,7 @@ def test_the_learner_counts_a_memory_error_in_a_frame_goes_on_and_keeps_what_it_
 
     from gwr_predictor.default_predictor.gate import inner_model
     from gwr_predictor.nodes.arm_predictor import ArmPredictorNode
-    from gwr_predictor.predictors.registry import load_predictor
+    from gwr_predictor.registry import load_predictor
 
     checkpoint = tmp_path / "model.npz"
     domain = allocate_domain_id()

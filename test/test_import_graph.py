@@ -20,40 +20,6 @@ PACKAGE = "gwr_predictor"
 #: binary search) that only a plot, a video or the simulator needs.
 HEAVY_OPTIONAL = {"matplotlib", "PIL", "pybullet", "pybullet_data", "imageio_ffmpeg", "torch"}
 
-#: The registry <-> default predictor cycle, dodged by imports inside functions until the registry moves
-#: above both (importer, imported): strike each pair as it goes.
-REGISTRY_CYCLE = {
-    ("gwr_predictor.default_predictor", "gwr_predictor.default_predictor.experts"),
-    ("gwr_predictor.default_predictor", "gwr_predictor.default_predictor.gate"),
-    ("gwr_predictor.default_predictor", "gwr_predictor.default_predictor.memory"),
-    ("gwr_predictor.default_predictor", "gwr_predictor.default_predictor.predictor"),
-    ("gwr_predictor.default_predictor", "gwr_predictor.default_predictor.recognition"),
-    ("gwr_predictor.default_predictor", "gwr_predictor.default_predictor.settings"),
-    ("gwr_predictor.default_predictor", "gwr_predictor.predictors.baselines"),
-    ("gwr_predictor.default_predictor", "gwr_predictor.predictors.direct_linear"),
-    ("gwr_predictor.default_predictor.experts", "gwr_predictor.default_predictor.kinds"),
-    ("gwr_predictor.default_predictor.gate", "gwr_predictor.default_predictor.kinds"),
-    ("gwr_predictor.default_predictor.spread", "gwr_predictor.default_predictor.kinds"),
-    ("gwr_predictor.default_predictor.kinds", "gwr_predictor.default_predictor.experts"),
-    ("gwr_predictor.default_predictor.kinds", "gwr_predictor.default_predictor.gate"),
-    ("gwr_predictor.default_predictor.kinds", "gwr_predictor.default_predictor.memory"),
-    ("gwr_predictor.default_predictor.kinds", "gwr_predictor.default_predictor.predictor"),
-    ("gwr_predictor.default_predictor.kinds", "gwr_predictor.default_predictor.recognition"),
-    ("gwr_predictor.default_predictor.kinds", "gwr_predictor.learning.hierarchy"),
-    ("gwr_predictor.default_predictor.kinds", "gwr_predictor.predictors.baselines"),
-    ("gwr_predictor.default_predictor.kinds", "gwr_predictor.predictors.direct_linear"),
-    ("gwr_predictor.predictors.registry", "gwr_predictor.default_predictor"),
-    ("gwr_predictor.predictors.registry", "gwr_predictor.default_predictor.gate"),
-    ("gwr_predictor.predictors.registry", "gwr_predictor.default_predictor.recognition"),
-    ("gwr_predictor.predictors.registry", "gwr_predictor.default_predictor.spread"),
-    ("gwr_predictor.predictors.registry", "gwr_predictor.learning.checkpoint"),
-    ("gwr_predictor.predictors.registry", "gwr_predictor.learning.hierarchy"),
-    ("gwr_predictor.predictors.registry", "gwr_predictor.learning.params"),
-    ("gwr_predictor.predictors.registry", "gwr_predictor.predictors.baselines"),
-    ("gwr_predictor.predictors.registry", "gwr_predictor.predictors.direct_linear"),
-}
-
-
 @dataclass(frozen=True)
 class Import:
     importer: str  # dotted name of the module that imports
@@ -177,10 +143,9 @@ def cycles(graph: dict[str, set[str]]) -> list[list[str]]:
 
 def function_level_imports(root: Path = ROOT) -> list[str]:
     """`module:line imported` for each import inside a function that is not of a heavy optional library
-    (nor one of `REGISTRY_CYCLE`)."""
+    """
     return [f"{imp.importer}:{imp.line} {imp.targets[0]}" for imp in all_imports(root)
-            if imp.in_function and not imp.top <= HEAVY_OPTIONAL
-            and (imp.importer, imp.targets[0]) not in REGISTRY_CYCLE]
+            if imp.in_function and not imp.top <= HEAVY_OPTIONAL]
 
 
 def test_no_module_imports_itself_back():

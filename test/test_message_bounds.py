@@ -10,7 +10,7 @@ from gwr_predictor.learning.params import MAX_HORIZON, HierarchyParams
 from gwr_predictor.pipeline import conventions
 from gwr_predictor.pipeline.errors import PipelineError
 from gwr_predictor.pipeline.input_rules import ArmAnglesCheck, RejectionCounter
-from gwr_predictor.predictors.registry import make_predictor
+from gwr_predictor.registry import make_predictor
 from gwr_predictor.robot.compensator import DelayCompensator
 from gwr_predictor.robot.nao import ARM_JOINTS
 

@@ -12,7 +12,7 @@ from gwr_predictor.nodes.arm_predictor import predictor_specs
 from gwr_predictor.nodes.pipeline_node import COMMON_PARAMS
 from gwr_predictor.parameters.spec import ParameterError
 from gwr_predictor.pipeline.params_file import flatten
-from gwr_predictor.predictors.registry import learner_names
+from gwr_predictor.registry import learner_names
 
 NODES = ["skeleton_source", "angle_extractor", "arm_predictor", "delay_compensator", "nao_sim", "bag_recorder",
          "bag_player", "hri_bodies"]
@@ -71,8 +71,8 @@ BAD_VALUES = [
      "'hierarchy.gwr1.activation_threshold' = 1.5 is outside"),
     ("arm_predictor", {"gwr_experts.network.order": 0},
      "'gwr_experts.network.order' = 0 is outside the allowed range [1, 32]"),
-    ("arm_predictor", {"predictor": "gated_llm_gwr", "gated_llm_gwr.order": 0},
-     "'gated_llm_gwr.order' = 0 is outside the allowed range [1, 32]"),
+    ("arm_predictor", {"predictor": "gated_llm_gwr", "gated_llm_gwr.network.order": 0},
+     "'gated_llm_gwr.network.order' = 0 is outside the allowed range [1, 32]"),
     ("skeleton_source", {"rate_hz": 0.0}, "'rate_hz' = 0.0 is outside the allowed range [1.0, 1000.0]"),
     ("angle_extractor", {"max_gap_s": "soon"}, "'max_gap_s' must be a number"),
     ("bag_player", {"bag": ""}, "'bag' is empty"),
@@ -119,7 +119,7 @@ def test_pretrain_uses_the_nodes_yaml_and_writes_a_checkpoint_the_node_can_load(
     from gwr_predictor.commands.pretrain import node_parameters
     from gwr_predictor.learning.hierarchy import Hierarchy
     from gwr_predictor.learning.params import HierarchyParams
-    from gwr_predictor.predictors.registry import settings_from_parameters
+    from gwr_predictor.registry import settings_from_parameters
 
     yaml_path = ROOT / "config" / "arm_predictor.yaml"
     flat = node_parameters(yaml_path)
@@ -138,13 +138,13 @@ def test_pretrain_uses_the_nodes_yaml_and_writes_a_checkpoint_the_node_can_load(
     assert model.params.horizon == 4 and model.params.pgwr.max_edge_age == 50
     assert model.frames_seen > 30
     # without 'predictor' the node's default is trained; it takes the horizon from the YAML
-    from gwr_predictor.default_predictor.recognition import RecognitionSwitch
+    from gwr_predictor.default_predictor import DefaultPredictor
 
     custom.write_text("/**/arm_predictor:\n  ros__parameters:\n    horizon: 4\n"
                       "    gwr_experts:\n      network:\n        order: 5\n      expert_gate:\n        decay: 0.98\n")
     assert main(["pretrain", "-o", str(out), "--params-file", str(custom), "--patterns", "wave_one",
                  "--subjects", "1", "--repetitions", "1", "--epochs", "1", "--quiet"]) == 0
-    default = RecognitionSwitch.load(out)
+    default = DefaultPredictor.load(out)
     experts = default.experts
     assert default.gate.params.horizon == 4 and experts.frames_seen > 30
     assert experts.members["network"].model.params.order == 5

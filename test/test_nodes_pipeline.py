@@ -20,7 +20,7 @@ from gwr_predictor.nodes.messages import DiagnosticArray, Float64MultiArray, Joi
 from gwr_predictor.pipeline import bag_reader
 from gwr_predictor.pipeline.conventions import NEURON_KEYS, SKELETON_JOINTS, TOPIC_TYPES
 from gwr_predictor.pipeline.run_report import compute_report, read_run
-from gwr_predictor.predictors.registry import DEFAULT_PREDICTOR, load_predictor
+from gwr_predictor.registry import DEFAULT_PREDICTOR, load_predictor
 from gwr_predictor.robot.nao import ARM_JOINTS
 
 FAST = {"diagnostics_period_s": 0.5}

@@ -16,7 +16,7 @@ from gwr_predictor.default_predictor import (
 )
 from gwr_predictor.default_predictor.recognition import BEFORE
 from gwr_predictor.learning.checkpoint import CheckpointError, read_checkpoint, write_checkpoint
-from gwr_predictor.predictors.registry import DEFAULT_PREDICTOR, load_predictor
+from gwr_predictor.registry import DEFAULT_PREDICTOR, load_predictor
 
 NOISE = 0.002  # rad: a person never repeats a pose to the bit
 #: One last gate over both weightings (before round 6), which has no ungated weighting's gate to lend to.
@@ -192,7 +192,7 @@ def test_the_defaults_loader_refuses_other_models_and_broken_former_layouts(tmp_
     former layout with a field missing is a CheckpointError naming the file, never a KeyError."""
     from gwr_predictor.learning.checkpoint import CheckpointError
     from gwr_predictor.learning.hierarchy import Hierarchy
-    from gwr_predictor.predictors.registry import make_predictor
+    from gwr_predictor.registry import make_predictor
 
     make_predictor("gated_llm_gwr").save(tmp_path / "network.npz")
     Hierarchy().save(tmp_path / "hierarchy.npz")

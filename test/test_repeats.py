@@ -163,7 +163,7 @@ def test_the_learning_curve_pools_exactly_the_scored_frames():
 def test_experiment_real_says_how_often_the_default_is_exactly_hold():
     """`experiment real` reports per clip the share of the default's predictions that were exactly
     hold-last (its gate shut): nearly all of them where nothing moves, few on a motion it has learned."""
-    from gwr_predictor.predictors import registry
+    from gwr_predictor import registry
     from research.experiments import real
 
     t = np.arange(400)[:, None] * 0.1

@@ -11,7 +11,7 @@ import pytest
 from gwr_predictor.learning import saver as saver_module
 from gwr_predictor.learning.checkpoint import CheckpointError
 from gwr_predictor.learning.saver import CheckpointSaver
-from gwr_predictor.predictors.registry import load_predictor, make_predictor
+from gwr_predictor.registry import load_predictor, make_predictor
 
 
 def _stream(n: int) -> np.ndarray:

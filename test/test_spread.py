@@ -19,7 +19,7 @@ from gwr_predictor.learning.protocol import Spreading
 from gwr_predictor.pipeline import conventions
 from gwr_predictor.pipeline.errors import PipelineError
 from gwr_predictor.predictors.baselines import HoldLast
-from gwr_predictor.predictors.registry import DEFAULT_PREDICTOR, load_predictor, make_predictor
+from gwr_predictor.registry import DEFAULT_PREDICTOR, load_predictor, make_predictor
 from gwr_predictor.robot.compensator import CompensatorParams, DelayCompensator
 from gwr_predictor.robot.errors import RobotError
 

@@ -22,6 +22,7 @@ from typing import Any
 
 import numpy as np
 
+from gwr_predictor import registry
 from gwr_predictor.commands.errors import CommandError
 from gwr_predictor.commands.import_options import add_import_options, import_options
 from gwr_predictor.commands.param_overrides import parse_overrides
@@ -34,7 +35,6 @@ from gwr_predictor.evaluation.online import EvaluationError, compare_online
 from gwr_predictor.evaluation.output import markdown_table, to_jsonable
 from gwr_predictor.learning.params import HierarchyParams
 from gwr_predictor.learning.protocol import Learner, Predictor
-from gwr_predictor.predictors import registry
 from gwr_predictor.robot.nao import ARM_JOINTS
 
 DEFAULT_METHODS = ("hold", "const_velocity", "rls_ar", "hierarchy")

@@ -28,7 +28,7 @@ from gwr_predictor.learning.checkpoint import check_checkpoint_place
 from gwr_predictor.learning.protocol import Learner
 from gwr_predictor.pipeline.conventions import DEPRECATED_LEARNER_NODE, LEARNER_NODE
 from gwr_predictor.pipeline.params_file import load_params_file
-from gwr_predictor.predictors.registry import (
+from gwr_predictor.registry import (
     DEFAULT_PREDICTOR,
     learner_names,
     make_predictor,

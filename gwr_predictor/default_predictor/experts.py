@@ -34,7 +34,7 @@ from gwr_predictor.default_predictor.params import DefaultPredictorError
 from gwr_predictor.learning.checkpoint import CheckpointError
 from gwr_predictor.learning.params import DEFAULT_HORIZON, MAX_HORIZON
 from gwr_predictor.learning.pending import PendingPredictions
-from gwr_predictor.learning.persistence import Checkpointed, Persist, params_from_json, sub
+from gwr_predictor.learning.persistence import Checkpointed, Persist, fresh_of_kind, kind_to_save, params_from_json, sub
 from gwr_predictor.parameters.spec import ParamSpec, check_fields
 from gwr_predictor.predictors.baselines import observation
 
@@ -53,6 +53,7 @@ EXPERTS_SPECS = {spec.name: spec for spec in (
 class ExpertsParams:
     """Settings of `Experts` (see `EXPERTS_SPECS`)."""
 
+    SPECS: ClassVar[dict[str, ParamSpec]] = EXPERTS_SPECS
     decay: float = EXPERTS_SPECS["decay"].default
     power: float = EXPERTS_SPECS["power"].default
     floor: float = EXPERTS_SPECS["floor"].default
@@ -260,8 +261,6 @@ class Experts(Checkpointed):
 
     @classmethod
     def _fresh(cls, header: Mapping[str, Any]) -> Experts:
-        from gwr_predictor.default_predictor.kinds import fresh_of_kind
-
         kinds = header["member_kinds"]
         if not isinstance(kinds, dict) or not kinds:
             raise CheckpointError("member_kinds must name every member's kind")
@@ -269,8 +268,6 @@ class Experts(Checkpointed):
         return cls(members, params_from_json(ExpertsParams, header["params"]))
 
     def _save_extra(self) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
-        from gwr_predictor.default_predictor.kinds import kind_to_save
-
         header: dict[str, Any] = {"member_kinds": {}, "members": {}}
         arrays: dict[str, np.ndarray] = {}
         for name, member in self.members.items():

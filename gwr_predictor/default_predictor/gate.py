@@ -47,7 +47,7 @@ import numpy as np
 
 from gwr_predictor.default_predictor.params import DefaultPredictorError
 from gwr_predictor.learning.pending import PendingPredictions
-from gwr_predictor.learning.persistence import Checkpointed, Persist, params_from_json
+from gwr_predictor.learning.persistence import Checkpointed, Persist, fresh_of_kind, kind_to_save, params_from_json
 from gwr_predictor.parameters.spec import ParamSpec, check_fields
 from gwr_predictor.pipeline.conventions import DEFAULT_HORIZON
 from gwr_predictor.predictors.baselines import N_JOINTS, observation
@@ -85,6 +85,7 @@ class GateParams:
     each step its own, the gate before `fast_step` existed). `per_joint`: one alpha per
     (step, joint) instead of per step (more to estimate: less safe on short clips)."""
 
+    SPECS: ClassVar[dict[str, ParamSpec]] = GATE_SPECS
     decay: float = GATE_SPECS["decay"].default
     warmup: int = GATE_SPECS["warmup"].default
     warmup_decay: float = GATE_SPECS["warmup_decay"].default
@@ -267,14 +268,10 @@ class GatedPredictor(Checkpointed):
 
     @classmethod
     def _fresh(cls, header: Mapping[str, Any]) -> GatedPredictor:
-        from gwr_predictor.default_predictor.kinds import fresh_of_kind
-
         return cls(fresh_of_kind(header["model_kind"], header["model"]), params_from_json(GateParams, header["params"]))
 
     def _save_extra(self) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
         """The model's kind (which class to rebuild); only models that can be restored are saved."""
-        from gwr_predictor.default_predictor.kinds import kind_to_save
-
         return {"model_kind": kind_to_save(self.model, "the gated model")}, {}
 
 

@@ -95,6 +95,7 @@ MEMORY_SPECS = {spec.name: spec for spec in (
 class MemoryParams:
     """Settings of `TrajectoryMemory` (see the module docstring and `MEMORY_SPECS`)."""
 
+    SPECS: ClassVar[dict[str, ParamSpec]] = MEMORY_SPECS
     horizon: int = MEMORY_SPECS["horizon"].default
     n_joints: int = MEMORY_SPECS["n_joints"].default
     k: int = MEMORY_SPECS["k"].default

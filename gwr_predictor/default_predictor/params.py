@@ -4,17 +4,11 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, ClassVar
 
-from gwr_predictor.errors import GwrPredictorError
+from gwr_predictor.default_predictor.errors import DefaultPredictorError
 from gwr_predictor.learning.params import DEFAULT_HORIZON, MAX_HORIZON, GWRParams
 from gwr_predictor.parameters.spec import ParamSpec, check_fields
-
-
-class DefaultPredictorError(GwrPredictorError, ValueError):
-    """The default predictor's one error: invalid parameters (of the network, the read-outs or the gate),
-    state that does not fit them, or a wrapped model's output of the wrong shape."""
-
 
 #: The same class under the network's name.
 LocalLinearError = DefaultPredictorError
@@ -86,6 +80,7 @@ class LocalLinearParams:
     compared with).
     """
 
+    SPECS: ClassVar[dict[str, ParamSpec]] = LOCAL_LINEAR_SPECS
     order: int = LOCAL_LINEAR_SPECS["order"].default
     horizon: int = LOCAL_LINEAR_SPECS["horizon"].default
     n_joints: int = LOCAL_LINEAR_SPECS["n_joints"].default
@@ -102,7 +97,10 @@ class LocalLinearParams:
     consolidate_after: int = LOCAL_LINEAR_SPECS["consolidate_after"].default
     recruit_surprise: float = LOCAL_LINEAR_SPECS["recruit_surprise"].default
     recruit_after: int = LOCAL_LINEAR_SPECS["recruit_after"].default
-    gwr: GWRParams = field(default_factory=default_gwr)
+    #: The GWR step's activation threshold is no setting of the network: it inserts by `insertion_scale` x
+    #: the data's own motion scale, which cancels any a_T (see `predictor.py`).
+    gwr: GWRParams = field(default_factory=default_gwr,
+                           metadata={"about": "GWR step", "hidden": ("activation_threshold",)})
 
     def __post_init__(self) -> None:
         check_fields(self, LOCAL_LINEAR_SPECS.values(), DefaultPredictorError)

@@ -81,6 +81,7 @@ RECOGNITION_SPECS = {spec.name: spec for spec in (
 class RecognitionParams:
     """Settings of `RecognitionSwitch` (see `RECOGNITION_SPECS`)."""
 
+    SPECS: ClassVar[dict[str, ParamSpec]] = RECOGNITION_SPECS
     radius: float = RECOGNITION_SPECS["radius"].default
     decay: float = RECOGNITION_SPECS["decay"].default
     power: float = RECOGNITION_SPECS["power"].default

@@ -42,7 +42,7 @@ import numpy as np
 from gwr_predictor.default_predictor.params import DefaultPredictorError
 from gwr_predictor.learning.params import DEFAULT_HORIZON, MAX_HORIZON
 from gwr_predictor.learning.pending import PendingPredictions
-from gwr_predictor.learning.persistence import Checkpointed, Persist, params_from_json
+from gwr_predictor.learning.persistence import Checkpointed, Persist, fresh_of_kind, kind_to_save, params_from_json
 from gwr_predictor.parameters.spec import ParamSpec, check_fields
 from gwr_predictor.predictors.baselines import observation
 
@@ -74,6 +74,7 @@ FLAT_SPREAD_SPECS = tuple(s for name, s in SPREAD_SPECS.items() if name not in (
 class SpreadParams:
     """Settings of `Spread` (see `SPREAD_SPECS` and the module docstring)."""
 
+    SPECS: ClassVar[dict[str, ParamSpec]] = SPREAD_SPECS
     nominal: float = SPREAD_SPECS["nominal"].default
     rate: float = SPREAD_SPECS["rate"].default
     initial: float = SPREAD_SPECS["initial"].default
@@ -222,7 +223,7 @@ class Spread(Checkpointed):
 class WithSpread(Checkpointed):
     """Any online predictor's predictions unchanged, each with a `Spread` of its own residuals (group 0): the
     baselines' intervals, learned the same way as the default's, so that widths compare at equal coverage.
-    Saved with its model when the model can be (`kinds.py`)."""
+    Saved with its model when the model can be (`learning.persistence.kind_to_save`)."""
 
     kind: ClassVar[str] = "WithSpread"
     PARAMS = SpreadParams
@@ -258,14 +259,10 @@ class WithSpread(Checkpointed):
         return self.spread.interval()
 
     def _save_extra(self) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
-        from gwr_predictor.default_predictor.kinds import kind_to_save
-
         return {"model_kind": kind_to_save(self.model, "the model with a spread")}, {}
 
     @classmethod
     def _fresh(cls, header: Mapping[str, Any]) -> WithSpread:
-        from gwr_predictor.default_predictor.kinds import fresh_of_kind
-
         return cls(fresh_of_kind(header["model_kind"], header["model"]), params_from_json(SpreadParams,
                                                                                           header["params"]))
 

@@ -12,9 +12,10 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Mapping
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, ClassVar
 
 from gwr_predictor.files.limits import MAX_NETWORK_NEURONS
+from gwr_predictor.parameters import tree
 from gwr_predictor.parameters.spec import ParameterError, ParamSpec, check_fields
 
 #: Edge ages are stored as int16, so the age limit stays well inside its range.
@@ -49,6 +50,7 @@ GWR_SPECS: dict[str, ParamSpec] = {s.name: s for s in (
 class GWRParams:
     """One GWR layer (Sec. III-B, Table I). `max_neurons=None` means no size limit."""
 
+    SPECS: ClassVar[dict[str, ParamSpec]] = GWR_SPECS
     activation_threshold: float = 0.98
     firing_threshold: float = 0.1
     eps_b: float = 0.1
@@ -119,6 +121,7 @@ def _default_gwr(max_edge_age: int, bounded: bool = True) -> GWRParams:
 class HierarchyParams:
     """The whole model: layer sizes of the windows, horizon, prediction mode, scaling, layers."""
 
+    SPECS: ClassVar[dict[str, ParamSpec]] = HIERARCHY_SPECS
     n_joints: int = 8
     tau1: int = 3
     tau2: int = 3
@@ -174,75 +177,18 @@ class HierarchyParams:
         return base.replace(**changes) if changes else base
 
     # --- flat form ---------------------------------------------------------------------------
-    def to_flat(self) -> dict[str, float | int | str | bool]:
-        """Dotted flat dict; `max_neurons=None` is written as 0 (ROS parameters have no None)."""
-        flat: dict[str, float | int | str | bool] = {}
-        for name in HIERARCHY_SPECS:
-            flat[name] = getattr(self, name)
-        for layer in LAYERS:
-            gp = getattr(self, layer)
-            for name in GWR_SPECS:
-                value = getattr(gp, name)
-                flat[f"{layer}.{name}"] = 0 if value is None else value
-        return flat
+    def to_flat(self) -> dict[str, Any]:
+        """Dotted flat dict (`gwr_predictor.parameters.tree`); `max_neurons=None` is written as 0."""
+        return tree.flatten(self)
 
     @classmethod
     def from_flat(cls, flat: Mapping[str, object]) -> HierarchyParams:
         """Inverse of `to_flat`; missing keys keep their defaults. Unknown keys or bad values raise
-        ValueError naming the key."""
-        top: dict[str, Any] = {}
-        layers: dict[str, dict[str, Any]] = {layer: {} for layer in LAYERS}
-        defaults = cls()
-        for key, value in flat.items():
-            if not isinstance(key, str):
-                raise ParameterError(f"parameter names must be strings, got {key!r}")
-            layer, _, name = key.partition(".")
-            if name:
-                if layer not in layers or name not in GWR_SPECS:
-                    raise ParameterError(f"unknown parameter {key!r}")
-                layers[layer][name] = _coerce(key, value, GWR_SPECS[name])
-            elif key in HIERARCHY_SPECS:
-                top[key] = _coerce(key, value, HIERARCHY_SPECS[key])
-            else:
-                raise ParameterError(f"unknown parameter {key!r}")
-        for layer, changes in layers.items():
-            if changes:
-                try:
-                    top[layer] = getattr(defaults, layer).replace(**changes)
-                except ValueError as exc:
-                    raise ParameterError(f"parameter {layer}.*: {exc}") from None
-        return cls(**top)
-
-
-def _coerce(key: str, value: object, spec: ParamSpec) -> Any:
-    """ROS and YAML hand over ints for floats and floats for ints; accept the lossless cases (the
-    dataclass then checks the range). Strings and bools are checked against the spec here."""
-    kind = spec.kind
-    if kind in ("string", "bool"):
-        return dataclasses.replace(spec, name=key).check(value)
-    if isinstance(value, bool) or not isinstance(value, (int, float)):
-        if spec.none_value is not None and value is None:
-            return None
-        raise ParameterError(f"parameter {key!r} must be a number, got {value!r}")
-    if kind == "integer":
-        if isinstance(value, float):
-            if not value.is_integer():
-                raise ParameterError(f"parameter {key!r} must be an integer, got {value!r}")
-            value = int(value)
-        if spec.none_value is not None and value == spec.none_value:
-            return None
-        return value
-    return float(value)
+        ParameterError naming the key."""
+        return tree.replace(cls(), flat)
 
 
 def hierarchy_parameter_specs() -> list[ParamSpec]:
     """Every flat parameter of `HierarchyParams` (dotted names for the layers) with default, range and
     description: the specs the dataclasses validate with, with each layer's own defaults."""
-    defaults = HierarchyParams().to_flat()
-    specs = [dataclasses.replace(spec, default=defaults[name]) for name, spec in HIERARCHY_SPECS.items()]
-    for layer in LAYERS:
-        for name, spec in GWR_SPECS.items():
-            key = f"{layer}.{name}"
-            specs.append(dataclasses.replace(spec, name=key, default=defaults[key],
-                                             description=f"{layer}: {spec.description}"))
-    return specs
+    return list(tree.parameter_specs(HierarchyParams()))

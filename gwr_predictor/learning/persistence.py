@@ -161,6 +161,12 @@ class Persistent:
         return tuple(out)
 
 
+#: Every class whose checkpoint a wrapper can hold inside its own, by `kind`: a saved wrapper names the
+#: kind of each model it wraps, and loading rebuilds that class from its parameters. A class enters on
+#: definition (the first of a kind stays), so loading needs only its module imported.
+_KINDS: dict[str, type[Checkpointed]] = {}
+
+
 class Checkpointed(Persistent):
     """A top-level learner: its `kind`, its parameters (attribute `params`, of class `PARAMS`), its
     declared state; `save`/`load` write and read it as one checkpoint file."""
@@ -171,6 +177,12 @@ class Checkpointed(Persistent):
     #: what a state that does not fit its class raises (the file's problem: CheckpointError)
     STATE_ERROR: ClassVar[type[GwrPredictorError]] = CheckpointError
     params: Any
+
+    def __init_subclass__(cls, **kwargs: Any) -> None:
+        super().__init_subclass__(**kwargs)
+        kind = cls.__dict__.get("kind")
+        if isinstance(kind, str):
+            _KINDS.setdefault(kind, cls)
 
     @classmethod
     def _fresh(cls: type[_C], header: Mapping[str, Any]) -> _C:
@@ -217,6 +229,22 @@ class Checkpointed(Persistent):
         """A model saved by `save`, continuing where it stopped; CheckpointError naming the file otherwise."""
         header, arrays = read_checkpoint(path, cls.kind)
         return cls.from_state(header, arrays, path)
+
+
+def kind_to_save(model: Any, what: str) -> str:
+    """`model`'s kind if it can be saved inside a wrapper; CheckpointError naming `what` otherwise."""
+    kind = getattr(model, "kind", None)
+    if kind not in _KINDS or not isinstance(model, Checkpointed):
+        raise CheckpointError(f"{what} ({type(model).__name__}) cannot be saved; supported: {', '.join(_KINDS)}")
+    return str(kind)
+
+
+def fresh_of_kind(kind: Any, header: Mapping[str, Any]) -> Checkpointed:
+    """A fresh model of the saved `kind` and parameters (`header`), before its state is restored."""
+    if not isinstance(kind, str) or kind not in _KINDS:
+        raise CheckpointError(f"a wrapped model of kind {kind!r}; this build restores {', '.join(_KINDS)} "
+                              "(a class restores once its module is imported)")
+    return _KINDS[kind]._fresh(header)
 
 
 # --- the pieces -------------------------------------------------------------------------------------

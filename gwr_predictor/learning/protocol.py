@@ -5,7 +5,7 @@ The hierarchy, the flat P-GWR, the baselines and the blends all take one sample 
 return their predictions for the next `horizon` frames (`Spreading`: those that also state an interval
 around each, the default and the baselines `hold` and `rls_ar`), so the evaluation loop, the closed loop
 with the simulated robot, the blend and the learner node can use any of them (the registry,
-`predictors/registry.py`, builds them by name).
+`gwr_predictor/registry`, builds them by name).
 """
 
 from __future__ import annotations

@@ -1,6 +1,5 @@
-"""Online predictors beside the paper's hierarchy and the default: the baselines they must beat, and
-the one registry of predictors by name.
-"""
+"""Online predictors beside the paper's hierarchy and the default: the baselines they must beat (hold
+the last pose, constant velocity, RLS-AR) and the direct multi-step linear model."""
 
 from gwr_predictor._exports import lazy_exports
 
@@ -10,12 +9,9 @@ _EXPORTS = {
     "RLSAutoregressive": "baselines",
     "RLSParams": "baselines",
     "make_baselines": "baselines",
-    "make_predictor": "registry",
-    "load_predictor": "registry",
-    "register": "registry",
-    "learner_names": "registry",
-    "PredictorError": "registry",
-    "UnknownPredictorError": "registry",
+    "DirectLinear": "direct_linear",
+    "DirectLinearParams": "direct_linear",
+    "PredictorError": "errors",
 }
 __all__ = sorted(_EXPORTS)
 __getattr__, __dir__ = lazy_exports(__name__, _EXPORTS)

@@ -19,8 +19,9 @@ import numpy as np
 
 from gwr_predictor.learning.online_loop import frame_or_none
 from gwr_predictor.learning.persistence import Checkpointed, Persist, params_from_json
+from gwr_predictor.parameters.spec import ParamSpec, check_fields
 from gwr_predictor.pipeline.conventions import DEFAULT_HORIZON
-from gwr_predictor.predictors.registry import PredictorError
+from gwr_predictor.predictors.errors import PredictorError
 from gwr_predictor.robot.nao import ARM_JOINTS
 
 N_JOINTS = len(ARM_JOINTS)
@@ -98,30 +99,35 @@ class ConstantVelocity:
         self._times: list[int] = []
 
 
+_RLS_SPECS = {spec.name: spec for spec in (
+    ParamSpec("order", 12, "frames in the regressor", 1, 64),
+    ParamSpec("forgetting", 1.0, "RLS forgetting factor per learned pair (1: fit everything seen)", 0.9, 1.0),
+    ParamSpec("delta", 1.0, "initial P = delta I (prior variance of the weights)", 0.0, lo_open=True),
+    ParamSpec("prior", "hold", "where the weights start", choices=("hold", "zero")),
+    ParamSpec("max_trace", 1e6, "P is reset when its trace exceeds this (wind-up)", 0.0, lo_open=True),
+)}
+
+
 @dataclass(frozen=True)
 class RLSParams:
-    """Recursive least squares settings.
+    """Recursive least squares settings; the defaults are RLS-AR's in every report and in the default
+    predictor, chosen by `gwr-predictor experiment tune` on the demonstrator's tuning recordings (seed 7,
+    in no reported figure): 12 frames, no forgetting.
 
     `delta` is the initial P = delta * I (prior variance of the weights): larger learns faster at first.
     `prior` "hold" starts the weights at hold-last (identity on the newest frame), "zero" at zero.
     `max_trace` bounds trace(P): with forgetting and poorly exciting data P winds up, so it is reset.
     """
 
-    order: int = 5
-    forgetting: float = 0.999
-    delta: float = 1.0
-    prior: str = "hold"
-    max_trace: float = 1e6
+    SPECS: ClassVar[dict[str, ParamSpec]] = _RLS_SPECS
+    order: int = _RLS_SPECS["order"].default
+    forgetting: float = _RLS_SPECS["forgetting"].default
+    delta: float = _RLS_SPECS["delta"].default
+    prior: str = _RLS_SPECS["prior"].default
+    max_trace: float = _RLS_SPECS["max_trace"].default
 
     def __post_init__(self) -> None:
-        if self.order < 1:
-            raise PredictorError(f"order must be >= 1, got {self.order}")
-        if not 0.9 <= self.forgetting <= 1.0:
-            raise PredictorError(f"forgetting must be in [0.9, 1], got {self.forgetting}")
-        if self.delta <= 0 or self.max_trace <= 0:
-            raise PredictorError(f"delta and max_trace must be > 0, got {self.delta}, {self.max_trace}")
-        if self.prior not in ("hold", "zero"):
-            raise PredictorError(f"prior must be 'hold' or 'zero', got {self.prior!r}")
+        check_fields(self, _RLS_SPECS.values(), PredictorError)
 
 
 class RLSAutoregressive(Checkpointed):
@@ -226,17 +232,11 @@ class RLSAutoregressive(Checkpointed):
         return cls(params_from_json(RLSParams, header["params"]), int(header["horizon"]), int(header["joints"]))
 
 
-#: RLS-AR's settings in every report, chosen by `gwr-predictor experiment tune` on the demonstrator's
-#: tuning recordings (seed 7, in no reported figure), with the same split and grid size as the default
-#: predictor's (docs/results/tune): order 12, no forgetting.
-TUNED_RLS = RLSParams(order=12, forgetting=1.0)
-
-
 def make_baselines(horizon: int = DEFAULT_HORIZON, order: int = 5) -> dict[str, object]:
     """Fresh instances of every baseline, keyed by the names used in reports. The constant-velocity
-    slope spans `order` frames (the hierarchy's regressor length); RLS-AR uses `TUNED_RLS`."""
+    slope spans `order` frames (the hierarchy's regressor length)."""
     return {
         "hold": HoldLast(horizon),
         "const_velocity": ConstantVelocity(horizon, window=max(order, 2)),
-        "rls_ar": RLSAutoregressive(TUNED_RLS, horizon),
+        "rls_ar": RLSAutoregressive(RLSParams(), horizon),
     }

@@ -34,14 +34,14 @@ from gwr_predictor.learning.rls import RecursiveLeastSquares, window_features
 from gwr_predictor.parameters.spec import ParamSpec, check_fields
 from gwr_predictor.pipeline.conventions import DEFAULT_HORIZON, MAX_HORIZON
 from gwr_predictor.predictors.baselines import N_JOINTS, observation
-from gwr_predictor.predictors.registry import PredictorError
+from gwr_predictor.predictors.errors import PredictorError
 
 #: The same class under the direct-linear model's name.
 DirectLinearError = PredictorError
 
 
 _SPECS = {spec.name: spec for spec in (
-    ParamSpec("order", 2, "frames the features span (order - 1 frame-to-frame changes + the newest pose)", 1, 64),
+    ParamSpec("order", 12, "frames the features span (order - 1 frame-to-frame changes + the newest pose)", 1, 64),
     ParamSpec("forgetting", 1.0, "RLS forgetting factor per learned pair (1: fit everything seen)", 0.9, 1.0),
     ParamSpec("delta", 1.0, "initial P = delta I (prior variance of the weights)", 0.0, lo_open=True),
     ParamSpec("max_trace", 1e6, "P is reset when its trace exceeds this (wind-up)", 0.0, lo_open=True),
@@ -54,8 +54,11 @@ _SPECS = {spec.name: spec for spec in (
 class DirectLinearParams:
     """`order`: frames the features span (1: the newest pose and a bias only). `forgetting`: RLS
     forgetting per learned pair. `delta`: P(0) = delta I. `max_trace`: the wind-up guard. `horizon`,
-    `joints`: the output's shape. Settings chosen by `gwr-predictor experiment tune` (see docs)."""
+    `joints`: the output's shape. The defaults are the `linear` baseline's in every report and the
+    default predictor's, chosen by `gwr-predictor experiment tune` on the demonstrator's tuning recordings
+    (seed 7, in no reported figure)."""
 
+    SPECS: ClassVar[dict[str, ParamSpec]] = _SPECS
     order: int = _SPECS["order"].default
     forgetting: float = _SPECS["forgetting"].default
     delta: float = _SPECS["delta"].default
@@ -141,8 +144,3 @@ class DirectLinear(Checkpointed):
 
     def errors(self) -> dict[str, Any]:
         return {"updates": self.rls.updates, "resets": self.rls.resets}
-
-#: The `linear` baseline's settings in every report, chosen by `gwr-predictor experiment tune` on the
-#: demonstrator's tuning recordings (seed 7, in no reported figure), with the same split and grid size
-#: as the default predictor's (docs/results/tune).
-TUNED_LINEAR = DirectLinearParams(order=12, forgetting=1.0, delta=1.0)

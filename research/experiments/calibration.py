@@ -29,7 +29,7 @@ import numpy as np
 from gwr_predictor.evaluation.metrics import IntervalStats, future_windows, interval_stats
 from gwr_predictor.evaluation.online import compare_online, train_online
 from gwr_predictor.evaluation.output import ExperimentOutput, figure, markdown_table, save_figure
-from gwr_predictor.predictors import registry
+from research import registry
 from research.experiments import common
 from research.experiments.splits import make_splits
 from research.recording import Recorded

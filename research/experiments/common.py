@@ -1,6 +1,6 @@
 """What the experiments share: parameters with overrides, model factories, data, orders.
 
-Every model is built from the one predictor registry (`gwr_predictor.predictors.registry`), so
+Every model is built from the one predictor registry (`research/registry.py`: the product's and research's names), so
 that all experiments, `evaluate`, `pretrain` and the learner node use the same names: "hierarchy"
 (GWR1 -> GWR2 -> P-GWR), "pgwr_flat" (the P-GWR alone on raw frames, the ablation), the baselines
 "hold", "const_velocity", "rls_ar", and the per-step inverse-MSE blends of a GWR predictor with
@@ -18,7 +18,7 @@ import numpy as np
 
 from gwr_predictor.learning.params import HierarchyParams
 from gwr_predictor.learning.protocol import Predictor
-from gwr_predictor.predictors import registry
+from research import registry
 
 HIERARCHY = "hierarchy"
 FLAT = "pgwr_flat"

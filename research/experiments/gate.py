@@ -141,7 +141,7 @@ def run(config: Config, out: Path, seed: int = 0, progress: bool = True) -> Expe
     from tqdm import tqdm
 
     from gwr_predictor.default_predictor.gate import GatedPredictor, GateParams
-    from gwr_predictor.predictors.registry import make_predictor
+    from research.registry import make_predictor
 
     params = common.make_params()
     conds = _conditions(config, seed)

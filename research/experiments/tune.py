@@ -17,8 +17,7 @@ library's recruitment settings; then, at the chosen point, a second stage sweeps
 recruitment (smallest value > 0) wins, for the same reason: a recruited neuron keeps an old
 movement's neurons from being rewritten, and held-out accuracy says how far that can go before it
 fits the training pairs' noise. The chosen settings are the library defaults (`LocalLinearParams()`,
-`baselines.TUNED_RLS`, `direct_linear.TUNED_LINEAR`); this experiment checks that they still are
-the winners."""
+`RLSParams()`, `DirectLinearParams()`); this experiment checks that they still are the winners."""
 
 from __future__ import annotations
 
