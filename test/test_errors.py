@@ -76,8 +76,12 @@ def test_each_subpackage_defines_one_error_class_at_most():
 
 #: The parts whose error class has one name: a caller imports and catches that name, not an alias of it
 #: (defined by the part or imported from it).
-_ONE_NAME_PARTS = ("gwr_predictor", "files", "joints", "parameters", "data", "evaluation", "pipeline", "robot",
-                   "commands", "nodes")
+_ONE_NAME_PARTS = ("gwr_predictor", "files", "joints", "parameters", "data", "learning", "default_predictor",
+                   "predictors", "evaluation", "pipeline", "robot", "commands", "nodes")
+#: The one alias left, for the two modules that still import it while they are rewritten on another branch
+#: (default_predictor/kinds.py; predictors/registry.py imports it inside functions): strike it with them.
+_ALIAS_UNTIL_REWRITE = {"gwr_predictor.learning.checkpoint.CheckpointError = LearningError",
+                        "gwr_predictor.default_predictor.kinds.CheckpointError = LearningError"}
 
 
 def _part_of(module: str) -> str:
@@ -98,6 +102,7 @@ def test_an_error_class_goes_by_its_own_name_only():
             if (isinstance(value, type) and issubclass(value, GwrPredictorError) and attr != value.__name__
                     and _part_of(value.__module__) in _ONE_NAME_PARTS):
                 aliases.append(f"{name}.{attr} = {value.__name__}")
+    aliases = [a for a in aliases if a not in _ALIAS_UNTIL_REWRITE]
     assert not aliases, "aliases of error classes:\n" + "\n".join(aliases)
 
 
@@ -120,7 +125,7 @@ def test_a_checkpoint_whose_read_out_queue_disagrees_with_its_regressors_is_refu
     # the read-outs are filed in step with the regressors; a checkpoint that breaks this must fail when
     # loaded, with the checkpoint error, not later on a frame with a TypeError
     from gwr_predictor.default_predictor import LocalLinearParams, LocalLinearPredictor
-    from gwr_predictor.learning.checkpoint import CheckpointError
+    from gwr_predictor.learning.errors import LearningError
 
     model = LocalLinearPredictor(LocalLinearParams())
     t = np.arange(60) / 10.0
@@ -129,7 +134,7 @@ def test_a_checkpoint_whose_read_out_queue_disagrees_with_its_regressors_is_refu
     header, arrays = model.state()
     assert header["regs_present"] and all(header["regs_present"])
     header["outs_present"][0] = False
-    with pytest.raises(CheckpointError, match="read-out queue"):
+    with pytest.raises(LearningError, match="read-out queue"):
         LocalLinearPredictor.from_state(header, arrays)
 
 

@@ -6,13 +6,13 @@ import numpy as np
 import pytest
 
 from gwr_predictor.default_predictor import (
-    DefaultPredictorError,
     Experts,
     ExpertsParams,
     MemoryParams,
     TrajectoryMemory,
     make_default,
 )
+from gwr_predictor.default_predictor.errors import DefaultPredictorError
 from gwr_predictor.default_predictor.memory import EXACT
 from gwr_predictor.default_predictor.recognition import RecognitionSwitch
 from gwr_predictor.default_predictor.settings import experts_parameter_specs
@@ -170,7 +170,8 @@ def test_a_full_memory_learns_a_new_movement_in_place_of_what_it_recalled_longes
 def test_a_full_memory_continues_bit_for_bit_from_its_checkpoint(tmp_path):
     """What it recalled when comes back with the snippets, so the same ones are replaced after a restore;
     a file without the snippets' use times is refused, naming them."""
-    from gwr_predictor.learning.checkpoint import CheckpointError, read_checkpoint, write_checkpoint
+    from gwr_predictor.learning.checkpoint import read_checkpoint, write_checkpoint
+    from gwr_predictor.learning.errors import LearningError
 
     x = np.cumsum(np.random.default_rng(1).normal(scale=0.05, size=(300, 8)), axis=0)
     memory = TrajectoryMemory(MemoryParams(capacity=30))
@@ -186,7 +187,7 @@ def test_a_full_memory_continues_bit_for_bit_from_its_checkpoint(tmp_path):
     header, arrays = read_checkpoint(tmp_path / "m.npz", TrajectoryMemory.kind)
     write_checkpoint(tmp_path / "former.npz", TrajectoryMemory.kind, header,
                      {k: v for k, v in arrays.items() if k != "used"})
-    with pytest.raises(CheckpointError, match=r"missing arrays.*used"):
+    with pytest.raises(LearningError, match=r"missing arrays.*used"):
         TrajectoryMemory.load(tmp_path / "former.npz")
 
 

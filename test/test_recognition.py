@@ -6,7 +6,6 @@ import numpy as np
 import pytest
 
 from gwr_predictor.default_predictor import (
-    DefaultPredictorError,
     Experts,
     GatedPredictor,
     MemoryParams,
@@ -14,8 +13,10 @@ from gwr_predictor.default_predictor import (
     TrajectoryMemory,
     make_default,
 )
+from gwr_predictor.default_predictor.errors import DefaultPredictorError
 from gwr_predictor.default_predictor.recognition import BEFORE
-from gwr_predictor.learning.checkpoint import CheckpointError, read_checkpoint, write_checkpoint
+from gwr_predictor.learning.checkpoint import read_checkpoint, write_checkpoint
+from gwr_predictor.learning.errors import LearningError
 from gwr_predictor.predictors.registry import DEFAULT_PREDICTOR, load_predictor
 
 NOISE = 0.002  # rad: a person never repeats a pose to the bit
@@ -189,15 +190,15 @@ def test_a_default_saved_before_the_switch_loads_with_what_it_learned(tmp_path):
 
 def test_the_defaults_loader_refuses_other_models_and_broken_former_layouts(tmp_path):
     """Another predictor's checkpoint is a kind mismatch (the node tells the user to fix `predictor`); a
-    former layout with a field missing is a CheckpointError naming the file, never a KeyError."""
-    from gwr_predictor.learning.checkpoint import CheckpointError
+    former layout with a field missing is a LearningError naming the file, never a KeyError."""
+    from gwr_predictor.learning.errors import LearningError
     from gwr_predictor.learning.hierarchy import Hierarchy
     from gwr_predictor.predictors.registry import make_predictor
 
     make_predictor("gated_llm_gwr").save(tmp_path / "network.npz")
     Hierarchy().save(tmp_path / "hierarchy.npz")
     for name, found in (("network.npz", "LocalLinearPredictor"), ("hierarchy.npz", "Hierarchy")):
-        with pytest.raises(CheckpointError) as refused:
+        with pytest.raises(LearningError) as refused:
             load_predictor(DEFAULT_PREDICTOR, tmp_path / name)
         assert refused.value.kind_mismatch and refused.value.found == found
     made = make_default(settings=ONE_GATE)
@@ -207,7 +208,7 @@ def test_the_defaults_loader_refuses_other_models_and_broken_former_layouts(tmp_
     header, arrays = read_checkpoint(tmp_path / "round5.npz", GatedPredictor.kind)
     del header["model"]["recognised"]
     write_checkpoint(tmp_path / "broken.npz", GatedPredictor.kind, header, arrays)
-    with pytest.raises(CheckpointError, match=r"broken\.npz") as broken:
+    with pytest.raises(LearningError, match=r"broken\.npz") as broken:
         load_predictor(DEFAULT_PREDICTOR, tmp_path / "broken.npz")
     assert not broken.value.kind_mismatch
 
@@ -345,5 +346,5 @@ def test_the_record_weights_survive_a_checkpoint_and_older_files_weigh_every_pre
     np.testing.assert_array_equal(older.ungated.record_weight, np.ones(6))
     header["ungated"]["record_weight"] = [0.5, "x", 1, 1, 1, 1]
     write_checkpoint(tmp_path / "bad.npz", RecognitionSwitch.kind, header, arrays)
-    with pytest.raises(CheckpointError, match="record_weight"):
+    with pytest.raises(LearningError, match="record_weight"):
         load_predictor(DEFAULT_PREDICTOR, tmp_path / "bad.npz")

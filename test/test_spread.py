@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from gwr_predictor.default_predictor import Spread, SpreadParams, WithSpread, make_default
-from gwr_predictor.default_predictor.params import DefaultPredictorError
+from gwr_predictor.default_predictor.errors import DefaultPredictorError
 from gwr_predictor.evaluation.metrics import IntervalStats, future_windows, interval_stats
 from gwr_predictor.evaluation.online import compare_online
 from gwr_predictor.learning.checkpoint import read_checkpoint, write_checkpoint

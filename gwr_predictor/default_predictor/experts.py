@@ -28,10 +28,10 @@ from typing import Any, ClassVar
 
 import numpy as np
 
+from gwr_predictor.default_predictor.errors import DefaultPredictorError
 from gwr_predictor.default_predictor.gate import GateBank, inner_model
 from gwr_predictor.default_predictor.memory import TrajectoryMemory
-from gwr_predictor.default_predictor.params import DefaultPredictorError
-from gwr_predictor.learning.checkpoint import CheckpointError
+from gwr_predictor.learning.errors import LearningError
 from gwr_predictor.learning.params import DEFAULT_HORIZON, MAX_HORIZON
 from gwr_predictor.learning.pending import PendingPredictions
 from gwr_predictor.learning.persistence import Checkpointed, Persist, params_from_json, sub
@@ -253,9 +253,9 @@ class Experts(Checkpointed):
         try:
             weights = np.array(saved, dtype=float)
         except (TypeError, ValueError) as exc:
-            raise CheckpointError(f"record_weight must be {self.params.horizon} numbers") from exc
+            raise LearningError(f"record_weight must be {self.params.horizon} numbers") from exc
         if weights.shape != self.record_weight.shape or not ((weights >= 0.0) & (weights <= 1.0)).all():
-            raise CheckpointError(f"record_weight must be {self.params.horizon} numbers in [0, 1]")
+            raise LearningError(f"record_weight must be {self.params.horizon} numbers in [0, 1]")
         self.record_weight[...] = weights
 
     @classmethod
@@ -264,7 +264,7 @@ class Experts(Checkpointed):
 
         kinds = header["member_kinds"]
         if not isinstance(kinds, dict) or not kinds:
-            raise CheckpointError("member_kinds must name every member's kind")
+            raise LearningError("member_kinds must name every member's kind")
         members = {name: fresh_of_kind(kind, header["members"][name]) for name, kind in kinds.items()}
         return cls(members, params_from_json(ExpertsParams, header["params"]))
 

@@ -42,8 +42,8 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from gwr_predictor.default_predictor.params import DefaultPredictorError
-from gwr_predictor.learning.checkpoint import CheckpointError
+from gwr_predictor.default_predictor.errors import DefaultPredictorError
+from gwr_predictor.learning.errors import LearningError
 from gwr_predictor.learning.params import DEFAULT_HORIZON, MAX_HORIZON
 from gwr_predictor.learning.persistence import Checkpointed, Persist, params_from_json, require_finite
 from gwr_predictor.parameters.spec import ParamSpec, check_fields
@@ -420,8 +420,8 @@ class TrajectoryMemory(Checkpointed):
         keys, futures = np.asarray(arrays["keys"]), np.asarray(arrays["futures"])
         if not 0 <= n <= p.capacity or keys.shape != (n, self.keys.shape[1]) or \
                 futures.shape != (n, *self.futures.shape[1:]):
-            raise CheckpointError(f"snippets of shapes {keys.shape}, {futures.shape} do not fit size {n} and the "
-                                  f"parameters (keys {self.keys.shape[1]}-d, futures {self.futures.shape[1:]})")
+            raise LearningError(f"snippets of shapes {keys.shape}, {futures.shape} do not fit size {n} and the "
+                                f"parameters (keys {self.keys.shape[1]}-d, futures {self.futures.shape[1:]})")
         require_finite(keys, "keys")
         require_finite(futures, "futures")
         self.keys[:n] = keys
@@ -429,9 +429,9 @@ class TrajectoryMemory(Checkpointed):
         self._weigh(slice(0, n))
         used, still = np.asarray(arrays["used"]), np.asarray(arrays["still"])
         if used.shape != (n,) or used.dtype.kind not in "iu" or (used < 0).any() or (used > self.clock).any():
-            raise CheckpointError(f"snippet use times of shape {used.shape} do not fit size {n} and clock "
-                                  f"{self.clock}")
+            raise LearningError(f"snippet use times of shape {used.shape} do not fit size {n} and clock "
+                                f"{self.clock}")
         self.used[:n] = used
         if still.shape != (n,) or still.dtype != bool:
-            raise CheckpointError(f"snippet still flags of shape {still.shape} ({still.dtype}) do not fit size {n}")
+            raise LearningError(f"snippet still flags of shape {still.shape} ({still.dtype}) do not fit size {n}")
         self.still[:n] = still

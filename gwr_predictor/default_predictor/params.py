@@ -6,19 +6,9 @@ import dataclasses
 from dataclasses import dataclass, field
 from typing import Any
 
-from gwr_predictor.errors import GwrPredictorError
+from gwr_predictor.default_predictor.errors import DefaultPredictorError
 from gwr_predictor.learning.params import DEFAULT_HORIZON, MAX_HORIZON, GWRParams
 from gwr_predictor.parameters.spec import ParamSpec, check_fields
-
-
-class DefaultPredictorError(GwrPredictorError, ValueError):
-    """The default predictor's one error: invalid parameters (of the network, the read-outs or the gate),
-    state that does not fit them, or a wrapped model's output of the wrong shape."""
-
-
-#: The same class under the network's name.
-LocalLinearError = DefaultPredictorError
-
 
 #: The default network's bound (neurons): each holds a local linear model of 48 x 48 values (18 kB), so
 #: 1,000 of them are 18 MB of memory and of checkpoint. Chosen by measurement (docs/tuning.md: cost at
@@ -107,10 +97,10 @@ class LocalLinearParams:
     def __post_init__(self) -> None:
         check_fields(self, LOCAL_LINEAR_SPECS.values(), DefaultPredictorError)
         if not isinstance(self.gwr, GWRParams):
-            raise LocalLinearError(f"LocalLinearParams.gwr must be GWRParams, got {type(self.gwr).__name__}")
+            raise DefaultPredictorError(f"LocalLinearParams.gwr must be GWRParams, got {type(self.gwr).__name__}")
         if self.global_order > self.order:
-            raise LocalLinearError(f"LocalLinearParams.global_order {self.global_order} exceeds the regressor's "
-                                   f"{self.order} frames")
+            raise DefaultPredictorError(f"LocalLinearParams.global_order {self.global_order} exceeds the "
+                                        f"regressor's {self.order} frames")
 
     def replace(self, **changes: Any) -> LocalLinearParams:
         return dataclasses.replace(self, **changes)

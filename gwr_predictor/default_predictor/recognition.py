@@ -44,11 +44,11 @@ from typing import Any, ClassVar
 
 import numpy as np
 
+from gwr_predictor.default_predictor.errors import DefaultPredictorError
 from gwr_predictor.default_predictor.experts import Experts
 from gwr_predictor.default_predictor.gate import GatedPredictor, GateParams
-from gwr_predictor.default_predictor.params import DefaultPredictorError
 from gwr_predictor.default_predictor.spread import Spread, SpreadParams, spread_params
-from gwr_predictor.learning.checkpoint import CheckpointError
+from gwr_predictor.learning.errors import LearningError
 from gwr_predictor.learning.persistence import Checkpointed, Persist, params_from_json, sub
 from gwr_predictor.parameters.spec import ParamSpec, check_fields
 
@@ -269,7 +269,7 @@ class RecognitionSwitch(Checkpointed):
     def _fresh(cls, header: Mapping[str, Any]) -> RecognitionSwitch:
         experts, gate = header.get("experts"), header.get("gate")
         if not isinstance(experts, dict) or not isinstance(gate, dict):
-            raise CheckpointError("a recognition switch's checkpoint must hold its experts and its last gate")
+            raise LearningError("a recognition switch's checkpoint must hold its experts and its last gate")
         # the views are linked to these gates and weightings, which restore their state in place
         gate_params = params_from_json(GateParams, gate["params"])
         return cls(Experts._fresh(experts), params_from_json(RecognitionParams, header["params"], before=BEFORE),
@@ -289,7 +289,7 @@ class RecognitionSwitch(Checkpointed):
             experts_header, experts_arrays = inner, inner_arrays
             params = params_from_json(RecognitionParams, {}, before=BEFORE)
         else:
-            raise CheckpointError(f"a gate around a {kind!r}, not the default's experts")
+            raise LearningError(f"a gate around a {kind!r}, not the default's experts")
         gate = params_from_json(GateParams, header["params"])
         switch = cls(Experts._fresh(experts_header), params, gate)
         switch.experts._restored(experts_header, experts_arrays, "model.experts.")

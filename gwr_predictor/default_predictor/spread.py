@@ -39,7 +39,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from gwr_predictor.default_predictor.params import DefaultPredictorError
+from gwr_predictor.default_predictor.errors import DefaultPredictorError
 from gwr_predictor.learning.params import DEFAULT_HORIZON, MAX_HORIZON
 from gwr_predictor.learning.pending import PendingPredictions
 from gwr_predictor.learning.persistence import Checkpointed, Persist, params_from_json

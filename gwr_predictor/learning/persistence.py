@@ -28,13 +28,8 @@ from typing import Any, ClassVar, NoReturn, TypeVar
 import numpy as np
 
 from gwr_predictor.errors import GwrPredictorError
-from gwr_predictor.learning.checkpoint import (
-    CheckpointError,
-    raise_state_error,
-    read_checkpoint,
-    require_arrays,
-    write_checkpoint,
-)
+from gwr_predictor.learning.checkpoint import raise_state_error, read_checkpoint, require_arrays, write_checkpoint
+from gwr_predictor.learning.errors import LearningError
 
 Header = dict[str, Any]
 Arrays = dict[str, np.ndarray]
@@ -124,7 +119,7 @@ class Persistent:
         for a in decl.values:
             value = like(getattr(self, a), field_of(header, key(a), where), where + key(a))
             if isinstance(value, float) and a not in decl.nan_ok and not np.isfinite(value):
-                raise CheckpointError(f"value {where + key(a)!r} is {value}: the file is corrupt")
+                raise LearningError(f"value {where + key(a)!r} is {value}: the file is corrupt")
             setattr(self, a, value)
         for a in decl.arrays:
             copy_into(getattr(self, a), arrays[key(a)], where + key(a))
@@ -168,8 +163,8 @@ class Checkpointed(Persistent):
     __slots__ = ()
     kind: ClassVar[str]
     PARAMS: ClassVar[type]
-    #: what a state that does not fit its class raises (the file's problem: CheckpointError)
-    STATE_ERROR: ClassVar[type[GwrPredictorError]] = CheckpointError
+    #: what a state that does not fit its class raises (the file's problem: LearningError)
+    STATE_ERROR: ClassVar[type[GwrPredictorError]] = LearningError
     params: Any
 
     @classmethod
@@ -190,7 +185,7 @@ class Checkpointed(Persistent):
     def from_state(cls: type[_C], header: Mapping[str, Any], arrays: Mapping[str, np.ndarray],
                    source: str | os.PathLike[str] = "<state>") -> _C:
         """The model of a `state()`; STATE_ERROR naming `source` and the field if anything does not fit
-        the saved parameters (CheckpointError if arrays are missing)."""
+        the saved parameters (LearningError if arrays are missing)."""
         try:
             model = cls._fresh(header)
             absent = model._absent(header)  # members added since the file was written: they stay fresh
@@ -208,13 +203,13 @@ class Checkpointed(Persistent):
         raise_state_error(exc, source, "inconsistent checkpoint content", cls.STATE_ERROR)
 
     def save(self, path: str | os.PathLike[str]) -> None:
-        """Write the whole state atomically (CheckpointError on failure)."""
+        """Write the whole state atomically (LearningError on failure)."""
         header, arrays = self.state()
         write_checkpoint(path, self.kind, header, arrays)
 
     @classmethod
     def load(cls: type[_C], path: str | os.PathLike[str]) -> _C:
-        """A model saved by `save`, continuing where it stopped; CheckpointError naming the file otherwise."""
+        """A model saved by `save`, continuing where it stopped; LearningError naming the file otherwise."""
         header, arrays = read_checkpoint(path, cls.kind)
         return cls.from_state(header, arrays, path)
 
@@ -232,7 +227,7 @@ def params_from_json(cls: type, data: Any, before: Mapping[str, Any] | None = No
     """Inverse of `params_to_json`; the class's own checks raise on bad values. `before`: the values of
     settings added since, which a file written without them was learned with (not today's defaults)."""
     if not isinstance(data, dict):
-        raise CheckpointError(f"params must be a JSON object, got {type(data).__name__}")
+        raise LearningError(f"params must be a JSON object, got {type(data).__name__}")
     if before:
         data = {**before, **data}
     for method in ("from_dict", "from_flat"):
@@ -242,35 +237,35 @@ def params_from_json(cls: type, data: Any, before: Mapping[str, Any] | None = No
 
 
 def like(current: Any, value: Any, name: str) -> Any:
-    """The saved `value` as the type the fresh object holds (`current`); CheckpointError naming it if not one."""
+    """The saved `value` as the type the fresh object holds (`current`); LearningError naming it if not one."""
     if isinstance(current, dict):
         if not isinstance(value, dict) or value.keys() != current.keys():
-            raise CheckpointError(f"value {name!r} must have the keys {sorted(current)}, got {value!r}"[:300])
+            raise LearningError(f"value {name!r} must have the keys {sorted(current)}, got {value!r}"[:300])
         return {k: like(current[k], value[k], f"{name}.{k}") for k in current}
     numeric = (int, float, np.integer, np.floating)
     if isinstance(current, bool) or not isinstance(current, numeric):
         if type(value) is not type(current):
-            raise CheckpointError(f"value {name!r} must be a {type(current).__name__}, got {value!r}"[:300])
+            raise LearningError(f"value {name!r} must be a {type(current).__name__}, got {value!r}"[:300])
         return value
     if isinstance(value, bool) or not isinstance(value, (int, float)):
-        raise CheckpointError(f"value {name!r} must be a number, got {value!r}"[:300])
+        raise LearningError(f"value {name!r} must be a number, got {value!r}"[:300])
     return type(current)(value)
 
 
 def copy_into(dest: np.ndarray, src: np.ndarray, name: str) -> None:
-    """`src` into `dest` (a checkpoint's array into the fresh learner's), or CheckpointError naming it."""
+    """`src` into `dest` (a checkpoint's array into the fresh learner's), or LearningError naming it."""
     src = np.asarray(src)
     if src.shape != dest.shape:
-        raise CheckpointError(f"array {name!r} has shape {src.shape}, expected {dest.shape}")
+        raise LearningError(f"array {name!r} has shape {src.shape}, expected {dest.shape}")
     if not np.can_cast(src.dtype, dest.dtype, "same_kind"):
-        raise CheckpointError(f"array {name!r} is {src.dtype}, expected {dest.dtype}")
+        raise LearningError(f"array {name!r} is {src.dtype}, expected {dest.dtype}")
     dest[...] = src
 
 
 def require_finite(array: np.ndarray, name: str) -> None:
-    """CheckpointError naming `name` if a float `array` holds NaN or inf."""
+    """LearningError naming `name` if a float `array` holds NaN or inf."""
     if array.dtype.kind in "fc" and not np.isfinite(array).all():
-        raise CheckpointError(f"array {name!r} holds non-finite values (NaN or inf): the file is corrupt")
+        raise LearningError(f"array {name!r} holds non-finite values (NaN or inf): the file is corrupt")
 
 
 def stack_queue(queue: deque[np.ndarray | None], row_shape: tuple[int, ...]) -> tuple[list[bool], np.ndarray]:
@@ -284,28 +279,28 @@ def stack_queue(queue: deque[np.ndarray | None], row_shape: tuple[int, ...]) -> 
 
 def fill_queue(queue: deque[np.ndarray | None], present: Any, rows: np.ndarray, row_shape: tuple[int, ...],
                name: str) -> None:
-    """Append the saved rows to the (empty) queue; CheckpointError naming it if they do not fit."""
+    """Append the saved rows to the (empty) queue; LearningError naming it if they do not fit."""
     rows = np.asarray(rows)
     if not isinstance(present, list) or not all(isinstance(p, bool) for p in present):
-        raise CheckpointError(f"{name}_present must be a list of booleans")
+        raise LearningError(f"{name}_present must be a list of booleans")
     if rows.shape != (len(present), *row_shape) or (queue.maxlen is not None and len(present) > queue.maxlen):
-        raise CheckpointError(f"queue {name!r} of shape {rows.shape} does not fit rows {row_shape} "
-                         f"(at most {queue.maxlen}, {len(present)} flags)")
+        raise LearningError(f"queue {name!r} of shape {rows.shape} does not fit rows {row_shape} "
+                            f"(at most {queue.maxlen}, {len(present)} flags)")
     if not np.can_cast(rows.dtype, float, "same_kind"):
-        raise CheckpointError(f"queue {name!r} is {rows.dtype}, expected float")
+        raise LearningError(f"queue {name!r} is {rows.dtype}, expected float")
     require_finite(rows[np.asarray(present, dtype=bool)], name)
     queue.extend(np.array(row, dtype=float) if flag else None for flag, row in zip(present, rows, strict=True))
 
 
 def field_of(header: Mapping[str, Any], name: str, where: str) -> Any:
-    """header[name], or CheckpointError naming the field (with its member's prefix) if it is not there."""
+    """header[name], or LearningError naming the field (with its member's prefix) if it is not there."""
     if not isinstance(header, Mapping) or name not in header:
-        raise CheckpointError(f"missing value {where + name!r}")
+        raise LearningError(f"missing value {where + name!r}")
     return header[name]
 
 
 def _merge(into: dict[str, Any], more: Mapping[str, Any], owner: str) -> None:
     clash = into.keys() & more.keys()
     if clash:
-        raise CheckpointError(f"{owner}: names {sorted(clash)} are saved twice")
+        raise LearningError(f"{owner}: names {sorted(clash)} are saved twice")
     into.update(more)

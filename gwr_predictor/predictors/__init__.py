@@ -14,8 +14,7 @@ _EXPORTS = {
     "load_predictor": "registry",
     "register": "registry",
     "learner_names": "registry",
-    "PredictorError": "registry",
-    "UnknownPredictorError": "registry",
+    "PredictorError": "errors",
 }
 __all__ = sorted(_EXPORTS)
 __getattr__, __dir__ = lazy_exports(__name__, _EXPORTS)

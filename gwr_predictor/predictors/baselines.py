@@ -20,14 +20,10 @@ import numpy as np
 from gwr_predictor.learning.online_loop import frame_or_none
 from gwr_predictor.learning.persistence import Checkpointed, Persist, params_from_json
 from gwr_predictor.pipeline.conventions import DEFAULT_HORIZON
-from gwr_predictor.predictors.registry import PredictorError
+from gwr_predictor.predictors.errors import PredictorError
 from gwr_predictor.robot.nao import ARM_JOINTS
 
 N_JOINTS = len(ARM_JOINTS)
-
-
-#: The same class under the baselines' name.
-BaselineError = PredictorError
 
 
 def observation(x: np.ndarray | None, joints: int = N_JOINTS) -> np.ndarray | None:

@@ -34,11 +34,7 @@ from gwr_predictor.learning.rls import RecursiveLeastSquares, window_features
 from gwr_predictor.parameters.spec import ParamSpec, check_fields
 from gwr_predictor.pipeline.conventions import DEFAULT_HORIZON, MAX_HORIZON
 from gwr_predictor.predictors.baselines import N_JOINTS, observation
-from gwr_predictor.predictors.registry import PredictorError
-
-#: The same class under the direct-linear model's name.
-DirectLinearError = PredictorError
-
+from gwr_predictor.predictors.errors import PredictorError
 
 _SPECS = {spec.name: spec for spec in (
     ParamSpec("order", 2, "frames the features span (order - 1 frame-to-frame changes + the newest pose)", 1, 64),

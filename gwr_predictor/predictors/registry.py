@@ -24,6 +24,7 @@ from typing import Any
 from gwr_predictor.errors import GwrPredictorError
 from gwr_predictor.learning.protocol import Predictor
 from gwr_predictor.parameters.spec import ParamSpec
+from gwr_predictor.predictors.errors import PredictorError
 
 #: (settings, seed) -> a fresh predictor; settings are None (the defaults), a flat mapping of the
 #: predictor's own parameters (`Entry.settings()`, plus `horizon` and `n_joints`) or, for the
@@ -31,15 +32,6 @@ from gwr_predictor.parameters.spec import ParamSpec
 Factory = Callable[[Any, int], Predictor]
 #: checkpoint path -> the saved predictor (a CheckpointError with `kind_mismatch` if the file holds another).
 Loader = Callable[[str | os.PathLike[str]], Predictor]
-
-
-class PredictorError(GwrPredictorError, ValueError):
-    """The predictors' one error: a name that is not registered (the message lists the registered
-    ones), a setting out of its range, an input or a saved state that does not fit."""
-
-
-#: The same class under the name a lookup of an unregistered name raises.
-UnknownPredictorError = PredictorError
 
 
 #: () -> the predictor's own parameters, flat (imports deferred like the factories').
