@@ -85,6 +85,11 @@ def npy_declaring_a_terabyte(path) -> None:
     _zip(path, {HEADER_KEY: _header_member(GOOD_HEADER), "xbuf": buf.getvalue() + bytes(80)})
 
 
+def npy_header_unreadable(path) -> None:
+    """A member that is no npy array: its header is not even there."""
+    _zip(path, {HEADER_KEY: _header_member(GOOD_HEADER), "xbuf": b"not an array at all"})
+
+
 def header_declaring_too_much(path) -> None:
     """The header member itself declares far more bytes than it holds."""
     buf = io.BytesIO()
@@ -113,7 +118,8 @@ def default_with_a_nan(path) -> None:
 
 
 CORRUPTIONS = {"deflated_bad_bits": deflated_bad_bits, "nested_header": deeply_nested_header,
-               "npy_terabyte": npy_declaring_a_terabyte, "header_terabyte": header_declaring_too_much}
+               "npy_terabyte": npy_declaring_a_terabyte, "npy_unreadable": npy_header_unreadable,
+               "header_terabyte": header_declaring_too_much}
 
 
 @pytest.mark.parametrize("corrupt", CORRUPTIONS.values(), ids=CORRUPTIONS.keys())
@@ -121,8 +127,9 @@ def test_every_unreadable_checkpoint_is_a_checkpoint_error(tmp_path, corrupt):
     path = tmp_path / "model.npz"
     corrupt(path)
     assert looks_like_checkpoint(path)  # begins like ours: the learner would move it aside
-    with pytest.raises(LearningError, match=r"model\.npz: "):
+    with pytest.raises(LearningError, match=r"model\.npz: ") as refused:
         read_checkpoint(path, "Hierarchy")
+    assert refused.value.source == path
     with pytest.raises(LearningError, match=r"model\.npz: "):
         Hierarchy.load(path)
 

@@ -262,7 +262,10 @@ def _check_member(zf: zipfile.ZipFile, info: zipfile.ZipInfo, path: Path) -> tup
         raise LearningError(f"{path}: member {info.filename!r} is not an array: not a gwr_predictor checkpoint",
                             source=path)
     with zf.open(info) as f:
-        shape, dtype, header_len = npy_header(f)
+        try:
+            shape, dtype, header_len = npy_header(f, LearningError)
+        except LearningError as exc:
+            raise LearningError(f"{path}: member {info.filename!r}: {exc}", source=path) from None
     declared = int(np.prod(shape, dtype=object)) * dtype.itemsize
     stored = info.file_size - header_len
     if dtype.hasobject or declared != stored:
