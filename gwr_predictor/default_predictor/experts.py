@@ -246,10 +246,7 @@ class Experts(Checkpointed):
 
     # --- persistence: the members by name and kind (the weighting's own state is declared above) -----
     def _load_record_weight(self, saved: Any) -> None:
-        """The saved weights of the pending predictions (None, in a file written before predictions were
-        weighed: every one 1, as it was learned)."""
-        if saved is None:
-            return
+        """The saved weights of the pending predictions."""
         try:
             weights = np.array(saved, dtype=float)
         except (TypeError, ValueError) as exc:
@@ -281,7 +278,7 @@ class Experts(Checkpointed):
         return header, arrays
 
     def _load_extra(self, header: Mapping[str, Any], arrays: Mapping[str, np.ndarray]) -> None:
-        self._load_record_weight(header.get("record_weight"))
+        self._load_record_weight(header["record_weight"])
         for name, member in self.members.items():
             saved = header["members"][name]
             self.members[name] = member._restored(saved, sub(arrays, f"member.{name}"), f"members.{name}.")

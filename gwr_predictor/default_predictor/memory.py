@@ -45,14 +45,10 @@ import numpy as np
 from gwr_predictor.default_predictor.errors import DefaultPredictorError
 from gwr_predictor.learning.errors import LearningError
 from gwr_predictor.learning.params import DEFAULT_HORIZON, MAX_HORIZON
-from gwr_predictor.learning.persistence import Checkpointed, Persist, params_from_json, require_finite
+from gwr_predictor.learning.persistence import Checkpointed, Persist, require_finite
 from gwr_predictor.parameters.spec import ParamSpec, check_fields
 from gwr_predictor.predictors.baselines import observation
 
-#: `longest_lag` of a memory saved before it was a setting (its key held the changes over 1, 2 and 4 frames).
-SAVED_LONGEST_LAG = 4
-#: The settings a memory saved before they existed was read out with: its key's lags, and no fit (`fit_k` 0).
-BEFORE = {"longest_lag": SAVED_LONGEST_LAG, "fit_k": 0}
 #: The fewest frames stored after a key with `future` 0: the tuned default's at its horizon of 6 (where the
 #: fastest read-out needs 10).
 SHORTEST_FUTURE = 12
@@ -404,10 +400,6 @@ class TrajectoryMemory(Checkpointed):
 
     def errors(self) -> dict[str, Any]:
         return {"snippets": self.size, "snippets_replaced": self.replaced, "motion_rms_rad": self.motion_rms}
-
-    @classmethod
-    def _fresh(cls, header: Mapping[str, Any]) -> TrajectoryMemory:
-        return cls(params_from_json(MemoryParams, header["params"], before=BEFORE))
 
     # --- persistence: the stored snippets (as many as there are; the rest is declared above) ---------
     def _save_extra(self) -> tuple[dict[str, Any], dict[str, np.ndarray]]:

@@ -47,17 +47,13 @@ import numpy as np
 from gwr_predictor.default_predictor.errors import DefaultPredictorError
 from gwr_predictor.default_predictor.experts import Experts
 from gwr_predictor.default_predictor.gate import GatedPredictor, GateParams
-from gwr_predictor.default_predictor.spread import Spread, SpreadParams, spread_params
+from gwr_predictor.default_predictor.spread import Spread, SpreadParams
 from gwr_predictor.learning.errors import LearningError
-from gwr_predictor.learning.persistence import Checkpointed, Persist, params_from_json, sub
+from gwr_predictor.learning.persistence import Checkpointed, Persist, params_from_json
 from gwr_predictor.parameters.spec import ParamSpec, check_fields
 
 #: The member whose memory judges recognition.
 MEMORY = "memory"
-#: The settings a switch saved before they existed was learned with: `onset_trust` (it lent nothing),
-#: `outside_weight` (its ungated weighting's record weighed every prediction alike) and `power` (the
-#: ungated weighting's was the experts').
-BEFORE = {"onset_trust": 0.0, "outside_weight": 1.0, "power": 0.0}
 
 RECOGNITION_SPECS = {spec.name: spec for spec in (
     ParamSpec("radius", 3.0, "the motion is recognised when the memory's nearest stored key is within this x the "
@@ -137,8 +133,7 @@ class RecognitionSwitch(Checkpointed):
     kind: ClassVar[str] = "RecognitionSwitch"
     PARAMS = RecognitionParams
     PERSIST = Persist(values=("recognised",), members={"experts": "experts", "ungated": "ungated", "gate": "gate",
-                                                       "ungated_gate": "ungated_gate", "spread": "spread"},
-                      added=("spread",))  # a file saved before the spread existed: it starts fresh
+                                                       "ungated_gate": "ungated_gate", "spread": "spread"})
 
     def __init__(self, experts: Experts, params: RecognitionParams | None = None,
                  gate: GateParams | None = None, spread: SpreadParams | None = None) -> None:
@@ -263,7 +258,7 @@ class RecognitionSwitch(Checkpointed):
         return {"onset": self.onset}, {}
 
     def _load_extra(self, header: Mapping[str, Any], arrays: Mapping[str, np.ndarray]) -> None:
-        self.onset = int(header.get("onset", 0))  # saved before `onset_trust` existed: none
+        self.onset = int(header["onset"])
 
     @classmethod
     def _fresh(cls, header: Mapping[str, Any]) -> RecognitionSwitch:
@@ -271,31 +266,6 @@ class RecognitionSwitch(Checkpointed):
         if not isinstance(experts, dict) or not isinstance(gate, dict):
             raise LearningError("a recognition switch's checkpoint must hold its experts and its last gate")
         # the views are linked to these gates and weightings, which restore their state in place
-        gate_params = params_from_json(GateParams, gate["params"])
-        return cls(Experts._fresh(experts), params_from_json(RecognitionParams, header["params"], before=BEFORE),
-                   gate_params, spread_params(header.get("spread"), gate_params.horizon, gate_params.joints))
-
-    @classmethod
-    def upgraded(cls, header: Mapping[str, Any], arrays: Mapping[str, np.ndarray]) -> RecognitionSwitch:
-        """The default of a checkpoint written before its last gates moved behind the switch: a
-        `GatedPredictor` around a `RecognitionSwitch` (round 5) or around the gated `Experts` (before it).
-        Everything it learned is kept; its last gate's record becomes the gated weighting's, and the
-        ungated weighting's gate (and, before round 5, its weighting) starts fresh."""
-        inner, inner_arrays, kind = header["model"], sub(arrays, "model"), header.get("model_kind")
-        if kind == cls.kind:
-            experts_header, experts_arrays = inner["experts"], sub(inner_arrays, "experts")
-            params = params_from_json(RecognitionParams, inner["params"], before=BEFORE)
-        elif kind == Experts.kind:
-            experts_header, experts_arrays = inner, inner_arrays
-            params = params_from_json(RecognitionParams, {}, before=BEFORE)
-        else:
-            raise LearningError(f"a gate around a {kind!r}, not the default's experts")
-        gate = params_from_json(GateParams, header["params"])
-        switch = cls(Experts._fresh(experts_header), params, gate)
-        switch.experts._restored(experts_header, experts_arrays, "model.experts.")
-        if kind == cls.kind:
-            switch.ungated._restored(inner["ungated"], sub(inner_arrays, "ungated"), "model.ungated.")
-            switch.recognised = int(inner["recognised"])
-        switch.gate._restored({**header, "model": {}}, {k: v for k, v in arrays.items() if not k.startswith("model.")},
-                              "gate.")
-        return switch
+        return cls(Experts._fresh(experts), params_from_json(RecognitionParams, header["params"]),
+                   params_from_json(GateParams, gate["params"]),
+                   params_from_json(SpreadParams, header["spread"]["params"]))

@@ -268,11 +268,3 @@ class WithSpread(Checkpointed):
 
         return cls(fresh_of_kind(header["model_kind"], header["model"]), params_from_json(SpreadParams,
                                                                                           header["params"]))
-
-
-def spread_params(header: Mapping[str, Any] | None, horizon: int, joints: int) -> SpreadParams:
-    """A saved spread's parameters (`header`: its checkpoint header), or the defaults for a file saved before
-    the spread existed (None)."""
-    if header is None:
-        return SpreadParams(horizon=horizon, joints=joints)
-    return params_from_json(SpreadParams, header["params"])

@@ -45,8 +45,7 @@ class Persist:
     `queues`: attribute -> row shape (of the object) of deques of rows or None. `nan_ok`: arrays (and
     values) where NaN means "none yet"; every other float array, optional array, queue row and float
     value must be finite, since a learner never holds NaN or inf there and one such value would spread
-    through everything it computes after (a corrupt file is refused, not learned from). `added`: names of
-    members added after files were written without them; such a file loads with the member fresh."""
+    through everything it computes after (a corrupt file is refused, not learned from)."""
 
     arrays: tuple[str, ...] = ()
     values: tuple[str, ...] = ()
@@ -54,16 +53,15 @@ class Persist:
     members: Mapping[str, str] = field(default_factory=dict)
     queues: Mapping[str, Callable[[Any], tuple[int, ...]]] = field(default_factory=dict)
     nan_ok: tuple[str, ...] = ()
-    added: tuple[str, ...] = ()
 
     def extend(self, arrays: tuple[str, ...] = (), values: tuple[str, ...] = (), optional: tuple[str, ...] = (),
                members: Mapping[str, str] | None = None,
                queues: Mapping[str, Callable[[Any], tuple[int, ...]]] | None = None,
-               nan_ok: tuple[str, ...] = (), added: tuple[str, ...] = ()) -> Persist:
+               nan_ok: tuple[str, ...] = ()) -> Persist:
         """This declaration plus a subclass's fields."""
         return Persist(self.arrays + arrays, self.values + values, self.optional + optional,
                        {**self.members, **(members or {})}, {**self.queues, **(queues or {})},
-                       self.nan_ok + nan_ok, self.added + added)
+                       self.nan_ok + nan_ok)
 
 
 def key(attr: str) -> str:
@@ -135,25 +133,12 @@ class Persistent:
             fill_queue(getattr(self, attr), present, arrays[key(attr)], row_shape(self), where + key(attr))
         for attr, name in decl.members.items():
             member = getattr(self, attr)
-            if member is not None and not (name in decl.added and name not in header):  # absent: stays fresh
+            if member is not None:
                 prefix = f"{where}{name}." if name else where
                 saved = field_of(header, name, where) if name else header
                 setattr(self, attr, member._restored(saved, sub(arrays, name), prefix))
         self._load_extra(header, arrays)
         return self
-
-    def _absent(self, header: Mapping[str, Any], prefix: str = "") -> tuple[str, ...]:
-        """The array-name prefixes of the `added` members (at any depth) that `header` was written without."""
-        out: list[str] = []
-        for attr, name in self.PERSIST.members.items():
-            member = getattr(self, attr)
-            if member is None or not name:
-                continue
-            if name in self.PERSIST.added and name not in header:
-                out.append(f"{prefix}{name}.")
-            elif isinstance(header.get(name), Mapping):
-                out.extend(member._absent(header[name], f"{prefix}{name}."))
-        return tuple(out)
 
 
 class Checkpointed(Persistent):
@@ -188,8 +173,7 @@ class Checkpointed(Persistent):
         the saved parameters (LearningError if arrays are missing)."""
         try:
             model = cls._fresh(header)
-            absent = model._absent(header)  # members added since the file was written: they stay fresh
-            expected = [k for k in model._capture()[1] if not k.startswith(absent)]
+            expected = list(model._capture()[1])
         except (KeyError, ValueError, TypeError, IndexError, GwrPredictorError) as exc:
             cls._inconsistent(source, exc)
         require_arrays(expected, arrays, source)
@@ -223,13 +207,10 @@ def params_to_json(params: Any) -> dict[str, Any]:
     return dataclasses.asdict(params)
 
 
-def params_from_json(cls: type, data: Any, before: Mapping[str, Any] | None = None) -> Any:
-    """Inverse of `params_to_json`; the class's own checks raise on bad values. `before`: the values of
-    settings added since, which a file written without them was learned with (not today's defaults)."""
+def params_from_json(cls: type, data: Any) -> Any:
+    """Inverse of `params_to_json`; the class's own checks raise on bad values."""
     if not isinstance(data, dict):
         raise LearningError(f"params must be a JSON object, got {type(data).__name__}")
-    if before:
-        data = {**before, **data}
     for method in ("from_dict", "from_flat"):
         if callable(getattr(cls, method, None)):
             return getattr(cls, method)(data)
