@@ -19,7 +19,7 @@ the motion is familiar (`familiarity` at most `fit_radius`), `fit_k` neighbours 
 futures fitted as a linear function of their keys' offsets from the present key (locally weighted ridge
 regression), read at the present key: the performances stored around the present one (a little larger,
 a little faster) are interpolated between instead of averaged, which on repeated real movements
-anticipates better than the mean of the nearest (round 11 of `docs/tuning.md`); elsewhere, the `k`
+anticipates better than the mean of the nearest (on the tuning set, research/tuning.md); elsewhere, the `k`
 nearest are averaged, since a line fitted far from every neighbour extrapolates. A
 stored key identical to the present one is skipped: a person never repeats a pose to the bit, so it
 is the same recording replayed (a training epoch), and recalling it would score the memory as

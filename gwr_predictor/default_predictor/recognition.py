@@ -16,15 +16,14 @@ prediction made outside one (a new movement, where every member is new to it, or
 `outside_weight` as much, so the record says how each member anticipates what it knows, and can be
 long (`decay`), while a person met a minute ago still gets a weighting from the first performance;
 on that record the ungated weighting hears its members more evenly than the gated one (`power` 3
-against the experts' 4; round 10 of `docs/tuning.md`; `outside_weight` 1, `decay` 0.98 and
-`power` 0, every prediction alike over a short record weighed as the gated weighting does, the
-default before it).
+against the experts' 4; chosen on the tuning set, research/tuning.md; `outside_weight` 1 weighs every
+prediction alike, `power` 0 weighs the members as the gated weighting does).
 
 Each weighting has its own last gate, which judges it on the frames it is returned on: the gated one
 where the motion is new, the ungated one where it is recognised. One gate over both judged each by the
 other's record: on the second performance of a movement, the ungated weighting was held back by the
 first performance's record of the gated one, which had mostly held the pose (`separate_gates` false:
-that single gate, the default before round 6 of `docs/tuning.md`).
+that single gate).
 
 A k-step prediction is scored k frames after it is made, so at the onset of a recognised movement the
 ungated weighting's gate judges step k by what came before: often a pause in the start pose, where
@@ -32,7 +31,7 @@ the weighting predicted the movement to begin and it did not. With `onset_trust`
 recognised movement (the pose has travelled `onset_travel` x the motion scale over the memory's
 longest lag) and over its first k frames, step k is trusted at least `onset_trust` x step 1, whose
 scores arrive a frame after they are made; from then on each step by its own record (chosen on the
-tuning set, `docs/tuning.md` round 9; 0 lends nothing, the default before it).
+tuning set, research/tuning.md; 0 lends nothing).
 """
 
 from __future__ import annotations

@@ -224,7 +224,7 @@ class RLSAutoregressive(Checkpointed):
 
 #: RLS-AR's settings in every report, chosen by `gwr-predictor experiment tune` on the demonstrator's
 #: tuning recordings (seed 7, in no reported figure), with the same split and grid size as the default
-#: predictor's (docs/results/tune): order 12, no forgetting.
+#: predictor's (research/results/tune): order 12, no forgetting.
 TUNED_RLS = RLSParams(order=12, forgetting=1.0)
 
 

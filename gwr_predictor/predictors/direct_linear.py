@@ -140,5 +140,5 @@ class DirectLinear(Checkpointed):
 
 #: The `linear` baseline's settings in every report, chosen by `gwr-predictor experiment tune` on the
 #: demonstrator's tuning recordings (seed 7, in no reported figure), with the same split and grid size
-#: as the default predictor's (docs/results/tune).
+#: as the default predictor's (research/results/tune).
 TUNED_LINEAR = DirectLinearParams(order=12, forgetting=1.0, delta=1.0)
