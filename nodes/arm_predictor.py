@@ -51,12 +51,12 @@ from gwr_predictor.default_predictor import DefaultPredictor
 from gwr_predictor.default_predictor.gate import GatedPredictor, inner_model
 from gwr_predictor.learning.blas import blas_threads
 from gwr_predictor.learning.checkpoint import (
-    CheckpointError,
     CheckpointLock,
     check_checkpoint_place,
     remove_stale_temp_files,
     set_aside,
 )
+from gwr_predictor.learning.errors import LearningError
 from gwr_predictor.learning.hierarchy import Hierarchy
 from gwr_predictor.learning.params import HIERARCHY_SPECS, HierarchyParams
 from gwr_predictor.learning.protocol import Spreading
@@ -152,7 +152,7 @@ class ArmPredictorNode(PipelineNode):
         try:
             check_checkpoint_place(path)
             lock = CheckpointLock(path)
-        except CheckpointError as exc:
+        except LearningError as exc:
             raise NodeFatalError(f"parameter 'checkpoint': {exc}") from None
         removed = remove_stale_temp_files(path)
         if removed:
@@ -199,12 +199,12 @@ class ArmPredictorNode(PipelineNode):
         try:
             model = load_predictor(self.params["predictor"], path)
         except Exception as exc:  # whatever an unreadable file raises: set it aside, start fresh
-            if isinstance(exc, CheckpointError) and exc.kind_mismatch:  # a sound file of another predictor
+            if isinstance(exc, LearningError) and exc.kind_mismatch:  # a sound file of another predictor
                 raise NodeFatalError(f"checkpoint {path} does not fit parameter predictor="
                                      f"{self.params['predictor']!r} ({exc}); set 'predictor' to match it or use "
                                      "another checkpoint path") from None
-            if not (isinstance(exc, CheckpointError) and exc.source is not None):
-                exc = CheckpointError(f"{path}: not a readable checkpoint: {type(exc).__name__}: {exc}", source=path)
+            if not (isinstance(exc, LearningError) and exc.source is not None):
+                exc = LearningError(f"{path}: not a readable checkpoint: {type(exc).__name__}: {exc}", source=path)
             try:
                 aside = set_aside(path)
             except OSError as move_exc:
@@ -333,7 +333,7 @@ class ArmPredictorNode(PipelineNode):
         self.collect_saves()
         try:
             snapshot_s = self.saver.submit(self.model)
-        except (CheckpointError, MemoryError) as exc:
+        except (LearningError, MemoryError) as exc:
             self.save_failed(exc)
             return
         self.save_times["checkpoint_snapshot_ms"] = 1e3 * snapshot_s
@@ -361,7 +361,7 @@ class ArmPredictorNode(PipelineNode):
             self.collect_saves()
         try:
             self.model.save(self.checkpoint)
-        except (CheckpointError, OSError, MemoryError) as exc:
+        except (LearningError, OSError, MemoryError) as exc:
             self.save_failed(exc)
             return False
         self.counters.count("checkpoint.saved")

@@ -26,7 +26,8 @@ from typing import Any
 import numpy as np
 
 from gwr_predictor.errors import GwrPredictorError
-from gwr_predictor.learning.checkpoint import CheckpointError, raise_state_error, read_checkpoint, write_checkpoint
+from gwr_predictor.learning.checkpoint import raise_state_error, read_checkpoint, write_checkpoint
+from gwr_predictor.learning.errors import LearningError
 from gwr_predictor.learning.pending import PendingPredictions
 from gwr_predictor.learning.protocol import Predictor
 from gwr_predictor.parameters.spec import ParamSpec, check_fields
@@ -192,13 +193,13 @@ class BlendedPredictor:
     _BLEND_ARRAYS = ("sse", "weight", "count")
 
     def save(self, path: str | os.PathLike[str]) -> None:
-        """Write the blend and all its members atomically to one checkpoint (CheckpointError on failure)."""
+        """Write the blend and all its members atomically to one checkpoint (LearningError on failure)."""
         members, arrays = [], {}
         for name, m in self.members.items():
             state = getattr(m, "state", None)
             if not callable(state) or _member_class(getattr(m, "kind", None)) is None:
-                raise CheckpointError(f"{path}: member {name!r} ({type(m).__name__}) cannot be saved: "
-                                      f"supported members are {', '.join(_member_kinds())}", source=path)
+                raise LearningError(f"{path}: member {name!r} ({type(m).__name__}) cannot be saved: "
+                                    f"supported members are {', '.join(_member_kinds())}", source=path)
             header, member_arrays = state()
             members.append({"name": name, "kind": m.kind, "header": header})
             arrays.update({f"{name}:{k}": v for k, v in member_arrays.items()})
@@ -214,7 +215,7 @@ class BlendedPredictor:
 
     @classmethod
     def load(cls, path: str | os.PathLike[str]) -> BlendedPredictor:
-        """A blend written by `save`; continues exactly where it stopped. CheckpointError naming the file
+        """A blend written by `save`; continues exactly where it stopped. LearningError naming the file
         (and the kind it holds) if it is not a readable blend checkpoint."""
         header, arrays = read_checkpoint(path, cls.kind, [f"blend:{a}" for a in cls._BLEND_ARRAYS])
         try:
@@ -225,8 +226,8 @@ class BlendedPredictor:
                 name, kind = entry["name"], entry["kind"]
                 member_cls = _member_class(kind)
                 if member_cls is None:
-                    raise CheckpointError(f"{path}: member {name!r} is a {kind!r}; this build restores "
-                                          f"{', '.join(_member_kinds())}", source=path)
+                    raise LearningError(f"{path}: member {name!r} is a {kind!r}; this build restores "
+                                        f"{', '.join(_member_kinds())}", source=path)
                 prefix = f"{name}:"
                 sub = {k[len(prefix):]: v for k, v in arrays.items() if k.startswith(prefix)}
                 if kind == "RLSAutoregressive":
@@ -251,7 +252,7 @@ class BlendedPredictor:
                         raise ValueError(f"array blend:{a} has shape {arrays[f'blend:{a}'].shape}, "
                                          f"expected {dest.shape}")
                     dest[...] = arrays[f"blend:{a}"]
-        except (KeyError, ValueError, TypeError, IndexError) as exc:  # BlendError, BaselineError are ValueErrors
+        except (KeyError, ValueError, TypeError, IndexError) as exc:  # BlendError, PredictorError are ValueErrors
             raise_state_error(exc, path, "inconsistent blend checkpoint")
         return blend
 
@@ -360,17 +361,15 @@ def make_blend(kind: str = "blend_hierarchy_rls", params: Any = None, seed: int 
 
 
 def load_blend(kind: str, path: str | os.PathLike[str]) -> BlendedPredictor:
-    """The blend `kind` (a `BLENDS` name) saved at `path`; a CheckpointError with `kind_mismatch` if it holds
+    """The blend `kind` (a `BLENDS` name) saved at `path`; a LearningError with `kind_mismatch` if it holds
     other members."""
-    from gwr_predictor.learning.checkpoint import CheckpointError
-
     if kind not in BLENDS:
         raise BlendError(f"unknown blend kind {kind!r}; choose from {', '.join(BLENDS)}")
     model = BlendedPredictor.load(path)
     expected = (BLENDS[kind], "rls")
     if tuple(model.names) != expected:
-        raise CheckpointError(f"{path}: holds a blend of {list(model.names)}, expected one of {list(expected)}",
-                              source=path, found=model.names, expected=kind)
+        raise LearningError(f"{path}: holds a blend of {list(model.names)}, expected one of {list(expected)}",
+                            source=path, found=model.names, expected=kind)
     return model
 
 

@@ -5,13 +5,13 @@ import pytest
 
 from gwr_predictor.evaluation.online import compare_online
 from gwr_predictor.predictors.baselines import (
-    BaselineError,
     ConstantVelocity,
     HoldLast,
     RLSAutoregressive,
     RLSParams,
     make_baselines,
 )
+from gwr_predictor.predictors.errors import PredictorError
 
 
 def _ramp(n=30, joints=8):
@@ -120,16 +120,16 @@ def test_rls_guard_keeps_p_bounded_on_constant_input():
 
 @pytest.mark.parametrize("kwargs", [{"order": 0}, {"forgetting": 1.5}, {"delta": 0.0}, {"prior": "mean"}])
 def test_rls_params_are_validated(kwargs):
-    with pytest.raises(BaselineError):
+    with pytest.raises(PredictorError):
         RLSParams(**kwargs)
 
 
 def test_wrong_sample_shape_is_rejected():
-    with pytest.raises(BaselineError, match="shape"):
+    with pytest.raises(PredictorError, match="shape"):
         HoldLast().step(np.zeros(5))
-    with pytest.raises(BaselineError):
+    with pytest.raises(PredictorError):
         ConstantVelocity(horizon=0)
-    with pytest.raises(BaselineError, match="window"):
+    with pytest.raises(PredictorError, match="window"):
         ConstantVelocity(window=1)
 
 
@@ -145,5 +145,5 @@ def test_rls_state_round_trip_continues_bit_for_bit():
     for x in frames[60:]:
         np.testing.assert_array_equal(a.step(x), b.step(x))
     assert (a.updates_, a.resets_) == (b.updates_, b.resets_)
-    with pytest.raises(BaselineError, match="'p'"):
+    with pytest.raises(PredictorError, match="'p'"):
         RLSAutoregressive.from_state(header, {**arrays, "p": np.eye(2)})

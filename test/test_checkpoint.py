@@ -7,7 +7,8 @@ import numpy as np
 import pytest
 
 from gwr_predictor.learning import checkpoint
-from gwr_predictor.learning.checkpoint import FORMAT_VERSION, MAGIC, CheckpointError, read_checkpoint, write_checkpoint
+from gwr_predictor.learning.checkpoint import FORMAT_VERSION, MAGIC, read_checkpoint, write_checkpoint
+from gwr_predictor.learning.errors import LearningError
 from gwr_predictor.learning.hierarchy import FlatPredictor, Hierarchy
 from gwr_predictor.learning.params import HierarchyParams
 
@@ -66,12 +67,12 @@ def test_layers_are_saved_in_the_gwr_state_format(tmp_path):
             np.testing.assert_array_equal(arrays[f"{name}.{a}"], own[a])
     older = tmp_path / "older.npz"
     write_checkpoint(older, model.kind, {k: v for k, v in header.items() if k != "gwr2"}, arrays)
-    with pytest.raises(CheckpointError, match="missing value 'gwr2'"):
+    with pytest.raises(LearningError, match="missing value 'gwr2'"):
         Hierarchy.load(older)
     header["gwr2"]["match_dim"] -= 1  # a header that contradicts the parameters
     bad = tmp_path / "bad.npz"
     write_checkpoint(bad, model.kind, header, arrays)
-    with pytest.raises(CheckpointError, match=r"layer gwr2 has match_dim"):
+    with pytest.raises(LearningError, match=r"layer gwr2 has match_dim"):
         Hierarchy.load(bad)
 
 
@@ -111,7 +112,7 @@ def test_failed_write_keeps_the_old_file_and_no_temporary(tmp_path, monkeypatch)
         raise OSError(28, "No space left on device")
 
     monkeypatch.setattr(checkpoint.np, "savez", disk_full)
-    with pytest.raises(CheckpointError, match=r"m\.npz.*No space left"):
+    with pytest.raises(LearningError, match=r"m\.npz.*No space left"):
         trained(frames=60).save(path)
     assert os.listdir(tmp_path) == ["m.npz"]
     monkeypatch.undo()
@@ -119,7 +120,7 @@ def test_failed_write_keeps_the_old_file_and_no_temporary(tmp_path, monkeypatch)
 
 
 def test_unwritable_destination_names_the_folder(tmp_path):
-    with pytest.raises(CheckpointError, match="no_such_dir"):
+    with pytest.raises(LearningError, match="no_such_dir"):
         trained(frames=10).save(tmp_path / "no_such_dir" / "m.npz")
 
 
@@ -145,57 +146,57 @@ def saved(tmp_path):
 
 
 def test_missing_file(tmp_path):
-    with pytest.raises(CheckpointError, match=r"nothing\.npz: no such checkpoint"):
+    with pytest.raises(LearningError, match=r"nothing\.npz: no such checkpoint"):
         Hierarchy.load(tmp_path / "nothing.npz")
 
 
 def test_corrupt_file(saved):
     saved.write_bytes(np.random.default_rng(0).bytes(5000))
-    with pytest.raises(CheckpointError, match=r"model\.npz: not a readable checkpoint"):
+    with pytest.raises(LearningError, match=r"model\.npz: not a readable checkpoint"):
         Hierarchy.load(saved)
 
 
 def test_truncated_file(saved):
     saved.write_bytes(saved.read_bytes()[: saved.stat().st_size // 2])
-    with pytest.raises(CheckpointError, match=r"model\.npz: not a readable checkpoint"):
+    with pytest.raises(LearningError, match=r"model\.npz: not a readable checkpoint"):
         Hierarchy.load(saved)
 
 
 def test_npz_that_is_not_a_checkpoint(tmp_path):
     path = tmp_path / "other.npz"
     np.savez(path, a=np.zeros(3))
-    with pytest.raises(CheckpointError, match=r"other\.npz: no '__header__'"):
+    with pytest.raises(LearningError, match=r"other\.npz: no '__header__'"):
         Hierarchy.load(path)
 
 
 def test_other_format_version(saved):
     _rewrite(saved, {"format_version": FORMAT_VERSION + 1})
-    with pytest.raises(CheckpointError, match=rf"format_version {FORMAT_VERSION + 1} is not supported"):
+    with pytest.raises(LearningError, match=rf"format_version {FORMAT_VERSION + 1} is not supported"):
         Hierarchy.load(saved)
 
 
 def test_other_kind(tmp_path):
     path = tmp_path / "flat.npz"
     trained(FlatPredictor, frames=20).save(path)
-    with pytest.raises(CheckpointError, match=r"flat\.npz: holds a 'FlatPredictor', expected a 'Hierarchy'"):
+    with pytest.raises(LearningError, match=r"flat\.npz: holds a 'FlatPredictor', expected a 'Hierarchy'"):
         Hierarchy.load(path)
 
 
 def test_missing_array(saved):
     _rewrite(saved, drop=["gwr2.edges"])
-    with pytest.raises(CheckpointError, match=r"missing arrays \['gwr2.edges'\]"):
+    with pytest.raises(LearningError, match=r"missing arrays \['gwr2.edges'\]"):
         Hierarchy.load(saved)
 
 
 def test_weights_that_contradict_the_parameters(saved):
     _rewrite(saved, {"params": {**HierarchyParams().to_flat(), "tau1": 4}})
-    with pytest.raises(CheckpointError, match=r"model\.npz: inconsistent checkpoint content"):
+    with pytest.raises(LearningError, match=r"model\.npz: inconsistent checkpoint content"):
         Hierarchy.load(saved)
 
 
 def test_bad_parameters_in_header(saved):
     _rewrite(saved, {"params": {**HierarchyParams().to_flat(), "gwr1.eps_b": 7.0}})
-    with pytest.raises(CheckpointError, match=r"inconsistent checkpoint content.*eps_b"):
+    with pytest.raises(LearningError, match=r"inconsistent checkpoint content.*eps_b"):
         Hierarchy.load(saved)
 
 
@@ -217,5 +218,5 @@ def test_beyond_the_paper_options_are_saved_and_continue_bit_for_bit(tmp_path, m
 @pytest.mark.parametrize("version", [1, 2, 3, 4])
 def test_files_of_earlier_formats_are_refused_with_a_hint(saved, version):
     _rewrite(saved, {"format_version": version})
-    with pytest.raises(CheckpointError, match=rf"format_version {version} is not supported .*older build.*retrain"):
+    with pytest.raises(LearningError, match=rf"format_version {version} is not supported .*older build.*retrain"):
         Hierarchy.load(saved)

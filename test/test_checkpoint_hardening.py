@@ -1,4 +1,4 @@
-"""Checkpoints against hostile files and careless set-ups: every unreadable file is a CheckpointError
+"""Checkpoints against hostile files and careless set-ups: every unreadable file is a LearningError
 (so the learner moves it aside and starts fresh), one checkpoint path serves one learner at a time
 (a lock beside it), a symlinked checkpoint is written through, and the duplicate-instance detector
 does not stop a node on a stranger's word."""
@@ -25,12 +25,12 @@ from gwr_predictor.learning.checkpoint import (
     FORMAT_VERSION,
     HEADER_KEY,
     MAGIC,
-    CheckpointError,
     looks_like_checkpoint,
     read_checkpoint,
     set_aside,
     write_checkpoint,
 )
+from gwr_predictor.learning.errors import LearningError
 from gwr_predictor.learning.hierarchy import Hierarchy
 from gwr_predictor.learning.params import HierarchyParams
 from gwr_predictor.nodes import messages
@@ -85,6 +85,11 @@ def npy_declaring_a_terabyte(path) -> None:
     _zip(path, {HEADER_KEY: _header_member(GOOD_HEADER), "xbuf": buf.getvalue() + bytes(80)})
 
 
+def npy_header_unreadable(path) -> None:
+    """A member that is no npy array: its header is not even there."""
+    _zip(path, {HEADER_KEY: _header_member(GOOD_HEADER), "xbuf": b"not an array at all"})
+
+
 def header_declaring_too_much(path) -> None:
     """The header member itself declares far more bytes than it holds."""
     buf = io.BytesIO()
@@ -113,7 +118,8 @@ def default_with_a_nan(path) -> None:
 
 
 CORRUPTIONS = {"deflated_bad_bits": deflated_bad_bits, "nested_header": deeply_nested_header,
-               "npy_terabyte": npy_declaring_a_terabyte, "header_terabyte": header_declaring_too_much}
+               "npy_terabyte": npy_declaring_a_terabyte, "npy_unreadable": npy_header_unreadable,
+               "header_terabyte": header_declaring_too_much}
 
 
 @pytest.mark.parametrize("corrupt", CORRUPTIONS.values(), ids=CORRUPTIONS.keys())
@@ -121,16 +127,17 @@ def test_every_unreadable_checkpoint_is_a_checkpoint_error(tmp_path, corrupt):
     path = tmp_path / "model.npz"
     corrupt(path)
     assert looks_like_checkpoint(path)  # begins like ours: the learner would move it aside
-    with pytest.raises(CheckpointError, match=r"model\.npz: "):
+    with pytest.raises(LearningError, match=r"model\.npz: ") as refused:
         read_checkpoint(path, "Hierarchy")
-    with pytest.raises(CheckpointError, match=r"model\.npz: "):
+    assert refused.value.source == path
+    with pytest.raises(LearningError, match=r"model\.npz: "):
         Hierarchy.load(path)
 
 
 def test_a_zip_of_many_members_is_refused_before_its_directory_is_read(tmp_path):
     path = tmp_path / "model.npz"
     many_members(path)
-    with pytest.raises(CheckpointError, match=r"model\.npz: 5,001 archive members exceed the limit"):
+    with pytest.raises(LearningError, match=r"model\.npz: 5,001 archive members exceed the limit"):
         read_checkpoint(path, "Hierarchy")
 
 
@@ -144,7 +151,7 @@ def test_a_forged_member_count_does_not_hide_a_large_directory(tmp_path):
     end = data.rfind(b"PK\x05\x06")
     struct.pack_into("<HH", data, end + 8, 3, 3)
     path.write_bytes(bytes(data))
-    with pytest.raises(CheckpointError, match=r"archive members exceed the limit"):
+    with pytest.raises(LearningError, match=r"archive members exceed the limit"):
         read_checkpoint(path, "Hierarchy")
 
 
@@ -154,7 +161,7 @@ def test_a_header_nested_beyond_the_bound_is_refused_before_parsing(tmp_path):
     for _ in range(100):
         nested = [nested]
     _zip(path, {HEADER_KEY: _header_member({**GOOD_HEADER, "x": nested})})
-    with pytest.raises(CheckpointError, match=r"model\.npz: header nested \d+ deep"):
+    with pytest.raises(LearningError, match=r"model\.npz: header nested \d+ deep"):
         read_checkpoint(path, "Hierarchy")
 
 
@@ -222,12 +229,12 @@ def test_a_corrupt_symlinked_checkpoint_is_moved_aside_beside_its_target(tmp_pat
 def test_one_lock_per_checkpoint_path_released_on_close(tmp_path):
     path = tmp_path / "model.npz"
     first = ckpt.CheckpointLock(path)
-    with pytest.raises(CheckpointError, match=rf"model\.npz is in use by process {os.getpid()}") as locked:
+    with pytest.raises(LearningError, match=rf"model\.npz is in use by process {os.getpid()}") as locked:
         ckpt.CheckpointLock(path)
     assert locked.value.locked and locked.value.source == path
     link = tmp_path / "link.npz"
     link.symlink_to(path)
-    with pytest.raises(CheckpointError) as locked:  # another name of the same file
+    with pytest.raises(LearningError) as locked:  # another name of the same file
         ckpt.CheckpointLock(link)
     assert locked.value.locked
     first.release()
@@ -326,10 +333,10 @@ def test_a_state_a_network_refuses_is_a_checkpoint_error_naming_its_source():
     header, arrays = model.state()
     arrays["gwr1.weights"] = arrays["gwr1.weights"].copy()
     arrays["gwr1.weights"][0, 0] = np.nan
-    with pytest.raises(CheckpointError, match=r"^saved\.npz: inconsistent checkpoint content: .*NaN"):
+    with pytest.raises(LearningError, match=r"^saved\.npz: inconsistent checkpoint content: .*NaN"):
         Hierarchy.from_state(header, arrays, "saved.npz")
     del arrays["xbuf"]
-    with pytest.raises(CheckpointError, match=r"^saved\.npz: missing arrays \['xbuf'\]$") as missing:
+    with pytest.raises(LearningError, match=r"^saved\.npz: missing arrays \['xbuf'\]$") as missing:
         Hierarchy.from_state(header, arrays, "saved.npz")
     assert missing.value.source == "saved.npz" and not missing.value.kind_mismatch
 
@@ -364,7 +371,7 @@ def test_a_nan_anywhere_in_a_checkpoint_is_refused_or_changes_nothing(tmp_path, 
     for what, spoilt_header, spoilt_arrays in spoilt_states:
         try:
             loaded = type(model).from_state(spoilt_header, spoilt_arrays, "spoilt.npz")
-        except GwrPredictorError as exc:  # a CheckpointError; a baseline's own class for the baselines
+        except GwrPredictorError as exc:  # a LearningError; a baseline's own class for the baselines
             assert str(exc).startswith("spoilt.npz: "), what
             refused += 1
             continue

@@ -8,12 +8,12 @@ import numpy as np
 import pytest
 
 from gwr_predictor.default_predictor import (
-    LocalLinearError,
     LocalLinearParams,
     LocalLinearPGWR,
     LocalLinearPredictor,
 )
-from gwr_predictor.learning.checkpoint import CheckpointError
+from gwr_predictor.default_predictor.errors import DefaultPredictorError
+from gwr_predictor.learning.errors import LearningError
 from gwr_predictor.learning.params import GWRParams
 
 
@@ -98,11 +98,11 @@ def test_a_consolidating_checkpoint_continues_bit_for_bit(tmp_path):
 def test_consolidation_without_visit_counts_or_with_bad_ones_is_refused():
     model, _ = _trained(LocalLinearParams(consolidate_after=50), frames=60)
     header, arrays = model.state()
-    with pytest.raises(CheckpointError, match=r"missing arrays \['visits'\]"):
+    with pytest.raises(LearningError, match=r"missing arrays \['visits'\]"):
         LocalLinearPredictor.from_state(header, {k: v for k, v in arrays.items() if k != "visits"})
-    with pytest.raises(CheckpointError, match="visit counts"):
+    with pytest.raises(LearningError, match="visit counts"):
         LocalLinearPredictor.from_state(header, {**arrays, "visits": -arrays["visits"] - 1})
-    with pytest.raises(LocalLinearError, match=r"LocalLinearParams\.consolidate_after must be"):
+    with pytest.raises(DefaultPredictorError, match=r"LocalLinearParams\.consolidate_after must be"):
         LocalLinearParams(consolidate_after=-1)
 
 

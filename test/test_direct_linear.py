@@ -8,10 +8,11 @@ import pytest
 from fakes import damped_oscillation
 
 from gwr_predictor.evaluation.online import compare_online, train_online
-from gwr_predictor.learning.checkpoint import CheckpointError
+from gwr_predictor.learning.errors import LearningError
 from gwr_predictor.learning.rls import RecursiveLeastSquares, window_features
 from gwr_predictor.predictors.baselines import HoldLast
-from gwr_predictor.predictors.direct_linear import DirectLinear, DirectLinearError, DirectLinearParams
+from gwr_predictor.predictors.direct_linear import DirectLinear, DirectLinearParams
+from gwr_predictor.predictors.errors import PredictorError
 from gwr_predictor.registry import make_predictor
 
 
@@ -93,14 +94,14 @@ def test_checkpoint_continues_bit_for_bit(tmp_path):
         np.testing.assert_array_equal(a.step(f), b.step(f))
     header, arrays = a.state()
     arrays["p"] = np.eye(2)
-    with pytest.raises(CheckpointError, match="'p' has shape"):
+    with pytest.raises(LearningError, match="'p' has shape"):
         DirectLinear.from_state(header, arrays, "saved.npz")
 
 
 def test_params_are_validated_with_the_field():
-    with pytest.raises(DirectLinearError, match="order"):
+    with pytest.raises(PredictorError, match="order"):
         DirectLinearParams(order=0)
-    with pytest.raises(DirectLinearError, match="forgetting"):
+    with pytest.raises(PredictorError, match="forgetting"):
         DirectLinearParams(forgetting=0.5)
 
 

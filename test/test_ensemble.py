@@ -260,26 +260,26 @@ def test_fresh_blend_round_trips_before_any_frame(tmp_path):
 
 
 def test_checkpoint_kind_mismatch_names_the_file_and_the_kind(tmp_path):
-    from gwr_predictor.learning.checkpoint import CheckpointError
+    from gwr_predictor.learning.errors import LearningError
     from gwr_predictor.learning.hierarchy import FlatPredictor, Hierarchy
 
     blend_path, plain_path = tmp_path / "blend.npz", tmp_path / "plain.npz"
     make_blend("blend_hierarchy_rls").save(blend_path)
     Hierarchy().save(plain_path)
     expected = f"{plain_path}: holds a 'Hierarchy', expected a 'BlendedPredictor'"
-    with pytest.raises(CheckpointError, match=re.escape(expected)):
+    with pytest.raises(LearningError, match=re.escape(expected)):
         BlendedPredictor.load(plain_path)
     for cls in (Hierarchy, FlatPredictor):
         expected = f"{blend_path}: holds a 'BlendedPredictor', expected a '{cls.kind}'"
-        with pytest.raises(CheckpointError, match=re.escape(expected)):
+        with pytest.raises(LearningError, match=re.escape(expected)):
             cls.load(blend_path)
 
 
 def test_blend_with_unsaveable_members_refuses_to_save(tmp_path):
-    from gwr_predictor.learning.checkpoint import CheckpointError
+    from gwr_predictor.learning.errors import LearningError
 
     blend = BlendedPredictor({"hold": HoldLast(H, J)}, BlendParams(horizon=H))
-    with pytest.raises(CheckpointError, match=r"member 'hold' .*cannot be saved"):
+    with pytest.raises(LearningError, match=r"member 'hold' .*cannot be saved"):
         blend.save(tmp_path / "x.npz")
     assert not (tmp_path / "x.npz").exists()
 
@@ -322,18 +322,18 @@ def test_make_predictor_names_the_hierarchy_and_both_blends():
 
 
 def test_load_predictor_refuses_a_blend_of_other_members(tmp_path):
-    from gwr_predictor.learning.checkpoint import CheckpointError
+    from gwr_predictor.learning.errors import LearningError
     from research.registry import load_predictor, make_predictor
 
     path = tmp_path / "flat.npz"
     make_predictor("blend_flat_rls").save(path)
     assert tuple(load_predictor("blend_flat_rls", path).names) == ("flat", "rls")
-    with pytest.raises(CheckpointError, match=r"holds a blend of \['flat', 'rls'\], expected one of "
+    with pytest.raises(LearningError, match=r"holds a blend of \['flat', 'rls'\], expected one of "
                                               r"\['hierarchy', 'rls'\]") as other:
         load_predictor("blend_hierarchy_rls", path)
     assert other.value.kind_mismatch and other.value.expected == "blend_hierarchy_rls"
     assert tuple(other.value.found) == ("flat", "rls")
-    with pytest.raises(CheckpointError, match="expected a 'Hierarchy'") as other:
+    with pytest.raises(LearningError, match="expected a 'Hierarchy'") as other:
         load_predictor("hierarchy", path)
     assert other.value.kind_mismatch and (other.value.found, other.value.expected) == ("BlendedPredictor", "Hierarchy")
 

@@ -7,7 +7,6 @@ import pytest
 
 from gwr_predictor.default_predictor import (
     DefaultPredictor,
-    DefaultPredictorError,
     Experts,
     ExpertsParams,
     MemoryParams,
@@ -15,6 +14,7 @@ from gwr_predictor.default_predictor import (
     make_default,
 )
 from gwr_predictor.default_predictor.default import default_specs
+from gwr_predictor.default_predictor.errors import DefaultPredictorError
 from gwr_predictor.default_predictor.memory import EXACT
 from gwr_predictor.default_predictor.recognition import RecognitionSwitch
 from gwr_predictor.errors import GwrPredictorError
@@ -171,7 +171,8 @@ def test_a_full_memory_learns_a_new_movement_in_place_of_what_it_recalled_longes
 def test_a_full_memory_continues_bit_for_bit_from_its_checkpoint(tmp_path):
     """What it recalled when comes back with the snippets, so the same ones are replaced after a restore;
     a file without the snippets' use times is refused, naming them."""
-    from gwr_predictor.learning.checkpoint import CheckpointError, read_checkpoint, write_checkpoint
+    from gwr_predictor.learning.checkpoint import read_checkpoint, write_checkpoint
+    from gwr_predictor.learning.errors import LearningError
 
     x = np.cumsum(np.random.default_rng(1).normal(scale=0.05, size=(300, 8)), axis=0)
     memory = TrajectoryMemory(MemoryParams(capacity=30))
@@ -187,7 +188,7 @@ def test_a_full_memory_continues_bit_for_bit_from_its_checkpoint(tmp_path):
     header, arrays = read_checkpoint(tmp_path / "m.npz", TrajectoryMemory.kind)
     write_checkpoint(tmp_path / "former.npz", TrajectoryMemory.kind, header,
                      {k: v for k, v in arrays.items() if k != "used"})
-    with pytest.raises(CheckpointError, match=r"missing arrays.*used"):
+    with pytest.raises(LearningError, match=r"missing arrays.*used"):
         TrajectoryMemory.load(tmp_path / "former.npz")
 
 
@@ -218,47 +219,10 @@ def test_the_default_reports_what_its_snippet_memories_hold():
     assert 40 < held["long_memory"]["stored"] <= 120 and held["long_memory"]["replaced"] == 0
 
 
-def _saved_without(memory: TrajectoryMemory, tmp_path, names: tuple[str, ...]) -> TrajectoryMemory:
-    """`memory` saved, then loaded from a copy of the file whose parameters lack `names`: a file written
-    before those settings existed."""
-    from gwr_predictor.learning.checkpoint import read_checkpoint, write_checkpoint
-
-    memory.save(tmp_path / "m.npz")
-    header, arrays = read_checkpoint(tmp_path / "m.npz", TrajectoryMemory.kind)
-    header["params"] = {k: v for k, v in header["params"].items() if k not in names}
-    write_checkpoint(tmp_path / "former.npz", TrajectoryMemory.kind, header, arrays)
-    return TrajectoryMemory.load(tmp_path / "former.npz")
-
-
-def test_a_memory_saved_before_its_lags_were_a_setting_loads_with_its_own_lags(tmp_path):
-    """Before round 7 the key held the changes over 1, 2 and 4 frames and the saved parameters did not say
-    so: such a file loads with `longest_lag` 4 and continues bit for bit, whatever the default now is."""
-    assert MemoryParams().longest_lag != 4 and MemoryParams().lags == (1, 2, 4, 8)
-    x = _movement(1.0, 80) + np.random.default_rng(2).normal(scale=0.01, size=(80, 8))
-    memory = TrajectoryMemory(MemoryParams(longest_lag=4))
-    for f in x[:50]:
-        memory.step(f)
-    old = _saved_without(memory, tmp_path, ("longest_lag",))
-    assert old.params.longest_lag == 4
-    for f in x[50:]:
-        np.testing.assert_array_equal(memory.step(f), old.step(f))
+def test_the_memory_keys_hold_the_changes_over_lags_that_double():
+    assert MemoryParams().lags == (1, 2, 4, 8) and MemoryParams(longest_lag=4).lags == (1, 2, 4)
     with pytest.raises(DefaultPredictorError, match="longest_lag 6 is not a power of two"):
         MemoryParams(longest_lag=6)
-
-
-def test_a_memory_saved_before_the_fit_loads_averaging_as_it_was_learned(tmp_path):
-    """A file written before `fit_k` existed was read out by the k nearest alone: it loads with `fit_k` 0
-    and continues bit for bit."""
-    assert MemoryParams().fit_k > 0
-    x = np.concatenate([_movement(s, 50) for s in (1.0, 0.9, 1.1)]) + np.random.default_rng(5).normal(
-        scale=0.01, size=(150, 8))
-    memory = TrajectoryMemory(MemoryParams(fit_k=0))
-    for f in x[:100]:
-        memory.step(f)
-    old = _saved_without(memory, tmp_path, ("fit_k", "ridge", "fit_radius"))
-    assert old.params.fit_k == 0
-    for f in x[100:]:
-        np.testing.assert_array_equal(memory.step(f), old.step(f))
 
 
 def test_the_fit_reads_the_neighbours_futures_at_the_present_key():

@@ -25,7 +25,8 @@ from ros_harness import in_process
 from gwr_predictor.data.demonstrator import default_subjects, demonstrate_one
 from gwr_predictor.data.errors import DataError
 from gwr_predictor.data.skeleton_files import load_skeleton
-from gwr_predictor.learning.checkpoint import CheckpointError, read_checkpoint
+from gwr_predictor.learning.checkpoint import read_checkpoint
+from gwr_predictor.learning.errors import LearningError
 from gwr_predictor.nodes import messages
 from gwr_predictor.nodes.messages import Float64MultiArray, JointState, MultiArrayDimension
 from gwr_predictor.pipeline import stamps
@@ -205,7 +206,7 @@ def test_skeleton_and_checkpoint_readers_raise_only_their_own_errors(tmp_path, d
         pass
     try:
         read_checkpoint(path, "Hierarchy")
-    except CheckpointError:
+    except LearningError:
         pass
 
 

@@ -5,7 +5,8 @@ import math
 import numpy as np
 import pytest
 
-from gwr_predictor.learning.gwr import GWR, InputError
+from gwr_predictor.learning.errors import LearningError
+from gwr_predictor.learning.gwr import GWR
 from gwr_predictor.learning.gwr_loop import LoopGWR
 from gwr_predictor.learning.params import GWRParams
 
@@ -163,7 +164,7 @@ def test_a_network_saved_at_its_bound_continues_bit_for_bit_evictions_included()
 def test_a_record_of_last_matches_that_does_not_fit_is_refused(last_matched):
     g = net([[0.0], [1.0]], edges=[(0, 1, 0)])
     state = {**g.state(), "last_matched": np.array(last_matched), "clock": 3}
-    with pytest.raises(InputError, match="last-matched steps"):
+    with pytest.raises(LearningError, match="last-matched steps"):
         GWR.from_state(state)
 
 
@@ -273,7 +274,7 @@ def test_clusters_get_one_prototype_each_unless_threshold_is_finer_than_them(a_t
 @pytest.mark.parametrize("x", [[0.0], [0.0, 0.0, 0.0], [np.nan, 0.0], [np.inf, 0.0]])
 def test_bad_inputs_raise_input_error(x):
     g = net([[0.0, 0.0], [1.0, 1.0]])
-    with pytest.raises(InputError):
+    with pytest.raises(LearningError):
         g.learn(x)
 
 

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from gwr_predictor.commands import cli
-from gwr_predictor.learning.gwr import InputError
+from gwr_predictor.learning.errors import LearningError
 from gwr_predictor.learning.hierarchy import FlatPredictor, Hierarchy
 from gwr_predictor.learning.online_loop import ErrorTracker
 from gwr_predictor.learning.params import HIERARCHY_MAX_NEURONS, GWRParams, HierarchyParams, hierarchy_parameter_specs
@@ -248,7 +248,7 @@ def test_seed_makes_runs_reproducible():
 
 
 def test_frame_of_wrong_shape_is_an_error_not_a_gap():
-    with pytest.raises(InputError, match=r"\(8,\)"):
+    with pytest.raises(LearningError, match=r"\(8,\)"):
         Hierarchy().step(np.zeros(7))
 
 

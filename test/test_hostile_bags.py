@@ -11,7 +11,8 @@ from gwr_predictor.commands.cli import main as cli_main
 from gwr_predictor.data.errors import DataError
 from gwr_predictor.data.skeleton_files import load_skeleton
 from gwr_predictor.files import limits
-from gwr_predictor.learning.checkpoint import CheckpointError, read_checkpoint
+from gwr_predictor.learning.checkpoint import read_checkpoint
+from gwr_predictor.learning.errors import LearningError
 from gwr_predictor.pipeline import bag_messages, bag_reader, bag_recovery, bag_writer
 from gwr_predictor.pipeline.errors import PipelineError
 from gwr_predictor.pipeline.message_latency import latency_report
@@ -135,6 +136,6 @@ def test_files_that_cannot_be_recordings_are_refused_before_reading(tmp_path, mo
     with pytest.raises(DataError, match=r"big.csv: 3 MB is too large"):
         load_skeleton(big_csv)
     monkeypatch.setattr("gwr_predictor.learning.checkpoint.MAX_CHECKPOINT_BYTES", 4 << 20)
-    with pytest.raises(CheckpointError, match="inflate to 8 MB"):
+    with pytest.raises(LearningError, match="inflate to 8 MB"):
         read_checkpoint(bomb, "Hierarchy")
     assert limits.MAX_RECORDING_BYTES >= 200 << 20  # an hour at 30 fps is about 39 MB of positions

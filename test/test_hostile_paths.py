@@ -29,7 +29,8 @@ from test_node_bad_input import FAST, joint_state
 
 from gwr_predictor.commands import cli
 from gwr_predictor.files.limits import MAX_NETWORK_NEURONS
-from gwr_predictor.learning.checkpoint import CheckpointError, CheckpointLock, check_checkpoint_place
+from gwr_predictor.learning.checkpoint import CheckpointLock, check_checkpoint_place
+from gwr_predictor.learning.errors import LearningError
 from gwr_predictor.pipeline import bag_reader
 from gwr_predictor.pipeline.errors import PipelineError
 from gwr_predictor.pipeline.params_file import check_params_files
@@ -113,9 +114,9 @@ def huge_network_checkpoint(path: Path, neurons: int = 40_000) -> Path:
 def test_a_checkpoint_declaring_a_huge_network_is_refused_before_anything_is_allocated(tmp_path):
     path = huge_network_checkpoint(tmp_path / "model.npz")
     assert path.stat().st_size < 100_000
-    output = refusal("from gwr_predictor.learning.checkpoint import CheckpointError\n"
+    output = refusal("from gwr_predictor.learning.errors import LearningError\n"
                      "from gwr_predictor.registry import load_predictor",
-                     f"load_predictor('hierarchy', {str(path)!r})", "CheckpointError")
+                     f"load_predictor('hierarchy', {str(path)!r})", "LearningError")
     assert "40,000 neurons" in output and f"{MAX_NETWORK_NEURONS:,}" in output, output
     angles = tmp_path / "angles.csv"
     from gwr_predictor.data.angle_files import save_angles_csv
@@ -177,7 +178,7 @@ def test_the_checkpoint_lock_never_writes_through_a_link(tmp_path, link):
         lock.symlink_to(victim)
     else:
         os.link(victim, lock)
-    with pytest.raises(CheckpointError, match=r"\.model\.npz\.lock: is a (symlink|hard link)"):
+    with pytest.raises(LearningError, match=r"\.model\.npz\.lock: is a (symlink|hard link)"):
         CheckpointLock(folder / "model.npz")
     assert victim.read_text() == "three years of work"
 
@@ -185,7 +186,7 @@ def test_the_checkpoint_lock_never_writes_through_a_link(tmp_path, link):
 def test_a_symlink_loop_as_checkpoint_is_refused_at_start(tmp_path):
     (tmp_path / "a.npz").symlink_to(tmp_path / "b.npz")
     (tmp_path / "b.npz").symlink_to(tmp_path / "a.npz")
-    with pytest.raises(CheckpointError, match=r"a\.npz: cannot be used as a checkpoint: a symlink loop"):
+    with pytest.raises(LearningError, match=r"a\.npz: cannot be used as a checkpoint: a symlink loop"):
         check_checkpoint_place(tmp_path / "a.npz")
 
 

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from gwr_predictor.learning.gwr import InputError
+from gwr_predictor.learning.errors import LearningError
 from gwr_predictor.learning.params import GWRParams
 from gwr_predictor.learning.predictive_gwr import PredictiveGWR
 
@@ -41,7 +41,7 @@ def test_prediction_is_output_weight_of_regressor_bmu():
     g = pnet([[0.0, 0.0], [1.0, 1.0]], [[2.0, 3.0], [5.0, 6.0]])
     np.testing.assert_array_equal(g.predict([0.9, 0.8]), [5.0, 6.0])
     np.testing.assert_array_equal(g.predict([0.1, -0.2]), [2.0, 3.0])
-    with pytest.raises(InputError):
+    with pytest.raises(LearningError):
         g.predict([0.0, 0.0, 0.0])
 
 

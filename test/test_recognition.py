@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from gwr_predictor.default_predictor import (
-    DefaultPredictorError,
+    DefaultPredictor,
     Experts,
     GatedPredictor,
     MemoryParams,
@@ -14,8 +14,9 @@ from gwr_predictor.default_predictor import (
     TrajectoryMemory,
     make_default,
 )
-from gwr_predictor.default_predictor.recognition import BEFORE
-from gwr_predictor.learning.checkpoint import CheckpointError, read_checkpoint, write_checkpoint
+from gwr_predictor.default_predictor.errors import DefaultPredictorError
+from gwr_predictor.learning.checkpoint import read_checkpoint, write_checkpoint
+from gwr_predictor.learning.errors import LearningError
 from gwr_predictor.registry import DEFAULT_PREDICTOR, load_predictor
 
 NOISE = 0.002  # rad: a person never repeats a pose to the bit
@@ -132,84 +133,17 @@ def test_each_weighting_is_judged_by_its_own_record():
     np.testing.assert_array_equal(separate[first], single[first])
 
 
-def _former_layout(made, path) -> None:
-    """Write `made` (one last gate) as round 5 saved the default: a gate around the switch."""
-    header, arrays = made.state()
-    former_keys = ("separate_gates", "onset_travel", *BEFORE)  # the settings added after round 5
-    inner = {"params": {k: v for k, v in header["params"].items() if k not in former_keys},
-             "recognised": header["recognised"], "experts": header["experts"], "ungated": header["ungated"]}
-    former = {**header["gate"], "model_kind": RecognitionSwitch.kind, "model": inner}
-    own = {k[len("gate."):]: v for k, v in arrays.items() if k.startswith("gate.")}
-    nested = {f"model.{k}": v for k, v in arrays.items() if k.startswith(("experts.", "ungated."))}
-    write_checkpoint(path, GatedPredictor.kind, former, {**own, **nested})
-
-
-def test_a_default_saved_with_one_last_gate_loads_with_what_it_learned(tmp_path):
-    """A checkpoint of round 5's default (its last gate around the switch) loads as the default: the
-    experts, the ungated weighting and the count kept, the last gate's record the gated weighting's, the
-    ungated weighting's gate fresh."""
-    x, _ = _repeated()
-    made = make_default(settings=ONE_GATE)
-    for f in x[:120]:
-        made.step(f)
-    _former_layout(made, tmp_path / "round5.npz")
-    loaded = load_predictor(DEFAULT_PREDICTOR, tmp_path / "round5.npz")
-    assert isinstance(loaded, RecognitionSwitch) and loaded.params.separate_gates
-    assert loaded.recognised == made.recognised > 0 and loaded.frames_seen == 120
-    for part in ("experts", "ungated", "gate"):
-        saved, restored = getattr(made, part).state()[1], getattr(loaded, part).state()[1]
-        assert saved.keys() == restored.keys()
-        for k in saved:
-            np.testing.assert_array_equal(saved[k], restored[k], err_msg=f"{part}.{k}")
-    assert not loaded.ungated_gate._scored.any()
-    for f in x[120:]:
-        assert loaded.step(f) is not None
-    assert loaded.recognised > made.recognised
-
-
-def test_a_default_saved_before_the_switch_loads_with_what_it_learned(tmp_path):
-    """A checkpoint of the former default (the gated experts behind the last gate) loads as the default:
-    every member's state kept, the switch added."""
-    x, _ = _repeated()
-    made = make_default()
-    former = GatedPredictor(made.experts, made.gate.params)
-    for f in x[:120]:
-        former.step(f)
-    former.save(tmp_path / "former.npz")
-    loaded = load_predictor(DEFAULT_PREDICTOR, tmp_path / "former.npz")
-    assert isinstance(loaded, RecognitionSwitch)
-    memory = loaded.experts.members["memory"].model
-    assert memory.size == former.model.members["memory"].model.size > 0
-    assert loaded.frames_seen == former.model.frames_seen == 120
-    np.testing.assert_array_equal(loaded.gate._stats, former._stats)  # the last gate's record kept
-    for f in x[120:]:
-        assert loaded.step(f) is not None
-    assert loaded.recognised > 0
-
-
-def test_the_defaults_loader_refuses_other_models_and_broken_former_layouts(tmp_path):
-    """Another predictor's checkpoint is a kind mismatch (the node tells the user to fix `predictor`); a
-    former layout with a field missing is a CheckpointError naming the file, never a KeyError."""
-    from gwr_predictor.learning.checkpoint import CheckpointError
+def test_the_defaults_loader_refuses_other_models(tmp_path):
+    """Another predictor's checkpoint is a kind mismatch (the node tells the user to fix `predictor`)."""
     from gwr_predictor.learning.hierarchy import Hierarchy
     from gwr_predictor.registry import make_predictor
 
     make_predictor("gated_llm_gwr").save(tmp_path / "network.npz")
     Hierarchy().save(tmp_path / "hierarchy.npz")
-    for name, found in (("network.npz", "LocalLinearPredictor"), ("hierarchy.npz", "Hierarchy")):
-        with pytest.raises(CheckpointError) as refused:
+    for name, found in (("network.npz", "GatedPredictor"), ("hierarchy.npz", "Hierarchy")):
+        with pytest.raises(LearningError) as refused:
             load_predictor(DEFAULT_PREDICTOR, tmp_path / name)
         assert refused.value.kind_mismatch and refused.value.found == found
-    made = make_default(settings=ONE_GATE)
-    for f in _repeated()[0][:30]:
-        made.step(f)
-    _former_layout(made, tmp_path / "round5.npz")
-    header, arrays = read_checkpoint(tmp_path / "round5.npz", GatedPredictor.kind)
-    del header["model"]["recognised"]
-    write_checkpoint(tmp_path / "broken.npz", GatedPredictor.kind, header, arrays)
-    with pytest.raises(CheckpointError, match=r"broken\.npz") as broken:
-        load_predictor(DEFAULT_PREDICTOR, tmp_path / "broken.npz")
-    assert not broken.value.kind_mismatch
 
 
 def test_a_copy_of_the_default_predicts_on_its_own():
@@ -280,7 +214,7 @@ def test_onset_trust_lends_step_1_only_before_a_step_has_scores_of_the_movement(
         make_default(settings={"recognition.separate_gates": False})
 
 
-def test_the_onset_count_survives_a_checkpoint_and_older_files_load_without_it(tmp_path):
+def test_the_onset_count_survives_a_checkpoint(tmp_path):
     x, _ = _paused()
     made = make_default(settings={"recognition.onset_trust": 0.5})
     cut = next(t for t in range(len(x)) if made.step(x[t]) is not None and made.onset == 3)
@@ -289,12 +223,6 @@ def test_the_onset_count_survives_a_checkpoint_and_older_files_load_without_it(t
     assert loaded.onset == 3
     for f in x[cut + 1:]:
         np.testing.assert_array_equal(loaded.step(f), made.step(f))
-    header, arrays = read_checkpoint(tmp_path / "now.npz", RecognitionSwitch.kind)
-    del header["onset"], header["params"]["onset_trust"], header["params"]["onset_travel"]
-    write_checkpoint(tmp_path / "older.npz", RecognitionSwitch.kind, header, arrays)
-    older = load_predictor(DEFAULT_PREDICTOR, tmp_path / "older.npz")
-    assert older.onset == 0 and older.params.onset_trust == 0.0  # as it was learned: lending nothing
-    assert older.params.onset_travel == make_default().params.onset_travel
 
 
 def test_the_ungated_record_kept_on_recognised_movement_anticipates_the_later_performances():
@@ -325,7 +253,7 @@ def test_the_ungated_weighting_hears_its_members_at_its_own_power():
     assert not np.allclose(made.ungated.weights(), same.ungated.weights())
 
 
-def test_the_record_weights_survive_a_checkpoint_and_older_files_weigh_every_prediction_alike(tmp_path):
+def test_the_record_weights_survive_a_checkpoint_and_bad_ones_are_refused(tmp_path):
     x, _ = _repeated()
     made = make_default()
     cut = next(t for t in range(len(x)) if made.step(x[t]) is not None and made.ungated.record_weight.min() < 1.0
@@ -335,15 +263,29 @@ def test_the_record_weights_survive_a_checkpoint_and_older_files_weigh_every_pre
     np.testing.assert_array_equal(loaded.ungated.record_weight, made.ungated.record_weight)
     for f in x[cut + 1:]:
         np.testing.assert_array_equal(loaded.step(f), made.step(f))
-    header, arrays = read_checkpoint(tmp_path / "now.npz", RecognitionSwitch.kind)
-    del header["params"]["outside_weight"], header["ungated"]["record_weight"], header["experts"]["record_weight"]
-    del header["params"]["power"]
-    write_checkpoint(tmp_path / "older.npz", RecognitionSwitch.kind, header, arrays)
-    older = load_predictor(DEFAULT_PREDICTOR, tmp_path / "older.npz")
-    assert older.params.outside_weight == 1.0  # as it was learned: every prediction alike
-    assert older.ungated.params.power == older.experts.params.power == 4.0  # weighed as the gated weighting
-    np.testing.assert_array_equal(older.ungated.record_weight, np.ones(6))
+    header, arrays = read_checkpoint(tmp_path / "now.npz", DefaultPredictor.kind)
     header["ungated"]["record_weight"] = [0.5, "x", 1, 1, 1, 1]
-    write_checkpoint(tmp_path / "bad.npz", RecognitionSwitch.kind, header, arrays)
-    with pytest.raises(CheckpointError, match="record_weight"):
+    write_checkpoint(tmp_path / "bad.npz", DefaultPredictor.kind, header, arrays)
+    with pytest.raises(LearningError, match="record_weight"):
         load_predictor(DEFAULT_PREDICTOR, tmp_path / "bad.npz")
+
+
+@pytest.mark.parametrize("part", [("onset",), ("spread",), ("experts", "record_weight"), ("ungated", "record_weight")],
+                         ids=".".join)
+def test_a_checkpoint_of_the_default_without_part_of_its_state_is_refused(tmp_path, part):
+    """A checkpoint of this format holds the whole default: one that lacks a part of it is refused, naming
+    the file, never loaded with that part fresh or guessed."""
+    made = make_default()
+    for f in _repeated()[0][:40]:
+        made.step(f)
+    made.save(tmp_path / "now.npz")
+    header, arrays = read_checkpoint(tmp_path / "now.npz", DefaultPredictor.kind)
+    *path, name = part
+    holder = header
+    for step in path:
+        holder = holder[step]
+    del holder[name]
+    write_checkpoint(tmp_path / "cut.npz", DefaultPredictor.kind, header, arrays)
+    with pytest.raises(LearningError, match=r"cut\.npz") as refused:
+        load_predictor(DEFAULT_PREDICTOR, tmp_path / "cut.npz")
+    assert not refused.value.kind_mismatch

@@ -8,12 +8,12 @@ import numpy as np
 import pytest
 
 from gwr_predictor.default_predictor import (
-    LocalLinearError,
     LocalLinearParams,
     LocalLinearPGWR,
     LocalLinearPredictor,
 )
-from gwr_predictor.learning.checkpoint import CheckpointError
+from gwr_predictor.default_predictor.errors import DefaultPredictorError
+from gwr_predictor.learning.errors import LearningError
 from gwr_predictor.learning.params import GWRParams
 
 
@@ -200,13 +200,13 @@ def test_a_recruiting_checkpoint_continues_bit_for_bit(tmp_path):
 def test_recruitment_without_its_errors_or_with_bad_ones_is_refused():
     model, _ = _trained(RECRUITING, frames=100)
     header, arrays = model.state()
-    with pytest.raises(CheckpointError, match=r"missing arrays \['readout_mse'\]"):
+    with pytest.raises(LearningError, match=r"missing arrays \['readout_mse'\]"):
         LocalLinearPredictor.from_state(header, {k: v for k, v in arrays.items() if k != "readout_mse"})
-    with pytest.raises(CheckpointError, match="read-out errors"):
+    with pytest.raises(LearningError, match="read-out errors"):
         LocalLinearPredictor.from_state(header, {**arrays, "readout_mse": np.full_like(arrays["readout_mse"], -1.0)})
-    with pytest.raises(CheckpointError, match="surprise streaks"):
+    with pytest.raises(LearningError, match="surprise streaks"):
         LocalLinearPredictor.from_state(header, {**arrays, "surprise_streaks": arrays["surprise_streaks"][:-1]})
-    with pytest.raises(LocalLinearError, match=r"LocalLinearParams\.recruit_surprise must be"):
+    with pytest.raises(DefaultPredictorError, match=r"LocalLinearParams\.recruit_surprise must be"):
         LocalLinearParams(recruit_surprise=-1.0)
-    with pytest.raises(LocalLinearError, match=r"LocalLinearParams\.recruit_after must be"):
+    with pytest.raises(DefaultPredictorError, match=r"LocalLinearParams\.recruit_after must be"):
         LocalLinearParams(recruit_after=0)

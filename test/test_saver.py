@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from gwr_predictor.learning import saver as saver_module
-from gwr_predictor.learning.checkpoint import CheckpointError
+from gwr_predictor.learning.errors import LearningError
 from gwr_predictor.learning.saver import CheckpointSaver
 from gwr_predictor.registry import load_predictor, make_predictor
 
@@ -79,6 +79,6 @@ def test_a_failed_write_is_reported_to_the_learner_and_a_closed_saver_refuses(tm
     saver.submit(model)
     assert saver.close(30)
     [result] = saver.results()
-    assert isinstance(result.error, CheckpointError) and "no_such_folder" in str(result.error)
-    with pytest.raises(CheckpointError, match="closed"):
+    assert isinstance(result.error, LearningError) and "no_such_folder" in str(result.error)
+    with pytest.raises(LearningError, match="closed"):
         saver.submit(model)

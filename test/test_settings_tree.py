@@ -14,7 +14,8 @@ from gwr_predictor.default_predictor import (
     default_specs,
     make_default,
 )
-from gwr_predictor.learning.checkpoint import CheckpointError, read_checkpoint, write_checkpoint
+from gwr_predictor.learning.checkpoint import read_checkpoint, write_checkpoint
+from gwr_predictor.learning.errors import LearningError
 from gwr_predictor.learning.params import HierarchyParams
 from gwr_predictor.parameters import tree
 from gwr_predictor.parameters.spec import ParameterError
@@ -99,9 +100,9 @@ def test_a_checkpoint_without_the_whole_tree_or_of_the_earlier_layout_is_refused
     header, arrays = read_checkpoint(tmp_path / "m.npz", DefaultPredictor.kind)
     del header["settings"]["memory.k"]
     write_checkpoint(tmp_path / "partial.npz", DefaultPredictor.kind, header, arrays)
-    with pytest.raises(CheckpointError, match=r"lacks the settings \['memory.k'\]"):
+    with pytest.raises(LearningError, match=r"lacks the settings \['memory.k'\]"):
         DefaultPredictor.load(tmp_path / "partial.npz")
     write_checkpoint(tmp_path / "earlier.npz", "RecognitionSwitch", {**header, "kind": "RecognitionSwitch"}, arrays)
-    with pytest.raises(CheckpointError, match="saved by an earlier build") as refused:
+    with pytest.raises(LearningError, match="saved by an earlier build") as refused:
         DefaultPredictor.load(tmp_path / "earlier.npz")
     assert not refused.value.kind_mismatch  # the node sets it aside rather than asking for another predictor

@@ -1,7 +1,6 @@
 """The interval stated with every prediction (`default_predictor/spread.py`): it holds the share it states,
 per step and per group, narrows where the prediction is good and as a movement repeats, never peeks, is saved
-with the default and starts fresh from a checkpoint saved before it existed; and what reads it (the metrics,
-the layout on the wire, the compensator's option)."""
+with the default; and what reads it (the metrics, the layout on the wire, the compensator's option)."""
 
 from __future__ import annotations
 
@@ -11,10 +10,9 @@ import numpy as np
 import pytest
 
 from gwr_predictor.default_predictor import Spread, SpreadParams, WithSpread, make_default
-from gwr_predictor.default_predictor.params import DefaultPredictorError
+from gwr_predictor.default_predictor.errors import DefaultPredictorError
 from gwr_predictor.evaluation.metrics import IntervalStats, future_windows, interval_stats
 from gwr_predictor.evaluation.online import compare_online
-from gwr_predictor.learning.checkpoint import read_checkpoint, write_checkpoint
 from gwr_predictor.learning.protocol import Spreading
 from gwr_predictor.pipeline import conventions
 from gwr_predictor.pipeline.errors import PipelineError
@@ -155,30 +153,14 @@ def _equal(a, b) -> bool:
     return np.array_equal(pa, pb) and all(np.array_equal(u, v) for u, v in zip(ia, ib, strict=True))
 
 
-def test_the_spread_is_saved_with_the_default_and_a_checkpoint_without_one_starts_it_fresh(tmp_path):
-    """A saved default continues with the same points and intervals bit for bit. A file written before the
-    spread existed (the same file without it) loads with everything else it learned: the same point
-    predictions on, and a spread that starts fresh."""
+def test_the_spread_is_saved_with_the_default(tmp_path):
+    """A saved default continues with the same points and intervals bit for bit."""
     x, _ = _repeated(4)
     model = make_default()
     _stepped(model, x[:120])
     model.save(tmp_path / "now.npz")
     again = load_predictor(DEFAULT_PREDICTOR, tmp_path / "now.npz")
     assert all(_equal(a, b) for a, b in zip(_stepped(model, x[120:]), _stepped(again, x[120:]), strict=True))
-
-    model = make_default()
-    _stepped(model, x[:120])
-    model.save(tmp_path / "now.npz")
-    header, arrays = read_checkpoint(tmp_path / "now.npz", "RecognitionSwitch")
-    del header["spread"]
-    old = {k: v for k, v in arrays.items() if not k.startswith("spread.")}
-    assert len(old) < len(arrays)
-    write_checkpoint(tmp_path / "before.npz", "RecognitionSwitch", header, old)
-    before = load_predictor(DEFAULT_PREDICTOR, tmp_path / "before.npz")
-    assert before.spread.scored.sum() == 0 and model.spread.scored.sum() > 0
-    for (pa, _), (pb, _) in zip(_stepped(model, x[120:]), _stepped(before, x[120:]), strict=True):
-        np.testing.assert_array_equal(pa, pb)
-    assert before.spread.scored.sum() > 0  # and it learns from then on
 
 
 def test_interval_stats_count_bounds_inclusive_and_skip_what_is_missing():

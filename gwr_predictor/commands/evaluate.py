@@ -107,7 +107,7 @@ def run(args: argparse.Namespace) -> int:
         horizon = params.horizon
         results = compare_online(models, recordings, horizon=horizon, passes=args.passes,
                                  progress=not args.no_progress, desc="evaluate")
-    except (ValueError, OSError) as exc:  # CommandError, EvaluationError, CheckpointError, bad params
+    except (ValueError, OSError) as exc:  # CommandError, EvaluationError, LearningError, bad params
         kind = "evaluation" if isinstance(exc, EvaluationError) else "input"
         print(f"error ({kind}): {exc}", file=sys.stderr)
         return 2

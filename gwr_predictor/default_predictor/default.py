@@ -26,7 +26,8 @@ from gwr_predictor.default_predictor.params import LOCAL_LINEAR_SPECS, LocalLine
 from gwr_predictor.default_predictor.predictor import LocalLinearPredictor
 from gwr_predictor.default_predictor.recognition import RecognitionParams, RecognitionSwitch
 from gwr_predictor.default_predictor.spread import SpreadParams
-from gwr_predictor.learning.checkpoint import CheckpointError, read_checkpoint
+from gwr_predictor.learning.checkpoint import read_checkpoint
+from gwr_predictor.learning.errors import LearningError
 from gwr_predictor.parameters import tree
 from gwr_predictor.parameters.spec import ParamSpec, check_fields
 from gwr_predictor.predictors.baselines import RLSAutoregressive, RLSParams
@@ -176,7 +177,7 @@ class DefaultPredictor(RecognitionSwitch):
         it aside and starts afresh instead of asking for another `predictor`."""
         header, arrays = read_checkpoint(path, (cls.kind, RecognitionSwitch.kind))
         if header["kind"] != cls.kind:
-            raise CheckpointError(f"{path}: a default saved by an earlier build, without its settings tree; this build "
+            raise LearningError(f"{path}: a default saved by an earlier build, without its settings tree; this build "
                                   "does not read it (pretrain again, or let the node learn anew)", source=path)
         return cls.from_state(header, arrays, path)
 
@@ -184,10 +185,10 @@ class DefaultPredictor(RecognitionSwitch):
     def _fresh(cls, header: Mapping[str, Any]) -> DefaultPredictor:
         saved = header.get("settings")
         if not isinstance(saved, dict):
-            raise CheckpointError("the default's checkpoint must hold its settings")
+            raise LearningError("the default's checkpoint must hold its settings")
         missing = sorted(set(DefaultParams().to_flat()) - set(saved))
         if missing:
-            raise CheckpointError(f"the default's checkpoint lacks the settings {missing}")
+            raise LearningError(f"the default's checkpoint lacks the settings {missing}")
         return cls(DefaultParams.from_flat(saved))
 
 

@@ -28,10 +28,10 @@ from typing import Any, ClassVar
 
 import numpy as np
 
+from gwr_predictor.default_predictor.errors import DefaultPredictorError
 from gwr_predictor.default_predictor.gate import GateBank, inner_model
 from gwr_predictor.default_predictor.memory import TrajectoryMemory
-from gwr_predictor.default_predictor.params import DefaultPredictorError
-from gwr_predictor.learning.checkpoint import CheckpointError
+from gwr_predictor.learning.errors import LearningError
 from gwr_predictor.learning.params import DEFAULT_HORIZON, MAX_HORIZON
 from gwr_predictor.learning.pending import PendingPredictions
 from gwr_predictor.learning.persistence import Checkpointed, Persist, fresh_of_kind, kind_to_save, params_from_json, sub
@@ -247,23 +247,20 @@ class Experts(Checkpointed):
 
     # --- persistence: the members by name and kind (the weighting's own state is declared above) -----
     def _load_record_weight(self, saved: Any) -> None:
-        """The saved weights of the pending predictions (None, in a file written before predictions were
-        weighed: every one 1, as it was learned)."""
-        if saved is None:
-            return
+        """The saved weights of the pending predictions."""
         try:
             weights = np.array(saved, dtype=float)
         except (TypeError, ValueError) as exc:
-            raise CheckpointError(f"record_weight must be {self.params.horizon} numbers") from exc
+            raise LearningError(f"record_weight must be {self.params.horizon} numbers") from exc
         if weights.shape != self.record_weight.shape or not ((weights >= 0.0) & (weights <= 1.0)).all():
-            raise CheckpointError(f"record_weight must be {self.params.horizon} numbers in [0, 1]")
+            raise LearningError(f"record_weight must be {self.params.horizon} numbers in [0, 1]")
         self.record_weight[...] = weights
 
     @classmethod
     def _fresh(cls, header: Mapping[str, Any]) -> Experts:
         kinds = header["member_kinds"]
         if not isinstance(kinds, dict) or not kinds:
-            raise CheckpointError("member_kinds must name every member's kind")
+            raise LearningError("member_kinds must name every member's kind")
         members = {name: fresh_of_kind(kind, header["members"][name]) for name, kind in kinds.items()}
         return cls(members, params_from_json(ExpertsParams, header["params"]))
 
@@ -278,7 +275,7 @@ class Experts(Checkpointed):
         return header, arrays
 
     def _load_extra(self, header: Mapping[str, Any], arrays: Mapping[str, np.ndarray]) -> None:
-        self._load_record_weight(header.get("record_weight"))
+        self._load_record_weight(header["record_weight"])
         for name, member in self.members.items():
             saved = header["members"][name]
             self.members[name] = member._restored(saved, sub(arrays, f"member.{name}"), f"members.{name}.")

@@ -19,7 +19,7 @@ the motion is familiar (`familiarity` at most `fit_radius`), `fit_k` neighbours 
 futures fitted as a linear function of their keys' offsets from the present key (locally weighted ridge
 regression), read at the present key: the performances stored around the present one (a little larger,
 a little faster) are interpolated between instead of averaged, which on repeated real movements
-anticipates better than the mean of the nearest (round 11 of `docs/tuning.md`); elsewhere, the `k`
+anticipates better than the mean of the nearest (on the tuning set, research/tuning.md); elsewhere, the `k`
 nearest are averaged, since a line fitted far from every neighbour extrapolates. A
 stored key identical to the present one is skipped: a person never repeats a pose to the bit, so it
 is the same recording replayed (a training epoch), and recalling it would score the memory as
@@ -42,17 +42,13 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from gwr_predictor.default_predictor.params import DefaultPredictorError
-from gwr_predictor.learning.checkpoint import CheckpointError
+from gwr_predictor.default_predictor.errors import DefaultPredictorError
+from gwr_predictor.learning.errors import LearningError
 from gwr_predictor.learning.params import DEFAULT_HORIZON, MAX_HORIZON
-from gwr_predictor.learning.persistence import Checkpointed, Persist, params_from_json, require_finite
+from gwr_predictor.learning.persistence import Checkpointed, Persist, require_finite
 from gwr_predictor.parameters.spec import ParamSpec, check_fields
 from gwr_predictor.predictors.baselines import observation
 
-#: `longest_lag` of a memory saved before it was a setting (its key held the changes over 1, 2 and 4 frames).
-SAVED_LONGEST_LAG = 4
-#: The settings a memory saved before they existed was read out with: its key's lags, and no fit (`fit_k` 0).
-BEFORE = {"longest_lag": SAVED_LONGEST_LAG, "fit_k": 0}
 #: The fewest frames stored after a key with `future` 0: the tuned default's at its horizon of 6 (where the
 #: fastest read-out needs 10).
 SHORTEST_FUTURE = 12
@@ -406,10 +402,6 @@ class TrajectoryMemory(Checkpointed):
     def errors(self) -> dict[str, Any]:
         return {"snippets": self.size, "snippets_replaced": self.replaced, "motion_rms_rad": self.motion_rms}
 
-    @classmethod
-    def _fresh(cls, header: Mapping[str, Any]) -> TrajectoryMemory:
-        return cls(params_from_json(MemoryParams, header["params"], before=BEFORE))
-
     # --- persistence: the stored snippets (as many as there are; the rest is declared above) ---------
     def _save_extra(self) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
         n = self.size
@@ -421,8 +413,8 @@ class TrajectoryMemory(Checkpointed):
         keys, futures = np.asarray(arrays["keys"]), np.asarray(arrays["futures"])
         if not 0 <= n <= p.capacity or keys.shape != (n, self.keys.shape[1]) or \
                 futures.shape != (n, *self.futures.shape[1:]):
-            raise CheckpointError(f"snippets of shapes {keys.shape}, {futures.shape} do not fit size {n} and the "
-                                  f"parameters (keys {self.keys.shape[1]}-d, futures {self.futures.shape[1:]})")
+            raise LearningError(f"snippets of shapes {keys.shape}, {futures.shape} do not fit size {n} and the "
+                                f"parameters (keys {self.keys.shape[1]}-d, futures {self.futures.shape[1:]})")
         require_finite(keys, "keys")
         require_finite(futures, "futures")
         self.keys[:n] = keys
@@ -430,9 +422,9 @@ class TrajectoryMemory(Checkpointed):
         self._weigh(slice(0, n))
         used, still = np.asarray(arrays["used"]), np.asarray(arrays["still"])
         if used.shape != (n,) or used.dtype.kind not in "iu" or (used < 0).any() or (used > self.clock).any():
-            raise CheckpointError(f"snippet use times of shape {used.shape} do not fit size {n} and clock "
-                                  f"{self.clock}")
+            raise LearningError(f"snippet use times of shape {used.shape} do not fit size {n} and clock "
+                                f"{self.clock}")
         self.used[:n] = used
         if still.shape != (n,) or still.dtype != bool:
-            raise CheckpointError(f"snippet still flags of shape {still.shape} ({still.dtype}) do not fit size {n}")
+            raise LearningError(f"snippet still flags of shape {still.shape} ({still.dtype}) do not fit size {n}")
         self.still[:n] = still

@@ -51,7 +51,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from gwr_predictor.default_predictor.params import DefaultPredictorError
+from gwr_predictor.default_predictor.errors import DefaultPredictorError
 from gwr_predictor.learning.gwr import Prepared
 from gwr_predictor.learning.params import GWRParams
 from gwr_predictor.learning.predictive_gwr import PredictiveGWR

@@ -10,13 +10,9 @@ from gwr_predictor.default_predictor.errors import DefaultPredictorError
 from gwr_predictor.learning.params import DEFAULT_HORIZON, MAX_HORIZON, GWRParams
 from gwr_predictor.parameters.spec import ParamSpec, check_fields
 
-#: The same class under the network's name.
-LocalLinearError = DefaultPredictorError
-
-
 #: The default network's bound (neurons): each holds a local linear model of 48 x 48 values (18 kB), so
-#: 1,000 of them are 18 MB of memory and of checkpoint. Chosen by measurement (docs/tuning.md: cost at
-#: the bound, and no loss on the tuning set, whose streams stay far below it).
+#: 1,000 of them are 18 MB of memory and of checkpoint. Chosen by measurement (research/tuning.md: cost
+#: at the bound, and no loss on the tuning set, whose streams stay far below it).
 NETWORK_MAX_NEURONS = 1000
 
 
@@ -60,7 +56,7 @@ class LocalLinearParams:
     motion. `noise_floor` (rad): lower bound of that motion scale (tracker jitter). `motion_decay`:
     forgetting factor of the motion estimate per frame. `rate`: NLMS rate mu of the local models
     (0 = plain VQTAM read-out, the ablation). `global_order`: frames the global linear read-out's
-    features span (0: none, the predictor before it existed); `global_delta`: the prior variance of its
+    features span (0: none, the local read-outs alone); `global_delta`: the prior variance of its
     weights (large: a weak prior, so it follows the data within a few dozen pairs; the mix below and
     the gate keep an immature fit from doing harm); `mix_decay`, `mix_ridge`: forgetting and ridge of
     the per-step least-squares mix of the local and global read-outs. `consolidate_after`: visits (as BMU) after which a
@@ -105,10 +101,10 @@ class LocalLinearParams:
     def __post_init__(self) -> None:
         check_fields(self, LOCAL_LINEAR_SPECS.values(), DefaultPredictorError)
         if not isinstance(self.gwr, GWRParams):
-            raise LocalLinearError(f"LocalLinearParams.gwr must be GWRParams, got {type(self.gwr).__name__}")
+            raise DefaultPredictorError(f"LocalLinearParams.gwr must be GWRParams, got {type(self.gwr).__name__}")
         if self.global_order > self.order:
-            raise LocalLinearError(f"LocalLinearParams.global_order {self.global_order} exceeds the regressor's "
-                                   f"{self.order} frames")
+            raise DefaultPredictorError(f"LocalLinearParams.global_order {self.global_order} exceeds the "
+                                        f"regressor's {self.order} frames")
 
     def replace(self, **changes: Any) -> LocalLinearParams:
         return dataclasses.replace(self, **changes)

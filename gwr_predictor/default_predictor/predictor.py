@@ -23,8 +23,9 @@ from typing import Any, ClassVar
 
 import numpy as np
 
+from gwr_predictor.default_predictor.errors import DefaultPredictorError
 from gwr_predictor.default_predictor.network import LocalLinearPGWR
-from gwr_predictor.default_predictor.params import DefaultPredictorError, LocalLinearParams
+from gwr_predictor.default_predictor.params import LocalLinearParams
 from gwr_predictor.learning.online_loop import OnlineLoop
 from gwr_predictor.learning.persistence import Checkpointed, fill_queue, stack_queue
 from gwr_predictor.learning.rls import RecursiveLeastSquares, window_features

@@ -16,15 +16,14 @@ prediction made outside one (a new movement, where every member is new to it, or
 `outside_weight` as much, so the record says how each member anticipates what it knows, and can be
 long (`decay`), while a person met a minute ago still gets a weighting from the first performance;
 on that record the ungated weighting hears its members more evenly than the gated one (`power` 3
-against the experts' 4; round 10 of `docs/tuning.md`; `outside_weight` 1, `decay` 0.98 and
-`power` 0, every prediction alike over a short record weighed as the gated weighting does, the
-default before it).
+against the experts' 4; chosen on the tuning set, research/tuning.md; `outside_weight` 1 weighs every
+prediction alike, `power` 0 weighs the members as the gated weighting does).
 
 Each weighting has its own last gate, which judges it on the frames it is returned on: the gated one
 where the motion is new, the ungated one where it is recognised. One gate over both judged each by the
 other's record: on the second performance of a movement, the ungated weighting was held back by the
 first performance's record of the gated one, which had mostly held the pose (`separate_gates` false:
-that single gate, the default before round 6 of `docs/tuning.md`).
+that single gate).
 
 A k-step prediction is scored k frames after it is made, so at the onset of a recognised movement the
 ungated weighting's gate judges step k by what came before: often a pause in the start pose, where
@@ -32,7 +31,7 @@ the weighting predicted the movement to begin and it did not. With `onset_trust`
 recognised movement (the pose has travelled `onset_travel` x the motion scale over the memory's
 longest lag) and over its first k frames, step k is trusted at least `onset_trust` x step 1, whose
 scores arrive a frame after they are made; from then on each step by its own record (chosen on the
-tuning set, `docs/tuning.md` round 9; 0 lends nothing, the default before it).
+tuning set, research/tuning.md; 0 lends nothing).
 """
 
 from __future__ import annotations
@@ -44,20 +43,16 @@ from typing import Any, ClassVar
 
 import numpy as np
 
+from gwr_predictor.default_predictor.errors import DefaultPredictorError
 from gwr_predictor.default_predictor.experts import Experts
 from gwr_predictor.default_predictor.gate import GatedPredictor, GateParams
-from gwr_predictor.default_predictor.params import DefaultPredictorError
-from gwr_predictor.default_predictor.spread import Spread, SpreadParams, spread_params
-from gwr_predictor.learning.checkpoint import CheckpointError
-from gwr_predictor.learning.persistence import Checkpointed, Persist, params_from_json, sub
+from gwr_predictor.default_predictor.spread import Spread, SpreadParams
+from gwr_predictor.learning.errors import LearningError
+from gwr_predictor.learning.persistence import Checkpointed, Persist, params_from_json
 from gwr_predictor.parameters.spec import ParamSpec, check_fields
 
 #: The member whose memory judges recognition.
 MEMORY = "memory"
-#: The settings a switch saved before they existed was learned with: `onset_trust` (it lent nothing),
-#: `outside_weight` (its ungated weighting's record weighed every prediction alike) and `power` (the
-#: ungated weighting's was the experts').
-BEFORE = {"onset_trust": 0.0, "outside_weight": 1.0, "power": 0.0}
 
 RECOGNITION_SPECS = {spec.name: spec for spec in (
     ParamSpec("radius", 3.0, "the motion is recognised when the memory's nearest stored key is within this x the "
@@ -138,8 +133,7 @@ class RecognitionSwitch(Checkpointed):
     kind: ClassVar[str] = "RecognitionSwitch"
     PARAMS = RecognitionParams
     PERSIST = Persist(values=("recognised",), members={"experts": "experts", "ungated": "ungated", "gate": "gate",
-                                                       "ungated_gate": "ungated_gate", "spread": "spread"},
-                      added=("spread",))  # a file saved before the spread existed: it starts fresh
+                                                       "ungated_gate": "ungated_gate", "spread": "spread"})
 
     def __init__(self, experts: Experts, params: RecognitionParams | None = None,
                  gate: GateParams | None = None, spread: SpreadParams | None = None) -> None:
@@ -264,39 +258,14 @@ class RecognitionSwitch(Checkpointed):
         return {"onset": self.onset}, {}
 
     def _load_extra(self, header: Mapping[str, Any], arrays: Mapping[str, np.ndarray]) -> None:
-        self.onset = int(header.get("onset", 0))  # saved before `onset_trust` existed: none
+        self.onset = int(header["onset"])
 
     @classmethod
     def _fresh(cls, header: Mapping[str, Any]) -> RecognitionSwitch:
         experts, gate = header.get("experts"), header.get("gate")
         if not isinstance(experts, dict) or not isinstance(gate, dict):
-            raise CheckpointError("a recognition switch's checkpoint must hold its experts and its last gate")
+            raise LearningError("a recognition switch's checkpoint must hold its experts and its last gate")
         # the views are linked to these gates and weightings, which restore their state in place
-        gate_params = params_from_json(GateParams, gate["params"])
-        return cls(Experts._fresh(experts), params_from_json(RecognitionParams, header["params"], before=BEFORE),
-                   gate_params, spread_params(header.get("spread"), gate_params.horizon, gate_params.joints))
-
-    @classmethod
-    def upgraded(cls, header: Mapping[str, Any], arrays: Mapping[str, np.ndarray]) -> RecognitionSwitch:
-        """The default of a checkpoint written before its last gates moved behind the switch: a
-        `GatedPredictor` around a `RecognitionSwitch` (round 5) or around the gated `Experts` (before it).
-        Everything it learned is kept; its last gate's record becomes the gated weighting's, and the
-        ungated weighting's gate (and, before round 5, its weighting) starts fresh."""
-        inner, inner_arrays, kind = header["model"], sub(arrays, "model"), header.get("model_kind")
-        if kind == cls.kind:
-            experts_header, experts_arrays = inner["experts"], sub(inner_arrays, "experts")
-            params = params_from_json(RecognitionParams, inner["params"], before=BEFORE)
-        elif kind == Experts.kind:
-            experts_header, experts_arrays = inner, inner_arrays
-            params = params_from_json(RecognitionParams, {}, before=BEFORE)
-        else:
-            raise CheckpointError(f"a gate around a {kind!r}, not the default's experts")
-        gate = params_from_json(GateParams, header["params"])
-        switch = cls(Experts._fresh(experts_header), params, gate)
-        switch.experts._restored(experts_header, experts_arrays, "model.experts.")
-        if kind == cls.kind:
-            switch.ungated._restored(inner["ungated"], sub(inner_arrays, "ungated"), "model.ungated.")
-            switch.recognised = int(inner["recognised"])
-        switch.gate._restored({**header, "model": {}}, {k: v for k, v in arrays.items() if not k.startswith("model.")},
-                              "gate.")
-        return switch
+        return cls(Experts._fresh(experts), params_from_json(RecognitionParams, header["params"]),
+                   params_from_json(GateParams, gate["params"]),
+                   params_from_json(SpreadParams, header["spread"]["params"]))

@@ -39,7 +39,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from gwr_predictor.default_predictor.params import DefaultPredictorError
+from gwr_predictor.default_predictor.errors import DefaultPredictorError
 from gwr_predictor.learning.params import DEFAULT_HORIZON, MAX_HORIZON
 from gwr_predictor.learning.pending import PendingPredictions
 from gwr_predictor.learning.persistence import Checkpointed, Persist, fresh_of_kind, kind_to_save, params_from_json
@@ -265,11 +265,3 @@ class WithSpread(Checkpointed):
     def _fresh(cls, header: Mapping[str, Any]) -> WithSpread:
         return cls(fresh_of_kind(header["model_kind"], header["model"]), params_from_json(SpreadParams,
                                                                                           header["params"]))
-
-
-def spread_params(header: Mapping[str, Any] | None, horizon: int, joints: int) -> SpreadParams:
-    """A saved spread's parameters (`header`: its checkpoint header), or the defaults for a file saved before
-    the spread existed (None)."""
-    if header is None:
-        return SpreadParams(horizon=horizon, joints=joints)
-    return params_from_json(SpreadParams, header["params"])

@@ -140,9 +140,9 @@ def zip_entry_count(path: str | os.PathLike[str]) -> int | None:
     return max(count, directory // _MAX_DIRECTORY_ENTRY_BYTES)
 
 
-def npy_header(fh: IO[bytes]) -> tuple[tuple[int, ...], np.dtype, int]:
-    """Shape, dtype and header length of the `.npy` stream `fh` (only the header is read);
-    ValueError saying why if it is not one."""
+def npy_header(fh: IO[bytes], error: type[Exception]) -> tuple[tuple[int, ...], np.dtype, int]:
+    """Shape, dtype and header length of the `.npy` stream `fh` (only the header is read); `error`
+    saying why if it is not one."""
     try:
         major, _minor = np.lib.format.read_magic(fh)
         reader = np.lib.format.read_array_header_1_0 if major == 1 else np.lib.format.read_array_header_2_0
@@ -150,7 +150,7 @@ def npy_header(fh: IO[bytes]) -> tuple[tuple[int, ...], np.dtype, int]:
         return tuple(int(s) for s in shape), dtype, fh.tell()
     except (ValueError, EOFError, SyntaxError, TypeError, KeyError, struct.error, tokenize.TokenError,
             UnicodeDecodeError, zlib.error, zipfile.BadZipFile) as exc:
-        raise ValueError(f"unreadable .npy header ({type(exc).__name__}: {str(exc)[:80]})") from None
+        raise error(f"unreadable .npy header ({type(exc).__name__}: {str(exc)[:80]})") from None
 
 
 def check_npy_declared(where: str, shape: tuple[int, ...], dtype: np.dtype, stored: int,
@@ -168,8 +168,8 @@ def check_npy_file(path: str | os.PathLike[str], error: type[Exception]) -> None
     size = check_file_size(path, MAX_RECORDING_BYTES, "numpy array", error)
     try:
         with open(path, "rb") as fh:
-            shape, dtype, header = npy_header(fh)
-    except ValueError as exc:
+            shape, dtype, header = npy_header(fh, error)
+    except (error, ValueError) as exc:
         raise error(f"{path}: not a numpy array file: {exc}") from None
     check_npy_declared(str(path), shape, dtype, size - header, error)
 
@@ -207,6 +207,7 @@ def _member_header(zf: zipfile.ZipFile, info: zipfile.ZipInfo, where: str,
                    error: type[Exception]) -> tuple[tuple[int, ...], np.dtype, int]:
     try:
         with zf.open(info) as fh:
-            return npy_header(fh)
-    except (ValueError, OSError, NotImplementedError, RuntimeError, EOFError, zipfile.BadZipFile, zlib.error) as exc:
+            return npy_header(fh, error)
+    except (error, ValueError, OSError, NotImplementedError, RuntimeError, EOFError, zipfile.BadZipFile,
+            zlib.error) as exc:
         raise error(f"{where}: unreadable archive member ({type(exc).__name__}: {str(exc)[:80]})") from None

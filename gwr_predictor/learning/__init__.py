@@ -14,7 +14,6 @@ _EXPORTS = {
     "HierarchyParams": "params",
     "GWR": "gwr",
     "LearningError": "errors",
-    "InputError": "gwr",
     "PredictiveGWR": "predictive_gwr",
     "Hierarchy": "hierarchy",
     "FlatPredictor": "hierarchy",
@@ -24,7 +23,6 @@ _EXPORTS = {
     "Learner": "protocol",
     "Spreading": "protocol",
     "InputScaling": "scaling",
-    "CheckpointError": "checkpoint",
     "read_checkpoint": "checkpoint",
     "write_checkpoint": "checkpoint",
 }

@@ -7,7 +7,7 @@ temporary file in the destination folder, is fsynced and then renamed over the t
 leaves either the old or the new file, never half of one.
 Anything wrong on reading (missing, truncated, not a checkpoint, another kind or version, missing
 arrays, and whatever else a hostile or damaged file makes the zip, npy or JSON readers raise) raises
-`CheckpointError` naming the file and the problem: every array's declared size is checked against the
+`LearningError` naming the file and the problem: every array's declared size is checked against the
 bytes the member holds, and the header's size and nesting are bounded, before anything is allocated.
 A checkpoint path that is a symlink is written through (the target is replaced, the link stays).
 `CheckpointLock` keeps one writer per checkpoint file.
@@ -54,10 +54,6 @@ MAX_HEADER_BYTES = 4 << 20
 MAX_HEADER_DEPTH = 32
 
 
-#: LearningError, for a checkpoint that cannot be written or read; `source` names the file.
-CheckpointError = LearningError
-
-
 class CheckpointLock:
     """One writer per checkpoint file: an advisory `flock` on `.<name>.lock` beside the file (a
     symlink's target), held until `release` or the process ends. The OS drops it when its holder
@@ -68,18 +64,18 @@ class CheckpointLock:
         self._fd: int | None = None
         real = Path(os.path.realpath(path))  # every name of one file gets one lock
         self.lock_path = real.with_name(f".{real.name}.lock")
-        fd = open_lock_file(self.lock_path, f"lock file of checkpoint {path}", CheckpointError)
+        fd = open_lock_file(self.lock_path, f"lock file of checkpoint {path}", LearningError)
         try:
             fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except OSError as exc:
             holder = _lock_holder(fd)
             os.close(fd)
             if isinstance(exc, BlockingIOError):
-                raise CheckpointError(
+                raise LearningError(
                     f"checkpoint {path} is in use by process {holder} (lock {self.lock_path}): two learners on one "
                     "checkpoint overwrite each other's learning; stop the other one or give this one another "
                     "path", source=path, locked=True) from None
-            raise CheckpointError(f"{path}: cannot lock {self.lock_path}: {exc}", source=path) from exc
+            raise LearningError(f"{path}: cannot lock {self.lock_path}: {exc}", source=path) from exc
         self._fd = fd
         with contextlib.suppress(OSError):  # the pid only makes the refusal's message clearer (disk full: none)
             os.ftruncate(fd, 0)
@@ -112,11 +108,11 @@ def write_checkpoint(path: str | os.PathLike[str], kind: str, header: Mapping[st
     path = Path(path)
     meta = {"magic": MAGIC, "kind": kind, "format_version": FORMAT_VERSION, **header}
     if HEADER_KEY in arrays:
-        raise CheckpointError(f"{path}: array name {HEADER_KEY!r} is reserved", source=path)
+        raise LearningError(f"{path}: array name {HEADER_KEY!r} is reserved", source=path)
     try:
         blob = json.dumps(meta, allow_nan=True).encode()
     except (TypeError, ValueError) as exc:
-        raise CheckpointError(f"{path}: header is not JSON-serialisable: {exc}", source=path) from exc
+        raise LearningError(f"{path}: header is not JSON-serialisable: {exc}", source=path) from exc
     members: dict[str, Any] = {HEADER_KEY: np.frombuffer(blob, dtype=np.uint8), **arrays}
     dest = destination(path)
     folder = dest.parent
@@ -124,7 +120,7 @@ def write_checkpoint(path: str | os.PathLike[str], kind: str, header: Mapping[st
         mode = new_file_mode(dest)
         fd, tmp = tempfile.mkstemp(prefix=f".{dest.name}.", suffix=".tmp", dir=folder)
     except OSError as exc:
-        raise CheckpointError(f"{path}: cannot create a temporary file in {folder}: {exc}", source=path) from exc
+        raise LearningError(f"{path}: cannot create a temporary file in {folder}: {exc}", source=path) from exc
     try:
         with os.fdopen(fd, "wb") as f:
             np.savez(f, **members)
@@ -136,16 +132,16 @@ def write_checkpoint(path: str | os.PathLike[str], kind: str, header: Mapping[st
         with contextlib.suppress(OSError):
             os.unlink(tmp)
         if isinstance(exc, OSError):
-            raise CheckpointError(f"{path}: writing failed: {exc}", source=path) from exc
+            raise LearningError(f"{path}: writing failed: {exc}", source=path) from exc
         raise
     fsync_folder(folder)
 
 
 def destination(path: str | os.PathLike[str]) -> Path:
     """The file a checkpoint path stands for: a symlink's final target (dangling or not), so that a
-    save updates the target instead of replacing the link; else the path itself. CheckpointError for
+    save updates the target instead of replacing the link; else the path itself. LearningError for
     a symlink loop (every save would fail)."""
-    return final_target(path, "checkpoint", CheckpointError)
+    return final_target(path, "checkpoint", LearningError)
 
 
 _ZIP_LOCAL = b"PK\x03\x04"
@@ -159,9 +155,9 @@ def looks_like_checkpoint(path: str | os.PathLike[str]) -> bool:
     file) is not ours, so it is neither moved aside nor overwritten.
     """
     try:
-        with open_to_read(path, None, "checkpoint", CheckpointError) as f:
+        with open_to_read(path, None, "checkpoint", LearningError) as f:
             head = f.read(30 + len(_FIRST_MEMBER))
-    except (OSError, CheckpointError):
+    except (OSError, LearningError):
         return False
     return head[:4] == _ZIP_LOCAL and head[30:] == _FIRST_MEMBER
 
@@ -179,19 +175,19 @@ def glob_escape(name: str) -> str:
 
 
 def check_checkpoint_place(path: str | os.PathLike[str]) -> None:
-    """CheckpointError naming the path when it is a folder or a file that is not a checkpoint (never
+    """LearningError naming the path when it is a folder or a file that is not a checkpoint (never
     moved or overwritten), or when its folder (a symlink's target's) cannot be created or written to."""
     path = Path(path)
     if path.is_dir():
-        raise CheckpointError(f"{path} is an existing folder, not a checkpoint file: give a file path "
-                              "such as <folder>/model.npz", source=path)
+        raise LearningError(f"{path} is an existing folder, not a checkpoint file: give a file path "
+                            "such as <folder>/model.npz", source=path)
     if path.exists() and not looks_like_checkpoint(path):
-        raise CheckpointError(f"{path} exists and is not a gwr_predictor checkpoint: refusing to move or overwrite it",
-                              source=path)
+        raise LearningError(f"{path} exists and is not a gwr_predictor checkpoint: refusing to move or overwrite it",
+                            source=path)
     try:
-        check_folder(destination(path).parent, f"checkpoint {path}", CheckpointError)
-    except CheckpointError as exc:
-        raise CheckpointError(str(exc), source=path) from None
+        check_folder(destination(path).parent, f"checkpoint {path}", LearningError)
+    except LearningError as exc:
+        raise LearningError(str(exc), source=path) from None
 
 
 def remove_stale_temp_files(path: str | os.PathLike[str]) -> list[Path]:
@@ -211,27 +207,27 @@ def read_checkpoint(path: str | os.PathLike[str], kind: str | tuple[str, ...],
     name in `required` must be present."""
     path = Path(path)
     try:
-        regular_file_size(path, MAX_CHECKPOINT_BYTES, "checkpoint", CheckpointError)
-        check_zip_directory(path, MAX_CHECKPOINT_BYTES, "checkpoint", CheckpointError)
-    except CheckpointError as exc:
+        regular_file_size(path, MAX_CHECKPOINT_BYTES, "checkpoint", LearningError)
+        check_zip_directory(path, MAX_CHECKPOINT_BYTES, "checkpoint", LearningError)
+    except LearningError as exc:
         exc.source = path
         raise
     arrays = _read_arrays(path)
     header = _parse_header(arrays.pop(HEADER_KEY, None), path)
     if not isinstance(header, dict) or header.get("magic") != MAGIC:
-        raise CheckpointError(f"{path}: wrong magic {header.get('magic') if isinstance(header, dict) else None!r}, "
-                              f"expected {MAGIC!r}: not a gwr_predictor checkpoint", source=path)
+        raise LearningError(f"{path}: wrong magic {header.get('magic') if isinstance(header, dict) else None!r}, "
+                            f"expected {MAGIC!r}: not a gwr_predictor checkpoint", source=path)
     version = header.get("format_version")
     if version != FORMAT_VERSION:
         hint = (" (written by an older build: retrain, or re-run `gwr-predictor pretrain`; CHANGELOG.md says "
                 "what changed)") if isinstance(version, int) and version < FORMAT_VERSION else ""
-        raise CheckpointError(f"{path}: format_version {version!r} is not supported (this build reads "
-                              f"{FORMAT_VERSION}){hint}", source=path)
+        raise LearningError(f"{path}: format_version {version!r} is not supported (this build reads "
+                            f"{FORMAT_VERSION}){hint}", source=path)
     kinds = (kind,) if isinstance(kind, str) else kind
     if header.get("kind") not in kinds:
         found = header.get("kind")
-        raise CheckpointError(f"{path}: holds a {found!r}, expected a {' or '.join(map(repr, kinds))}", source=path,
-                              found=found, expected=kinds[0])
+        raise LearningError(f"{path}: holds a {found!r}, expected a {' or '.join(map(repr, kinds))}", source=path,
+                            found=found, expected=kinds[0])
     require_arrays(required, arrays, path)
     return header, arrays
 
@@ -239,18 +235,18 @@ def read_checkpoint(path: str | os.PathLike[str], kind: str | tuple[str, ...],
 def _read_arrays(path: Path) -> dict[str, np.ndarray]:
     """Every member as an array, each one's declared size checked first. Whatever a damaged or forged
     zip, deflate stream or npy header makes the readers raise (zlib.error, MemoryError, ...) is a
-    CheckpointError: an unreadable checkpoint must be set aside, never crash its reader."""
+    LearningError: an unreadable checkpoint must be set aside, never crash its reader."""
     try:
         with zipfile.ZipFile(path) as zf:
             shapes = {info.filename.removesuffix(".npy"): _check_member(zf, info, path) for info in zf.infolist()}
         check_network_sizes(path, shapes)
         with np.load(path, allow_pickle=False) as npz:
             return {name: npz[name] for name in npz.files}
-    except CheckpointError:
+    except LearningError:
         raise
     except Exception as exc:
-        raise CheckpointError(f"{path}: not a readable checkpoint (truncated or corrupt?): "
-                              f"{type(exc).__name__}: {exc}", source=path) from exc
+        raise LearningError(f"{path}: not a readable checkpoint (truncated or corrupt?): "
+                            f"{type(exc).__name__}: {exc}", source=path) from exc
 
 
 def _check_member(zf: zipfile.ZipFile, info: zipfile.ZipInfo, path: Path) -> tuple[int, ...]:
@@ -258,20 +254,23 @@ def _check_member(zf: zipfile.ZipFile, info: zipfile.ZipInfo, path: Path) -> tup
     data it holds (so numpy never allocates more than the member's size, which `check_zip_directory`
     bounded)."""
     if not info.filename.endswith(".npy"):
-        raise CheckpointError(f"{path}: member {info.filename!r} is not an array: not a gwr_predictor checkpoint",
-                              source=path)
+        raise LearningError(f"{path}: member {info.filename!r} is not an array: not a gwr_predictor checkpoint",
+                            source=path)
     with zf.open(info) as f:
-        shape, dtype, header_len = npy_header(f)
+        try:
+            shape, dtype, header_len = npy_header(f, LearningError)
+        except LearningError as exc:
+            raise LearningError(f"{path}: member {info.filename!r}: {exc}", source=path) from None
     declared = int(np.prod(shape, dtype=object)) * dtype.itemsize
     stored = info.file_size - header_len
     if dtype.hasobject or declared != stored:
-        raise CheckpointError(f"{path}: member {info.filename!r} declares shape {shape} of {dtype} "
-                              f"({declared:,} bytes) but holds {stored:,} bytes: corrupt or forged", source=path)
+        raise LearningError(f"{path}: member {info.filename!r} declares shape {shape} of {dtype} "
+                            f"({declared:,} bytes) but holds {stored:,} bytes: corrupt or forged", source=path)
     return shape
 
 
 def check_network_sizes(path: Path, shapes: Mapping[str, tuple[int, ...]]) -> None:
-    """CheckpointError if a network (a `<name>weights` array beside `<name>edges`) declares more neurons
+    """LearningError if a network (a `<name>weights` array beside `<name>edges`) declares more neurons
     than `MAX_NETWORK_NEURONS`, read from the npy headers before anything is allocated: a network's
     edges grow with the square of its neurons, so a few kB of zeros could ask for gigabytes.
     A layer's own, smaller `max_neurons` is checked when the network is built (`GWR.from_arrays`)."""
@@ -280,9 +279,9 @@ def check_network_sizes(path: Path, shapes: Mapping[str, tuple[int, ...]]) -> No
         if prefix != name and (not prefix or prefix.endswith(".")) and f"{prefix}weights" in shapes:
             neurons = (shapes[f"{prefix}weights"] or (0,))[0]
             if neurons > MAX_NETWORK_NEURONS:
-                raise CheckpointError(f"{path}: network {prefix.rstrip('.') or 'gwr'!r} declares {neurons:,} neurons, "
-                                      f"over the limit of {MAX_NETWORK_NEURONS:,} (gwr_predictor.files.limits); "
-                                      "refused before reading", source=path)
+                raise LearningError(f"{path}: network {prefix.rstrip('.') or 'gwr'!r} declares {neurons:,} neurons, "
+                                    f"over the limit of {MAX_NETWORK_NEURONS:,} (gwr_predictor.files.limits); "
+                                    "refused before reading", source=path)
 
 
 _JSON_STRING = re.compile(r'"(?:[^"\\]|\\.)*+"')
@@ -298,26 +297,26 @@ def json_depth(text: str) -> int:
 def _parse_header(blob: np.ndarray | None, path: Path) -> Any:
     """The JSON header, its size and nesting bounded before parsing."""
     if blob is None or blob.dtype != np.uint8 or blob.ndim != 1:
-        raise CheckpointError(f"{path}: no {HEADER_KEY!r} member: not a gwr_predictor checkpoint", source=path)
+        raise LearningError(f"{path}: no {HEADER_KEY!r} member: not a gwr_predictor checkpoint", source=path)
     if blob.size > MAX_HEADER_BYTES:
-        raise CheckpointError(f"{path}: header of {blob.size:,} bytes, over the limit of {MAX_HEADER_BYTES:,}",
-                              source=path)
+        raise LearningError(f"{path}: header of {blob.size:,} bytes, over the limit of {MAX_HEADER_BYTES:,}",
+                            source=path)
     try:
         text = blob.tobytes().decode()
     except UnicodeDecodeError as exc:
-        raise CheckpointError(f"{path}: header is not valid JSON: {type(exc).__name__}: {exc}", source=path) from exc
+        raise LearningError(f"{path}: header is not valid JSON: {type(exc).__name__}: {exc}", source=path) from exc
     depth = json_depth(text)
     if depth > MAX_HEADER_DEPTH:
-        raise CheckpointError(f"{path}: header nested {depth} deep (limit {MAX_HEADER_DEPTH}): corrupt or forged",
-                              source=path)
+        raise LearningError(f"{path}: header nested {depth} deep (limit {MAX_HEADER_DEPTH}): corrupt or forged",
+                            source=path)
     try:
         return json.loads(text)
     except (ValueError, RecursionError) as exc:
-        raise CheckpointError(f"{path}: header is not valid JSON: {type(exc).__name__}: {exc}", source=path) from exc
+        raise LearningError(f"{path}: header is not valid JSON: {type(exc).__name__}: {exc}", source=path) from exc
 
 
 def raise_state_error(exc: Exception, source: str | os.PathLike[str], what: str,
-                      error: type[GwrPredictorError] = CheckpointError) -> NoReturn:
+                      error: type[GwrPredictorError] = LearningError) -> NoReturn:
     """Raise for `exc`, met while a model was rebuilt from the state at `source`: `exc` itself if it
     already names a checkpoint (a nested model's, a missing array), else `error` naming `source` and
     `what` did not fit (and carrying `source`, if it is a LearningError)."""
@@ -330,10 +329,10 @@ def raise_state_error(exc: Exception, source: str | os.PathLike[str], what: str,
 
 
 def require_arrays(required: Iterable[str], arrays: Mapping[str, Any], source: str | os.PathLike[str]) -> None:
-    """CheckpointError naming `source` and what is missing unless every `required` array is there."""
+    """LearningError naming `source` and what is missing unless every `required` array is there."""
     missing = sorted(set(required) - arrays.keys())
     if missing:
-        raise CheckpointError(f"{source}: missing arrays {missing}", source=source)
+        raise LearningError(f"{source}: missing arrays {missing}", source=source)
 
 
 def set_aside(path: str | Path, when: str | None = None) -> Path:

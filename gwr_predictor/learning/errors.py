@@ -12,7 +12,7 @@ class LearningError(GwrPredictorError, ValueError):
     """What a learner refuses: a frame, size or state that does not fit a network, or a checkpoint that
     cannot be written or read (truncated, not a checkpoint, another format version, missing or
     inconsistent arrays, locked by another process). The message names the file or value and what is
-    wrong. `CheckpointError` and `InputError` are this class.
+    wrong.
 
     Attributes, for callers that must tell cases apart:
 

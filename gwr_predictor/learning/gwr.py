@@ -55,12 +55,6 @@ _MIN_CAPACITY = 64
 _KEEP = np.iinfo(np.int64).max
 
 
-#: LearningError, for what a network cannot take: an input vector of the wrong shape or with non-finite
-#: values, a size or a set of arrays (neurons, edges, counters, layers) that does not fit; the message says
-#: which. Its `source` is None: rebuilding from a checkpoint rewraps it to name the file.
-InputError = LearningError
-
-
 def counter_decay(rho: float, kappa: float) -> tuple[float, float]:
     """(a, c) such that h + rho * kappa * (1 - h) - rho == h * a + c (Eq. 3)."""
     return 1.0 - rho * kappa, rho * kappa - rho
@@ -159,12 +153,12 @@ class GWR(Persistent):
         if not isinstance(params, GWRParams):
             raise TypeError(f"params must be GWRParams, got {type(params).__name__}")
         if dim < 1:
-            raise InputError(f"GWR dim must be >= 1, got {dim}")
+            raise LearningError(f"GWR dim must be >= 1, got {dim}")
         match_dim = dim if match_dim is None else int(match_dim)
         if not 1 <= match_dim <= dim:
-            raise InputError(f"GWR match_dim must be in [1, {dim}], got {match_dim}")
+            raise LearningError(f"GWR match_dim must be in [1, {dim}], got {match_dim}")
         if not (math.isfinite(distance_factor) and distance_factor > 0):
-            raise InputError(f"GWR distance_factor must be > 0, got {distance_factor!r}")
+            raise LearningError(f"GWR distance_factor must be > 0, got {distance_factor!r}")
         self.dim = dim
         self.match_dim = match_dim
         self.params = params
@@ -240,26 +234,26 @@ class GWR(Persistent):
         weights = np.array(weights, dtype=float, ndmin=2)
         n, dim = weights.shape
         if n < 2:
-            raise InputError(f"a GWR needs at least 2 neurons, got {n}")
+            raise LearningError(f"a GWR needs at least 2 neurons, got {n}")
         if params.max_neurons is not None and n > params.max_neurons:
-            raise InputError(f"{n} neurons exceed max_neurons={params.max_neurons}")
+            raise LearningError(f"{n} neurons exceed max_neurons={params.max_neurons}")
         if not np.isfinite(weights).all():
-            raise InputError("weights contain NaN or infinite values")
+            raise LearningError("weights contain NaN or infinite values")
         net = cls.__new__(cls)
         net._setup(dim, params, match_dim, distance_factor, capacity=n, needed=n)
         net._put(np.arange(n), weights)
         h = np.ones(n) if counters is None else np.asarray(counters, dtype=float)
         if h.shape != (n,) or not ((h >= 0) & (h <= 1)).all():
-            raise InputError(f"counters must be {n} values in [0, 1]")
+            raise LearningError(f"counters must be {n} values in [0, 1]")
         net._h[:n] = h
         net._n = n
         edges = np.asarray(edges, dtype=np.int64).reshape(-1, 3)
         if edges.size:
             i, j, a = edges.T
             if (i < 0).any() or (j < 0).any() or (i >= n).any() or (j >= n).any() or (i == j).any():
-                raise InputError(f"edges must join two distinct neurons in [0, {n}), got {edges.tolist()[:5]}")
+                raise LearningError(f"edges must join two distinct neurons in [0, {n}), got {edges.tolist()[:5]}")
             if (a < 0).any() or (a > MAX_EDGE_AGE_LIMIT + 1).any():  # int16 storage with room to age
-                raise InputError(f"edge ages must be in [0, {MAX_EDGE_AGE_LIMIT + 1}]")
+                raise LearningError(f"edge ages must be in [0, {MAX_EDGE_AGE_LIMIT + 1}]")
             net._edges.fill(edges)
         return net
 
@@ -268,7 +262,7 @@ class GWR(Persistent):
         n = self._n
         matched = np.asarray(matched)
         if matched.shape != (n,) or matched.dtype.kind not in "iu" or (matched < 0).any() or (matched > clock).any():
-            raise InputError(f"last-matched steps must be {n} whole numbers in [0, clock {clock}]")
+            raise LearningError(f"last-matched steps must be {n} whole numbers in [0, clock {clock}]")
         self._matched[:n] = matched
         self.clock = int(clock)
 
@@ -319,9 +313,9 @@ class GWR(Persistent):
     def _check_input(self, x: Any, size: int) -> np.ndarray:
         x = np.asarray(x, dtype=float)
         if x.shape != (size,):
-            raise InputError(f"expected a vector of shape ({size},), got {x.shape}")
+            raise LearningError(f"expected a vector of shape ({size},), got {x.shape}")
         if not math.isfinite(x.sum()):
-            raise InputError("input contains NaN or infinite values")
+            raise LearningError("input contains NaN or infinite values")
         return x
 
     def _distance(self, i: int, xm: np.ndarray) -> float:
@@ -544,6 +538,6 @@ class GWR(Persistent):
         net = type(self).from_state({**header, **{a: arrays[a] for a in self.STATE_ARRAYS}})
         for what in ("dim", "match_dim", "distance_factor", "params"):
             if getattr(net, what) != getattr(self, what):
-                raise InputError(f"layer {where.rstrip('.')} has {what} {getattr(net, what)!r}, "
-                                 f"the parameters say {getattr(self, what)!r}")
+                raise LearningError(f"layer {where.rstrip('.')} has {what} {getattr(net, what)!r}, "
+                                    f"the parameters say {getattr(self, what)!r}")
         return net

@@ -12,7 +12,8 @@ import math
 
 import numpy as np
 
-from gwr_predictor.learning.gwr import GWR, InputError, counter_decay
+from gwr_predictor.learning.errors import LearningError
+from gwr_predictor.learning.gwr import GWR, counter_decay
 from gwr_predictor.learning.params import GWRParams
 
 
@@ -33,7 +34,7 @@ class LoopGWR:
     def from_gwr(cls, net: GWR) -> LoopGWR:
         """A loop copy of a vectorised network (same neurons, counters, edges)."""
         if net.match_dim != net.dim:
-            raise InputError("LoopGWR mirrors plain GWRs only (no carried output part)")
+            raise LearningError("LoopGWR mirrors plain GWRs only (no carried output part)")
         loop = cls.__new__(cls)
         loop.params = net.params
         loop.distance_factor = net.distance_factor

@@ -32,7 +32,8 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from gwr_predictor.learning.gwr import GWR, InputError
+from gwr_predictor.learning.errors import LearningError
+from gwr_predictor.learning.gwr import GWR
 from gwr_predictor.learning.online_loop import OnlineLoop
 from gwr_predictor.learning.params import LAYERS, HierarchyParams
 from gwr_predictor.learning.persistence import Checkpointed, Persist, Persistent
@@ -240,7 +241,7 @@ class _OnlinePredictor(OnlineLoop, Checkpointed):
         """Stop learning in exactly these layers (they still match); () unfreezes all."""
         unknown = set(which) - set(self.layer_names)
         if unknown:
-            raise InputError(f"unknown layers {sorted(unknown)}; layers are {self.layer_names}")
+            raise LearningError(f"unknown layers {sorted(unknown)}; layers are {self.layer_names}")
         self._frozen = frozenset(which)
 
     @property
@@ -251,7 +252,7 @@ class _OnlinePredictor(OnlineLoop, Checkpointed):
         """Replace one layer by a fresh two-neuron network (optionally with new GWRParams), e.g. to
         re-learn the P-GWR on frozen lower layers with another a_T. Windows are cleared."""
         if name not in self.layer_names:
-            raise InputError(f"unknown layer {name!r}; layers are {self.layer_names}")
+            raise LearningError(f"unknown layer {name!r}; layers are {self.layer_names}")
         if params is not None:
             self.params = self.params.replace(**{name: params})
         setattr(self, name, self._new_layer(name))

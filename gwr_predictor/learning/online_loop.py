@@ -11,7 +11,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from gwr_predictor.learning.gwr import InputError
+from gwr_predictor.learning.errors import LearningError
 from gwr_predictor.learning.pending import PendingPredictions
 from gwr_predictor.learning.persistence import Persist, Persistent
 
@@ -32,7 +32,7 @@ def usable(frame: np.ndarray) -> bool:
     return total - total == 0.0 and -MAX_ANGLE_RAD <= min(values) and max(values) <= MAX_ANGLE_RAD
 
 
-def frame_or_none(x: np.ndarray | None, joints: int, error: type[Exception] = InputError) -> np.ndarray | None:
+def frame_or_none(x: np.ndarray | None, joints: int, error: type[Exception] = LearningError) -> np.ndarray | None:
     """The sample as a (joints,) float vector, or None for a missing one (None, non-finite, or not
     `usable`): a gap to learn around. A sample of another size is a caller's bug: `error`."""
     if x is None:

@@ -28,13 +28,8 @@ from typing import Any, ClassVar, NoReturn, TypeVar
 import numpy as np
 
 from gwr_predictor.errors import GwrPredictorError
-from gwr_predictor.learning.checkpoint import (
-    CheckpointError,
-    raise_state_error,
-    read_checkpoint,
-    require_arrays,
-    write_checkpoint,
-)
+from gwr_predictor.learning.checkpoint import raise_state_error, read_checkpoint, require_arrays, write_checkpoint
+from gwr_predictor.learning.errors import LearningError
 
 Header = dict[str, Any]
 Arrays = dict[str, np.ndarray]
@@ -50,8 +45,7 @@ class Persist:
     `queues`: attribute -> row shape (of the object) of deques of rows or None. `nan_ok`: arrays (and
     values) where NaN means "none yet"; every other float array, optional array, queue row and float
     value must be finite, since a learner never holds NaN or inf there and one such value would spread
-    through everything it computes after (a corrupt file is refused, not learned from). `added`: names of
-    members added after files were written without them; such a file loads with the member fresh."""
+    through everything it computes after (a corrupt file is refused, not learned from)."""
 
     arrays: tuple[str, ...] = ()
     values: tuple[str, ...] = ()
@@ -59,16 +53,15 @@ class Persist:
     members: Mapping[str, str] = field(default_factory=dict)
     queues: Mapping[str, Callable[[Any], tuple[int, ...]]] = field(default_factory=dict)
     nan_ok: tuple[str, ...] = ()
-    added: tuple[str, ...] = ()
 
     def extend(self, arrays: tuple[str, ...] = (), values: tuple[str, ...] = (), optional: tuple[str, ...] = (),
                members: Mapping[str, str] | None = None,
                queues: Mapping[str, Callable[[Any], tuple[int, ...]]] | None = None,
-               nan_ok: tuple[str, ...] = (), added: tuple[str, ...] = ()) -> Persist:
+               nan_ok: tuple[str, ...] = ()) -> Persist:
         """This declaration plus a subclass's fields."""
         return Persist(self.arrays + arrays, self.values + values, self.optional + optional,
                        {**self.members, **(members or {})}, {**self.queues, **(queues or {})},
-                       self.nan_ok + nan_ok, self.added + added)
+                       self.nan_ok + nan_ok)
 
 
 def key(attr: str) -> str:
@@ -124,7 +117,7 @@ class Persistent:
         for a in decl.values:
             value = like(getattr(self, a), field_of(header, key(a), where), where + key(a))
             if isinstance(value, float) and a not in decl.nan_ok and not np.isfinite(value):
-                raise CheckpointError(f"value {where + key(a)!r} is {value}: the file is corrupt")
+                raise LearningError(f"value {where + key(a)!r} is {value}: the file is corrupt")
             setattr(self, a, value)
         for a in decl.arrays:
             copy_into(getattr(self, a), arrays[key(a)], where + key(a))
@@ -140,25 +133,12 @@ class Persistent:
             fill_queue(getattr(self, attr), present, arrays[key(attr)], row_shape(self), where + key(attr))
         for attr, name in decl.members.items():
             member = getattr(self, attr)
-            if member is not None and not (name in decl.added and name not in header):  # absent: stays fresh
+            if member is not None:
                 prefix = f"{where}{name}." if name else where
                 saved = field_of(header, name, where) if name else header
                 setattr(self, attr, member._restored(saved, sub(arrays, name), prefix))
         self._load_extra(header, arrays)
         return self
-
-    def _absent(self, header: Mapping[str, Any], prefix: str = "") -> tuple[str, ...]:
-        """The array-name prefixes of the `added` members (at any depth) that `header` was written without."""
-        out: list[str] = []
-        for attr, name in self.PERSIST.members.items():
-            member = getattr(self, attr)
-            if member is None or not name:
-                continue
-            if name in self.PERSIST.added and name not in header:
-                out.append(f"{prefix}{name}.")
-            elif isinstance(header.get(name), Mapping):
-                out.extend(member._absent(header[name], f"{prefix}{name}."))
-        return tuple(out)
 
 
 #: Every class whose checkpoint a wrapper can hold inside its own, by `kind`: a saved wrapper names the
@@ -174,8 +154,8 @@ class Checkpointed(Persistent):
     __slots__ = ()
     kind: ClassVar[str]
     PARAMS: ClassVar[type]
-    #: what a state that does not fit its class raises (the file's problem: CheckpointError)
-    STATE_ERROR: ClassVar[type[GwrPredictorError]] = CheckpointError
+    #: what a state that does not fit its class raises (the file's problem: LearningError)
+    STATE_ERROR: ClassVar[type[GwrPredictorError]] = LearningError
     params: Any
 
     def __init_subclass__(cls, **kwargs: Any) -> None:
@@ -202,11 +182,10 @@ class Checkpointed(Persistent):
     def from_state(cls: type[_C], header: Mapping[str, Any], arrays: Mapping[str, np.ndarray],
                    source: str | os.PathLike[str] = "<state>") -> _C:
         """The model of a `state()`; STATE_ERROR naming `source` and the field if anything does not fit
-        the saved parameters (CheckpointError if arrays are missing)."""
+        the saved parameters (LearningError if arrays are missing)."""
         try:
             model = cls._fresh(header)
-            absent = model._absent(header)  # members added since the file was written: they stay fresh
-            expected = [k for k in model._capture()[1] if not k.startswith(absent)]
+            expected = list(model._capture()[1])
         except (KeyError, ValueError, TypeError, IndexError, GwrPredictorError) as exc:
             cls._inconsistent(source, exc)
         require_arrays(expected, arrays, source)
@@ -220,29 +199,29 @@ class Checkpointed(Persistent):
         raise_state_error(exc, source, "inconsistent checkpoint content", cls.STATE_ERROR)
 
     def save(self, path: str | os.PathLike[str]) -> None:
-        """Write the whole state atomically (CheckpointError on failure)."""
+        """Write the whole state atomically (LearningError on failure)."""
         header, arrays = self.state()
         write_checkpoint(path, self.kind, header, arrays)
 
     @classmethod
     def load(cls: type[_C], path: str | os.PathLike[str]) -> _C:
-        """A model saved by `save`, continuing where it stopped; CheckpointError naming the file otherwise."""
+        """A model saved by `save`, continuing where it stopped; LearningError naming the file otherwise."""
         header, arrays = read_checkpoint(path, cls.kind)
         return cls.from_state(header, arrays, path)
 
 
 def kind_to_save(model: Any, what: str) -> str:
-    """`model`'s kind if it can be saved inside a wrapper; CheckpointError naming `what` otherwise."""
+    """`model`'s kind if it can be saved inside a wrapper; LearningError naming `what` otherwise."""
     kind = getattr(model, "kind", None)
     if kind not in _KINDS or not isinstance(model, Checkpointed):
-        raise CheckpointError(f"{what} ({type(model).__name__}) cannot be saved; supported: {', '.join(_KINDS)}")
+        raise LearningError(f"{what} ({type(model).__name__}) cannot be saved; supported: {', '.join(_KINDS)}")
     return str(kind)
 
 
 def fresh_of_kind(kind: Any, header: Mapping[str, Any]) -> Checkpointed:
     """A fresh model of the saved `kind` and parameters (`header`), before its state is restored."""
     if not isinstance(kind, str) or kind not in _KINDS:
-        raise CheckpointError(f"a wrapped model of kind {kind!r}; this build restores {', '.join(_KINDS)} "
+        raise LearningError(f"a wrapped model of kind {kind!r}; this build restores {', '.join(_KINDS)} "
                               "(a class restores once its module is imported)")
     return _KINDS[kind]._fresh(header)
 
@@ -256,13 +235,10 @@ def params_to_json(params: Any) -> dict[str, Any]:
     return dataclasses.asdict(params)
 
 
-def params_from_json(cls: type, data: Any, before: Mapping[str, Any] | None = None) -> Any:
-    """Inverse of `params_to_json`; the class's own checks raise on bad values. `before`: the values of
-    settings added since, which a file written without them was learned with (not today's defaults)."""
+def params_from_json(cls: type, data: Any) -> Any:
+    """Inverse of `params_to_json`; the class's own checks raise on bad values."""
     if not isinstance(data, dict):
-        raise CheckpointError(f"params must be a JSON object, got {type(data).__name__}")
-    if before:
-        data = {**before, **data}
+        raise LearningError(f"params must be a JSON object, got {type(data).__name__}")
     for method in ("from_dict", "from_flat"):
         if callable(getattr(cls, method, None)):
             return getattr(cls, method)(data)
@@ -270,35 +246,35 @@ def params_from_json(cls: type, data: Any, before: Mapping[str, Any] | None = No
 
 
 def like(current: Any, value: Any, name: str) -> Any:
-    """The saved `value` as the type the fresh object holds (`current`); CheckpointError naming it if not one."""
+    """The saved `value` as the type the fresh object holds (`current`); LearningError naming it if not one."""
     if isinstance(current, dict):
         if not isinstance(value, dict) or value.keys() != current.keys():
-            raise CheckpointError(f"value {name!r} must have the keys {sorted(current)}, got {value!r}"[:300])
+            raise LearningError(f"value {name!r} must have the keys {sorted(current)}, got {value!r}"[:300])
         return {k: like(current[k], value[k], f"{name}.{k}") for k in current}
     numeric = (int, float, np.integer, np.floating)
     if isinstance(current, bool) or not isinstance(current, numeric):
         if type(value) is not type(current):
-            raise CheckpointError(f"value {name!r} must be a {type(current).__name__}, got {value!r}"[:300])
+            raise LearningError(f"value {name!r} must be a {type(current).__name__}, got {value!r}"[:300])
         return value
     if isinstance(value, bool) or not isinstance(value, (int, float)):
-        raise CheckpointError(f"value {name!r} must be a number, got {value!r}"[:300])
+        raise LearningError(f"value {name!r} must be a number, got {value!r}"[:300])
     return type(current)(value)
 
 
 def copy_into(dest: np.ndarray, src: np.ndarray, name: str) -> None:
-    """`src` into `dest` (a checkpoint's array into the fresh learner's), or CheckpointError naming it."""
+    """`src` into `dest` (a checkpoint's array into the fresh learner's), or LearningError naming it."""
     src = np.asarray(src)
     if src.shape != dest.shape:
-        raise CheckpointError(f"array {name!r} has shape {src.shape}, expected {dest.shape}")
+        raise LearningError(f"array {name!r} has shape {src.shape}, expected {dest.shape}")
     if not np.can_cast(src.dtype, dest.dtype, "same_kind"):
-        raise CheckpointError(f"array {name!r} is {src.dtype}, expected {dest.dtype}")
+        raise LearningError(f"array {name!r} is {src.dtype}, expected {dest.dtype}")
     dest[...] = src
 
 
 def require_finite(array: np.ndarray, name: str) -> None:
-    """CheckpointError naming `name` if a float `array` holds NaN or inf."""
+    """LearningError naming `name` if a float `array` holds NaN or inf."""
     if array.dtype.kind in "fc" and not np.isfinite(array).all():
-        raise CheckpointError(f"array {name!r} holds non-finite values (NaN or inf): the file is corrupt")
+        raise LearningError(f"array {name!r} holds non-finite values (NaN or inf): the file is corrupt")
 
 
 def stack_queue(queue: deque[np.ndarray | None], row_shape: tuple[int, ...]) -> tuple[list[bool], np.ndarray]:
@@ -312,28 +288,28 @@ def stack_queue(queue: deque[np.ndarray | None], row_shape: tuple[int, ...]) -> 
 
 def fill_queue(queue: deque[np.ndarray | None], present: Any, rows: np.ndarray, row_shape: tuple[int, ...],
                name: str) -> None:
-    """Append the saved rows to the (empty) queue; CheckpointError naming it if they do not fit."""
+    """Append the saved rows to the (empty) queue; LearningError naming it if they do not fit."""
     rows = np.asarray(rows)
     if not isinstance(present, list) or not all(isinstance(p, bool) for p in present):
-        raise CheckpointError(f"{name}_present must be a list of booleans")
+        raise LearningError(f"{name}_present must be a list of booleans")
     if rows.shape != (len(present), *row_shape) or (queue.maxlen is not None and len(present) > queue.maxlen):
-        raise CheckpointError(f"queue {name!r} of shape {rows.shape} does not fit rows {row_shape} "
-                         f"(at most {queue.maxlen}, {len(present)} flags)")
+        raise LearningError(f"queue {name!r} of shape {rows.shape} does not fit rows {row_shape} "
+                            f"(at most {queue.maxlen}, {len(present)} flags)")
     if not np.can_cast(rows.dtype, float, "same_kind"):
-        raise CheckpointError(f"queue {name!r} is {rows.dtype}, expected float")
+        raise LearningError(f"queue {name!r} is {rows.dtype}, expected float")
     require_finite(rows[np.asarray(present, dtype=bool)], name)
     queue.extend(np.array(row, dtype=float) if flag else None for flag, row in zip(present, rows, strict=True))
 
 
 def field_of(header: Mapping[str, Any], name: str, where: str) -> Any:
-    """header[name], or CheckpointError naming the field (with its member's prefix) if it is not there."""
+    """header[name], or LearningError naming the field (with its member's prefix) if it is not there."""
     if not isinstance(header, Mapping) or name not in header:
-        raise CheckpointError(f"missing value {where + name!r}")
+        raise LearningError(f"missing value {where + name!r}")
     return header[name]
 
 
 def _merge(into: dict[str, Any], more: Mapping[str, Any], owner: str) -> None:
     clash = into.keys() & more.keys()
     if clash:
-        raise CheckpointError(f"{owner}: names {sorted(clash)} are saved twice")
+        raise LearningError(f"{owner}: names {sorted(clash)} are saved twice")
     into.update(more)

@@ -11,7 +11,8 @@ from typing import Any, TypeVar
 
 import numpy as np
 
-from gwr_predictor.learning.gwr import GWR, InputError
+from gwr_predictor.learning.errors import LearningError
+from gwr_predictor.learning.gwr import GWR
 from gwr_predictor.learning.params import GWRParams
 
 _P = TypeVar("_P", bound="PredictiveGWR")
@@ -24,7 +25,7 @@ class PredictiveGWR(GWR):
                  init_low: float | np.ndarray = -1.0, init_high: float | np.ndarray = 1.0,
                  distance_factor: float = 1.0) -> None:
         if out_dim < 1:
-            raise InputError(f"PredictiveGWR out_dim must be >= 1, got {out_dim}")
+            raise LearningError(f"PredictiveGWR out_dim must be >= 1, got {out_dim}")
         super().__init__(in_dim + out_dim, params, rng, match_dim=in_dim, init_low=init_low,
                          init_high=init_high, distance_factor=distance_factor)
 
@@ -34,11 +35,11 @@ class PredictiveGWR(GWR):
                     distance_factor: float = 1.0) -> _P:
         """As `GWR.from_arrays` with rows [w_in | w_out]; `match_dim` is the regressor size."""
         if match_dim is None:
-            raise InputError("PredictiveGWR.from_arrays needs match_dim (the regressor size)")
+            raise LearningError("PredictiveGWR.from_arrays needs match_dim (the regressor size)")
         net = super().from_arrays(weights, params, edges=edges, counters=counters, match_dim=match_dim,
                                   distance_factor=distance_factor)
         if net.match_dim == net.dim:
-            raise InputError("PredictiveGWR needs at least one output value (match_dim < dim)")
+            raise LearningError("PredictiveGWR needs at least one output value (match_dim < dim)")
         return net
 
     @property
@@ -100,4 +101,4 @@ class PredictiveGWR(GWR):
         return wts @ self._wo[idx]
 
 
-__all__ = ["InputError", "PredictiveGWR"]
+__all__ = ["PredictiveGWR"]

@@ -17,14 +17,15 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from gwr_predictor.learning.checkpoint import CheckpointError, write_checkpoint
+from gwr_predictor.learning.checkpoint import write_checkpoint
+from gwr_predictor.learning.errors import LearningError
 
 
 @dataclass(frozen=True)
 class SaveResult:
     """One finished write: the error (None: written), its size and how long the write took."""
 
-    error: CheckpointError | None
+    error: LearningError | None
     bytes: int
     write_s: float
 
@@ -59,7 +60,7 @@ class CheckpointSaver:
         taken = time.perf_counter() - start
         with self._lock:
             if self._closed:
-                raise CheckpointError(f"{self.path}: the checkpoint writer is closed", source=self.path)
+                raise LearningError(f"{self.path}: the checkpoint writer is closed", source=self.path)
             if self._waiting is not None:
                 self.superseded += 1
             self._waiting = snapshot
@@ -116,11 +117,11 @@ class CheckpointSaver:
         start = time.perf_counter()
         try:
             write_checkpoint(self.path, snapshot.kind, snapshot.header, snapshot.arrays)
-        except CheckpointError as exc:
+        except LearningError as exc:
             return SaveResult(exc, 0, time.perf_counter() - start)
         except Exception as exc:  # whatever the disk, the zip writer or a bug raises: reported, the thread lives on
-            return SaveResult(CheckpointError(f"{self.path}: writing failed: {type(exc).__name__}: {exc}",
-                                              source=self.path), 0, time.perf_counter() - start)
+            return SaveResult(LearningError(f"{self.path}: writing failed: {type(exc).__name__}: {exc}",
+                                            source=self.path), 0, time.perf_counter() - start)
         elapsed = time.perf_counter() - start
         try:
             size = self.path.stat().st_size

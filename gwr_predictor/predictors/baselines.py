@@ -27,10 +27,6 @@ from gwr_predictor.robot.nao import ARM_JOINTS
 N_JOINTS = len(ARM_JOINTS)
 
 
-#: The same class under the baselines' name.
-BaselineError = PredictorError
-
-
 def observation(x: np.ndarray | None, joints: int = N_JOINTS) -> np.ndarray | None:
     """A finite (joints,) float vector, or None for a missing sample (`frame_or_none`, raising
     PredictorError for a sample of another size)."""

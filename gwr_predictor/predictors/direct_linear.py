@@ -36,10 +36,6 @@ from gwr_predictor.pipeline.conventions import DEFAULT_HORIZON, MAX_HORIZON
 from gwr_predictor.predictors.baselines import N_JOINTS, observation
 from gwr_predictor.predictors.errors import PredictorError
 
-#: The same class under the direct-linear model's name.
-DirectLinearError = PredictorError
-
-
 _SPECS = {spec.name: spec for spec in (
     ParamSpec("order", 12, "frames the features span (order - 1 frame-to-frame changes + the newest pose)", 1, 64),
     ParamSpec("forgetting", 1.0, "RLS forgetting factor per learned pair (1: fit everything seen)", 0.9, 1.0),

@@ -32,7 +32,7 @@ from gwr_predictor.default_predictor import (
     make_default,
     make_gated_network,
 )
-from gwr_predictor.learning.checkpoint import CheckpointError
+from gwr_predictor.learning.errors import LearningError
 from gwr_predictor.learning.hierarchy import Hierarchy
 from gwr_predictor.learning.params import HierarchyParams, hierarchy_parameter_specs
 from gwr_predictor.learning.protocol import Predictor
@@ -45,7 +45,7 @@ from gwr_predictor.predictors.errors import PredictorError
 #: predictor's own parameters (`Entry.settings()`, plus `horizon` and `n_joints`) or, for the
 #: experiments, a `HierarchyParams` (from which a predictor takes what it uses).
 Factory = Callable[[Any, int], Predictor]
-#: checkpoint path -> the saved predictor (a CheckpointError with `kind_mismatch` if the file holds another).
+#: checkpoint path -> the saved predictor (a LearningError with `kind_mismatch` if the file holds another).
 Loader = Callable[[str | os.PathLike[str]], Predictor]
 #: () -> the predictor's own parameters, flat.
 Settings = Callable[[], tuple[ParamSpec, ...]]
@@ -114,7 +114,7 @@ class Registry:
         return tuple(n for n in self.names() if self.entry(n).loader is not None)
 
     def load(self, name: str, path: str | os.PathLike[str]) -> Predictor:
-        """The predictor `name` saved at `path`; a CheckpointError with `kind_mismatch` if the file holds
+        """The predictor `name` saved at `path`; a LearningError with `kind_mismatch` if the file holds
         another kind or blend."""
         e = self.entry(name)
         if e.loader is None:
@@ -187,7 +187,7 @@ def gate_loader(wraps: str) -> Loader:
     def load(path: str | os.PathLike[str]) -> Predictor:
         gate = GatedPredictor.load(path)
         if gate.model.kind != wraps:
-            raise CheckpointError(f"{path}: holds a gate around a {gate.model.kind!r}, expected a {wraps!r}",
+            raise LearningError(f"{path}: holds a gate around a {gate.model.kind!r}, expected a {wraps!r}",
                                   source=path, found=gate.model.kind, expected=wraps)
         return gate
 
