@@ -78,7 +78,7 @@ FULL = Config()
 def _gated(horizon: int, **settings: Any) -> Any:
     from gwr_predictor.default_predictor import make_gated_network
 
-    return make_gated_network(horizon, settings=settings)
+    return make_gated_network(horizon, settings={f"network.{name}": value for name, value in settings.items()})
 
 
 def _candidates(config: Config, horizon: int) -> dict[str, list[tuple[dict[str, Any], Any]]]:
