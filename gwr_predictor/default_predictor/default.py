@@ -14,7 +14,7 @@ import dataclasses
 import os
 from collections.abc import Mapping
 from dataclasses import dataclass, field
-from typing import Any, ClassVar
+from typing import Any, ClassVar, TypeVar
 
 import numpy as np
 
@@ -35,6 +35,7 @@ from gwr_predictor.predictors.direct_linear import DirectLinear, DirectLinearPar
 
 #: The data's shape, at the top of each tree: every member takes it from there.
 SHAPE_SPECS = {"horizon": LOCAL_LINEAR_SPECS["horizon"], "n_joints": LOCAL_LINEAR_SPECS["n_joints"]}
+_P = TypeVar("_P", bound="CompositionParams")
 _LONG_MEMORY_ENABLED = ParamSpec("enabled", True, "among the experts (false: the other four without it)")
 
 
@@ -61,12 +62,41 @@ class LongMemoryParams(MemoryParams):
         return MemoryParams(**{f.name: getattr(self, f.name) for f in dataclasses.fields(MemoryParams)})
 
 
-def _about(words: str, **more: Any) -> dict[str, Any]:
-    return {"about": words, **more}
+def _about(words: str) -> dict[str, str]:
+    """A member field's metadata: the words its parameters' descriptions start with."""
+    return {"about": words}
 
 
 @dataclass(frozen=True)
-class DefaultParams:
+class CompositionParams:
+    """A composition's settings tree: the data's shape at the top, which every member takes from there,
+    and the members' settings below (in a subclass), by the tree's one naming rule."""
+
+    SPECS: ClassVar[dict[str, ParamSpec]] = SHAPE_SPECS
+    horizon: int = SHAPE_SPECS["horizon"].default
+    n_joints: int = SHAPE_SPECS["n_joints"].default
+
+    def __post_init__(self) -> None:
+        check_fields(self, SHAPE_SPECS.values(), DefaultPredictorError)
+        shape = {"horizon": self.horizon, "n_joints": self.n_joints, "joints": self.n_joints}
+        for f in dataclasses.fields(self):
+            member = getattr(self, f.name)
+            if dataclasses.is_dataclass(member) and not isinstance(member, type):
+                names = {g.name for g in dataclasses.fields(member)}
+                changes = {k: v for k, v in shape.items() if k in names and getattr(member, k) != v}
+                if changes:  # a member never has a shape of its own
+                    object.__setattr__(self, f.name, dataclasses.replace(member, **changes))
+
+    @classmethod
+    def from_flat(cls: type[_P], flat: Mapping[str, Any]) -> _P:
+        return tree.replace(cls(), flat, DefaultPredictorError)
+
+    def to_flat(self) -> dict[str, Any]:
+        return tree.flatten(self)
+
+
+@dataclass(frozen=True)
+class DefaultParams(CompositionParams):
     """Every setting of the default; flat, dotted names (`network.gwr.eps_b`) by `gwr_predictor.parameters.tree`.
 
     Where a member's values differ from its class's defaults, they were chosen for the default on its own
@@ -78,9 +108,6 @@ class DefaultParams:
     half a standard error) with a memory of ~33 scored frames and judge each step by its own record: they
     keep the default within 1 % of holding the pose where the experts alone were up to 4 % above it."""
 
-    SPECS: ClassVar[dict[str, ParamSpec]] = SHAPE_SPECS
-    horizon: int = SHAPE_SPECS["horizon"].default
-    n_joints: int = SHAPE_SPECS["n_joints"].default
     network: LocalLinearParams = field(
         default_factory=lambda: LocalLinearParams(order=6, rate=0.1, recruit_surprise=9.0),
         metadata=_about("network"))
@@ -97,51 +124,14 @@ class DefaultParams:
                              metadata=_about("the last gates"))
     spread: SpreadParams = field(default_factory=SpreadParams, metadata=_about("the interval of every prediction"))
 
-    def __post_init__(self) -> None:
-        check_fields(self, SHAPE_SPECS.values(), DefaultPredictorError)
-        _share_shape(self)
-
-    @classmethod
-    def from_flat(cls, flat: Mapping[str, Any]) -> DefaultParams:
-        return tree.replace(cls(), flat, DefaultPredictorError)
-
-    def to_flat(self) -> dict[str, Any]:
-        return tree.flatten(self)
-
 
 @dataclass(frozen=True)
-class GatedNetworkParams:
+class GatedNetworkParams(CompositionParams):
     """The local-linear P-GWR with its global read-out behind one gate (`gated_llm_gwr`), as the
     `experiment tune` chose them for the network alone."""
 
-    SPECS: ClassVar[dict[str, ParamSpec]] = SHAPE_SPECS
-    horizon: int = SHAPE_SPECS["horizon"].default
-    n_joints: int = SHAPE_SPECS["n_joints"].default
     network: LocalLinearParams = field(default_factory=LocalLinearParams, metadata=_about("network"))
     gate: GateParams = field(default_factory=GateParams, metadata=_about("gate"))
-
-    def __post_init__(self) -> None:
-        check_fields(self, SHAPE_SPECS.values(), DefaultPredictorError)
-        _share_shape(self)
-
-    @classmethod
-    def from_flat(cls, flat: Mapping[str, Any]) -> GatedNetworkParams:
-        return tree.replace(cls(), flat, DefaultPredictorError)
-
-    def to_flat(self) -> dict[str, Any]:
-        return tree.flatten(self)
-
-
-def _share_shape(params: Any) -> None:
-    """Hand the tree's horizon and joints to each member (a member never has its own)."""
-    shape = {"horizon": params.horizon, "n_joints": params.n_joints, "joints": params.n_joints}
-    for f in dataclasses.fields(params):
-        member = getattr(params, f.name)
-        if dataclasses.is_dataclass(member) and not isinstance(member, type):
-            names = {g.name for g in dataclasses.fields(member)}
-            changes = {k: v for k, v in shape.items() if k in names and getattr(member, k) != v}
-            if changes:
-                object.__setattr__(params, f.name, dataclasses.replace(member, **changes))
 
 
 class DefaultPredictor(RecognitionSwitch):
