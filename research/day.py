@@ -219,7 +219,7 @@ def plot(results: dict[str, Any], path: Path) -> str:
     panels = ((axes[0][0], ("cpu_us_p50", "cpu_us_p99"), "CPU per frame (us)"),
               (axes[0][1], ("rss_mb",), "resident memory (MB)"),
               (axes[1][0], ("neurons", "snippets_memory", "snippets_long_memory"), "units held"),
-              (axes[1][1], ("mae_vs_hold", "mae_vs_rls_ar"), "MAE at 600 ms, share of"))
+              (axes[1][1], ("mae_vs_hold", "mae_vs_rls_ar"), "MAE at 600 ms, as a share of another's"))
     styles = {"new": "-", "still": ":", "repeats": "--"}
     for ax, keys, title in panels:
         for name, rows in results["sessions"].items():
@@ -231,6 +231,7 @@ def plot(results: dict[str, Any], path: Path) -> str:
         ax.set_xlabel("hour")
         ax.grid(alpha=0.3)
         ax.legend(fontsize=6)
+    fig.tight_layout()  # the lower panels' titles clear the upper panels' axis labels
     return save_figure(fig, path.parent, path.stem)
 
 
