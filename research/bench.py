@@ -51,6 +51,7 @@ from gwr_predictor.learning.hierarchy import Hierarchy
 from gwr_predictor.learning.params import GWRParams, HierarchyParams
 from research import day
 from research.memory_use import peak_rss_mb
+from research.registry import DEFAULT_PREDICTOR, make_predictor
 from research.streams import random_walk_stream
 
 
@@ -123,7 +124,6 @@ def measure_default(reference: Hierarchy, stream: np.ndarray, frames: int,
     """(median, best) frames/s of the node's default predictor (the registry's), its speed over
     `reference`'s (`measure_against`), its neurons, after it learned the rest of `stream` first (it
     grows to the size the data asks for), and the seconds its spread took in the timed frames."""
-    from research.registry import DEFAULT_PREDICTOR, make_predictor
 
     model = make_predictor(DEFAULT_PREDICTOR)
     for x in stream[frames:]:
@@ -145,7 +145,6 @@ def measure_default_full(reference: Hierarchy, learned: int, frames: int, chunk:
                          progress: bool) -> tuple[float, float, int]:
     """(median frames/s, speed over `reference`'s, snippets stored) of the default predictor after
     `learned` frames of motion that never repeats (`random_walk_stream`)."""
-    from research.registry import DEFAULT_PREDICTOR, make_predictor
 
     stream = random_walk_stream(learned + frames)
     model = make_predictor(DEFAULT_PREDICTOR)

@@ -25,13 +25,17 @@ from typing import Any
 
 import numpy as np
 
+from gwr_predictor.default_predictor.gate import inner_model
 from gwr_predictor.errors import GwrPredictorError
 from gwr_predictor.learning.checkpoint import raise_state_error, read_checkpoint, write_checkpoint
 from gwr_predictor.learning.errors import LearningError
+from gwr_predictor.learning.hierarchy import FlatPredictor, Hierarchy
+from gwr_predictor.learning.params import HierarchyParams
 from gwr_predictor.learning.pending import PendingPredictions
 from gwr_predictor.learning.protocol import Predictor
 from gwr_predictor.parameters.spec import ParamSpec, check_fields
 from gwr_predictor.pipeline.conventions import DEFAULT_HORIZON
+from gwr_predictor.predictors.baselines import RLSAutoregressive, RLSParams
 
 
 class BlendError(GwrPredictorError, ValueError):
@@ -314,9 +318,6 @@ class BlendedPredictor:
 
 
 def _member_classes() -> dict[str, type]:
-    from gwr_predictor.learning.hierarchy import FlatPredictor, Hierarchy
-    from gwr_predictor.predictors.baselines import RLSAutoregressive
-
     return {c.kind: c for c in (Hierarchy, FlatPredictor, RLSAutoregressive)}
 
 
@@ -341,9 +342,6 @@ def make_blend(kind: str = "blend_hierarchy_rls", params: Any = None, seed: int 
     defaults to the params' horizon (and, if given, overrides it for the GWR member too). The RLS
     regressor spans the hierarchy's `span` frames.
     """
-    from gwr_predictor.learning.hierarchy import FlatPredictor, Hierarchy
-    from gwr_predictor.learning.params import HierarchyParams
-    from gwr_predictor.predictors.baselines import RLSAutoregressive, RLSParams
 
     if kind not in BLENDS:
         raise BlendError(f"unknown blend kind {kind!r}; choose from {', '.join(BLENDS)}")
@@ -376,7 +374,6 @@ def load_blend(kind: str, path: str | os.PathLike[str]) -> BlendedPredictor:
 def gwr_member(model: Any) -> Any:
     """The GWR learner inside `model`: the model itself, the gate's model, or the blend's member that
     has neurons."""
-    from gwr_predictor.default_predictor.gate import inner_model
 
     if isinstance(model, BlendedPredictor):
         return next(m for m in model.members.values() if getattr(m, "neuron_counts", None) is not None)

@@ -3,7 +3,6 @@
 Each is registered as `cand_<name>` (`research/registry.py`) so the experiments score it
 like any other method. They differ from the default in what the linear read-out sees and in how fast
 the gate trusts the model; the network (the local-linear P-GWR) is the default's, unchanged:
-
 - `cand_long`: the default with its global read-out fitted on `global_frames` = 12 frames (RLS-AR and
   the direct linear model use 12; the default's read-out 2), decoupled from the 4 frames the neurons
   match on, behind the default gate;
@@ -32,13 +31,17 @@ from typing import Any
 
 import numpy as np
 
+from gwr_predictor.default_predictor.gate import inner_model
 from gwr_predictor.default_predictor.params import LocalLinearParams
 from gwr_predictor.default_predictor.predictor import LocalLinearPredictor
 from gwr_predictor.errors import GwrPredictorError
 from gwr_predictor.learning.protocol import Predictor
 from gwr_predictor.learning.rls import RecursiveLeastSquares, window_features
+from gwr_predictor.predictors.baselines import HoldLast, RLSAutoregressive, RLSParams
+from gwr_predictor.predictors.direct_linear import DirectLinear, DirectLinearParams
 from research import registry
-from research.blend import BlendedPredictor
+from research.blend import BlendedPredictor, BlendParams
+from research.predictors import gated, local_linear_params
 from research.registry import hierarchy_params
 
 #: frames the candidates' global read-out spans (RLS-AR's and the direct linear model's order)
@@ -106,21 +109,18 @@ class LongReadoutPredictor(LocalLinearPredictor):
 def long_model(params: Any, seed: int, global_frames: int = GLOBAL_FRAMES, global_delta: float = GLOBAL_DELTA,
                **changes: Any) -> LongReadoutPredictor:
     """The long-read-out model for the experiments' `params` (only horizon and joints are taken)."""
-    from research.predictors import local_linear_params
 
     return LongReadoutPredictor(local_linear_params(params, **changes), seed, global_frames, global_delta)
 
 
 def gate(model: Any, params: Any, **changes: Any) -> Predictor:
     """`model` behind the default's gate with `changes` to its settings."""
-    from research.predictors import gated
 
     return gated(model, params, **changes)
 
 
 def _sharp_blend(members: Mapping[str, Any], params: Any, power: float) -> Any:
     """A `research.blend.BlendedPredictor` whose weights go as 1 / MSE^power (1: the blend's own)."""
-    from research.blend import BlendedPredictor
 
     class SharpBlend(BlendedPredictor):
         def running_mse(self) -> np.ndarray:
@@ -133,9 +133,6 @@ def experts(params: Any, seed: int, decay: float = 0.99, members: tuple[str, ...
             model: Mapping[str, Any] | None = None, power: float = 1.0) -> Predictor:
     """The neurons' model, the direct linear model and RLS-AR, blended per step by recent squared error
     (weights 1 / MSE^power)."""
-    from gwr_predictor.predictors.baselines import RLSAutoregressive, RLSParams
-    from gwr_predictor.predictors.direct_linear import DirectLinear, DirectLinearParams
-    from research.blend import BlendParams
 
     hp = hierarchy_params(params)
     make = {"llm": lambda: long_model(params, seed, **(model or {})),
@@ -181,7 +178,6 @@ class ChooseExperts(BlendedPredictor):
     @staticmethod
     def _track_factor(model: Any) -> float:
         """Winning neuron's read-out MSE / the visit-weighted mean over neurons, within [1/4, 4]."""
-        from gwr_predictor.default_predictor.gate import inner_model
 
         model = inner_model(model)
         reg = getattr(model, "_last_reg", None)
@@ -235,8 +231,6 @@ class ChooseExperts(BlendedPredictor):
 def members(params: Any, seed: int, names: tuple[str, ...] = ("llm", "linear", "rls", "hold"),
             member_gate: Mapping[str, float] | None = None, model: Mapping[str, Any] | None = None) -> dict[str, Any]:
     """The experts by name, each behind its own gate with `member_gate`'s settings if given (hold never)."""
-    from gwr_predictor.predictors.baselines import HoldLast, RLSAutoregressive, RLSParams
-    from gwr_predictor.predictors.direct_linear import DirectLinear, DirectLinearParams
 
     hp = hierarchy_params(params)
     make = {"llm": lambda: long_model(params, seed, **(model or {})),
@@ -252,7 +246,6 @@ def members(params: Any, seed: int, names: tuple[str, ...] = ("llm", "linear", "
 def choose(params: Any, seed: int, decay: float = 0.99, names: tuple[str, ...] = ("llm", "linear", "rls", "hold"),
            member_gate: Mapping[str, float] | None = None, **kw: Any) -> ChooseExperts:
     """`ChooseExperts` over `members` (running-error decay `decay`)."""
-    from research.blend import BlendParams
 
     hp = hierarchy_params(params)
     return ChooseExperts(members(params, seed, names, member_gate), BlendParams(decay=decay, horizon=hp.horizon),
@@ -261,7 +254,6 @@ def choose(params: Any, seed: int, decay: float = 0.99, names: tuple[str, ...] =
 
 def experts_gated(params: Any, seed: int, member_gate: Mapping[str, float], decay: float = 0.99) -> Predictor:
     """The 1 / MSE blend of the neurons' model, direct linear and RLS-AR, each behind its own gate."""
-    from research.blend import BlendParams
 
     hp = hierarchy_params(params)
     return BlendedPredictor(members(params, seed, ("llm", "linear", "rls"), member_gate),
@@ -285,8 +277,6 @@ def _cand_gated_experts(params: Any, seed: int) -> Predictor:
 
 
 def _cand_sharp_experts(params: Any, seed: int) -> Predictor:
-    from research.blend import BlendParams
-
     hp = hierarchy_params(params)
     experts = ChooseExperts(members(params, seed, ("llm", "linear", "rls"), EXPERTS_GATE),
                             BlendParams(horizon=hp.horizon), average=True, power=SHARP_POWER)

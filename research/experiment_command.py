@@ -11,6 +11,7 @@ from pathlib import Path
 from gwr_predictor.commands.param_overrides import parse_overrides
 from gwr_predictor.evaluation.output import write_output
 from research.experiments import EXPERIMENTS, load
+from research.experiments.common import all_methods
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
@@ -41,8 +42,6 @@ def run(args: argparse.Namespace) -> int:
                 return 2
             config = dataclasses.replace(config, orders=args.orders)
         if args.method is not None:
-            from research.experiments.common import all_methods
-
             if not hasattr(config, "method") or args.method not in all_methods():
                 print(f"experiment {args.name} has no --method {args.method!r} (methods: {', '.join(all_methods())})",
                       file=sys.stderr)

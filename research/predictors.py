@@ -11,14 +11,19 @@ from __future__ import annotations
 import os
 from typing import Any
 
+from gwr_predictor.default_predictor import LocalLinearParams, LocalLinearPredictor
+from gwr_predictor.default_predictor.gate import GatedPredictor, GateParams
+from gwr_predictor.learning.hierarchy import FlatPredictor, Hierarchy
 from gwr_predictor.learning.protocol import Predictor
+from gwr_predictor.predictors.direct_linear import DirectLinear, DirectLinearParams
 from research import registry
+from research.blend import load_blend, make_blend
 from research.registry import Factory, Loader, gate_loader, hierarchy_params
+from research.safety import ungated
 
 
 def local_linear_params(params: Any, **changes: Any) -> Any:
     """The default's own settings (`LocalLinearParams()`) with `changes`; only horizon and joints come from `params`."""
-    from gwr_predictor.default_predictor import LocalLinearParams
 
     hp = hierarchy_params(params)
     return LocalLinearParams(horizon=hp.horizon, n_joints=hp.n_joints).replace(**changes)
@@ -26,74 +31,54 @@ def local_linear_params(params: Any, **changes: Any) -> Any:
 
 def gated(model: Any, params: Any, **changes: Any) -> Predictor:
     """`model` behind the default's confidence gate (with `changes` to the gate's settings)."""
-    from gwr_predictor.default_predictor.gate import GatedPredictor, GateParams
 
     hp = hierarchy_params(params)
     return GatedPredictor(model, GateParams(horizon=hp.horizon, joints=hp.n_joints, **changes))
 
 
 def _flat(params: Any, seed: int) -> Predictor:
-    from gwr_predictor.learning.hierarchy import FlatPredictor
-
     return FlatPredictor(hierarchy_params(params), seed=seed)
 
 
 def _blend(name: str) -> tuple[Factory, Loader]:
     def make(params: Any, seed: int) -> Predictor:
-        from research.blend import make_blend
-
         return make_blend(name, hierarchy_params(params), seed=seed)
 
     def load(path: str | os.PathLike[str]) -> Predictor:
-        from research.blend import load_blend
-
         return load_blend(name, path)
 
     return make, load
 
 
 def _llm(params: Any, seed: int) -> Predictor:
-    from gwr_predictor.default_predictor import LocalLinearPredictor
-
     return LocalLinearPredictor(local_linear_params(params), seed=seed)
 
 
 def _load_llm(path: str | os.PathLike[str]) -> Predictor:
-    from gwr_predictor.default_predictor import LocalLinearPredictor
-
     return LocalLinearPredictor.load(path)
 
 
 def _gated_vqtam(params: Any, seed: int) -> Predictor:
-    from gwr_predictor.default_predictor import LocalLinearPredictor
-
     lp = local_linear_params(params, rate=0.0, neighbour_rate=0.0, readout_k=1, global_order=0)
     return gated(LocalLinearPredictor(lp, seed=seed), params)
 
 
 def _gated_llm_local(params: Any, seed: int) -> Predictor:
-    from gwr_predictor.default_predictor import LocalLinearPredictor
-
     return gated(LocalLinearPredictor(local_linear_params(params, global_order=0), seed=seed), params)
 
 
 def _gated_linear(params: Any, seed: int) -> Predictor:
-    from gwr_predictor.predictors.direct_linear import DirectLinear, DirectLinearParams
-
     lp = local_linear_params(params)  # the default's own global read-out, alone
     return gated(DirectLinear(DirectLinearParams(order=lp.global_order, horizon=lp.horizon, joints=lp.n_joints)),
                  params)
 
 
 def _gated_hierarchy(params: Any, seed: int) -> Predictor:
-    from gwr_predictor.learning.hierarchy import Hierarchy
-
     return gated(Hierarchy(hierarchy_params(params), seed=seed), params)
 
 
 def _experts_ungated(params: Any, seed: int) -> Predictor:
     """The default's experts and weighting without any gate: what the gates add is the difference."""
-    from research.safety import ungated
 
     return ungated(hierarchy_params(params), seed)
 

@@ -22,7 +22,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from gwr_predictor.data.demonstrator import default_subjects, demonstrate_one
 from gwr_predictor.data.extraction import extract_angles
+from gwr_predictor.data.mocap import load_any_skeleton
+from gwr_predictor.data.real_motion import fetch_clips
 from gwr_predictor.errors import GwrPredictorError
 from gwr_predictor.pipeline.conventions import SKELETON_JOINTS
 from gwr_predictor.robot.nao import clip_to_limits
@@ -177,8 +180,6 @@ def cut(positions: np.ndarray, start_s: float, end_s: float, fps: float = SKELET
 
 def load_segments(segments: tuple[Segment, ...]) -> list[tuple[Segment, np.ndarray]]:
     """Each segment's 30 fps skeleton from the real recordings (fetched into the cache on first use)."""
-    from gwr_predictor.data.mocap import load_any_skeleton
-    from gwr_predictor.data.real_motion import fetch_clips
 
     clips = {c.name: c for c in fetch_clips(tuple(sorted({s.clip for s in segments})))}
     out = []
@@ -193,7 +194,6 @@ def load_segments(segments: tuple[Segment, ...]) -> list[tuple[Segment, np.ndarr
 def synthetic_segments(patterns: tuple[str, ...] = ("wave_one", "raise_front_both")
                        ) -> list[tuple[Segment, np.ndarray]]:
     """Stand-ins made without any download: one clean demonstrator repetition per pattern."""
-    from gwr_predictor.data.demonstrator import default_subjects, demonstrate_one
 
     subject = default_subjects(1)[0]
     out = []

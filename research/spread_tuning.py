@@ -4,7 +4,6 @@ figure: `python -m research.spread_tuning [--out FILE] [VARIANT ...]`.
 The spread never changes a prediction (`default_predictor/spread.py`), so each predictor is run once over the
 tuning set with its point predictions (and, for the default, whether its memory recognised the motion) kept,
 and every spread variant replays exactly those (as `experiment gate` replays the gate). The set:
-
 - the 15 repetition streams of `research.tuning` (5 segments x seeds 100-102), one pass from scratch each:
   coverage and width per step pooled, on the first performance, and per performance;
 - the demonstrator's tuning recordings (seed 7) in `experiment compare`'s protocol: 5 online epochs over the
@@ -35,6 +34,11 @@ import numpy as np
 from gwr_predictor.default_predictor.spread import Spread, SpreadParams
 from gwr_predictor.evaluation.metrics import IntervalStats, future_windows, interval_stats
 from gwr_predictor.learning.pending import PendingPredictions
+from gwr_predictor.robot.closed_loop import run_closed_loop
+from research import registry
+from research.experiments import common
+from research.experiments.splits import make_splits
+from research.tuning import DEMO_SEED, tuning_streams
 
 METHODS = ("hold", "rls_ar", "gwr_experts")
 CACHE = Path("/tmp/gwr_spread_cache")
@@ -79,8 +83,6 @@ def _feed(models: dict[str, Any], seq: np.ndarray, learn: bool, rep: np.ndarray 
 
 
 def _models() -> dict[str, Any]:
-    from research import registry
-
     models = {m: registry.make_predictor(m) for m in METHODS}
     return {m: getattr(model, "model", model) for m, model in models.items()}  # the baselines without a spread
 
@@ -91,9 +93,6 @@ def record_stream(stream: Any) -> Run:
 
 def record_demo() -> Run:
     """`experiment compare`'s protocol on the demonstrator's tuning recordings (seed 7), held out frozen."""
-    from research.experiments import common
-    from research.experiments.splits import make_splits
-    from research.tuning import DEMO_SEED
 
     data = common.demo_data(None, 3, 10, DEMO_SEED)
     splits = make_splits(data, 1, 2)
@@ -122,7 +121,6 @@ def recordings(workers: int = 2) -> list[Run]:
     if path.exists():
         with open(path, "rb") as f:
             return list(pickle.load(f))
-    from research.tuning import tuning_streams
 
     jobs: list[tuple[str, Any]] = [("demo", None), *[("stream", s) for s in tuning_streams()]]
     with ProcessPoolExecutor(workers) as pool:
@@ -312,7 +310,6 @@ def closed_loop(shrinks: Sequence[float], delays: Sequence[float] = (0.3, 0.6), 
     """The compensator's `spread_shrink` on the tuning streams: the offline closed loop (guarded at the true
     delay) on the default's recorded predictions with its spread's intervals; tracking MAE and lag per
     stream, delay and setting (0: the option off)."""
-    from gwr_predictor.robot.closed_loop import run_closed_loop
 
     rows = []
     for run in recordings():

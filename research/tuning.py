@@ -21,12 +21,13 @@ from typing import Any
 import numpy as np
 
 import research  # noqa: F401  (registers the research predictors)
-from gwr_predictor.default_predictor import make_gated_network
+from gwr_predictor.default_predictor import MemoryParams, TrajectoryMemory, make_gated_network
 from gwr_predictor.evaluation.metrics import HorizonStats, future_windows, horizon_stats
-from gwr_predictor.evaluation.online import compare_online
+from gwr_predictor.evaluation.online import compare_online, train_online
 from research import candidates as cand
-from research import safety
-from research.experiments import common
+from research import registry, safety
+from research.experiments import common, dataloss
+from research.experiments.real import Config, left_out_takes, load_clips
 from research.recording import Recorded
 from research.repetitions import RepetitionStream, Segment, StreamSettings, load_segments, make_streams
 from research.safety import R3
@@ -187,8 +188,6 @@ VARIANTS: dict[str, Factory] = {
 
 
 def _memory(params: Any, **changes: Any) -> Any:
-    from gwr_predictor.default_predictor import MemoryParams, TrajectoryMemory
-
     return TrajectoryMemory(MemoryParams(horizon=params.horizon, n_joints=params.n_joints, **changes))
 
 
@@ -271,7 +270,6 @@ def _one_pass(methods: tuple[str, ...], sequences: list[Any]) -> dict[str, Horiz
 def _left_out(methods: tuple[str, ...], held: dict[str, Any], others: list[np.ndarray]) -> dict[str, HorizonStats]:
     """The real clips' leave-one-take-out condition (`experiment real`): the other takes learned online
     once, then the held-out take, learning on."""
-    from gwr_predictor.evaluation.online import train_online
 
     params = common.make_params()
     models = {m: factory(m)(params, 0) for m in methods}
@@ -284,8 +282,6 @@ def _left_out(methods: tuple[str, ...], held: dict[str, Any], others: list[np.nd
 def _demo_heldout(methods: tuple[str, ...]) -> dict[str, float]:
     """The demonstrator check (`--demo`): per pattern, 5 epochs over 3 repetitions of 2 people, then the
     unseen repetitions frozen; MSE at the last step as a share of holding the pose (seed 7's recordings)."""
-    from research import registry
-    from research.experiments import dataloss
 
     names = {m: re.sub(r"\W", "_", m) for m in methods}  # registry names are identifiers
     for m, n in names.items():
@@ -322,8 +318,6 @@ def evaluate(methods: tuple[str, ...], real: bool = False, workers: int = 2, dem
     jobs += [("stream", s, methods) for s in tuning_streams(walk)]
     jobs += [("cold", p, methods) for p in COLD_PATTERNS] + [("jump", s, methods) for s in SEEDS]
     if real:
-        from research.experiments.real import Config, left_out_takes, load_clips
-
         clips = load_clips(Config())
         jobs += [("real", c, methods) for c in clips] + [("left_out", t, methods) for t in left_out_takes(clips)]
     with ProcessPoolExecutor(workers) as pool:

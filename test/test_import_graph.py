@@ -76,9 +76,12 @@ def module_graph(root: Path = ROOT) -> dict[str, set[str]]:
 
     Importing `a.b.c` runs `a/__init__` and `a/b/__init__` first, so those are edges too, but for the
     importer's own packages, which are always initialised before it."""
-    modules = package_modules(root)
+    return _graph(package_modules(root), all_imports(root))
+
+
+def _graph(modules: dict[str, Path], imports: tuple[Import, ...]) -> dict[str, set[str]]:
     graph: dict[str, set[str]] = {name: set() for name in modules}
-    for imp in all_imports(root):
+    for imp in imports:
         if imp.in_function:
             continue
         for target in imp.targets:
@@ -162,6 +165,26 @@ def test_no_subpackage_imports_itself_back():
 def test_functions_import_only_heavy_optional_libraries():
     found = function_level_imports()
     assert not found, "imports inside functions (move them to the top of the module):\n" + "\n".join(found)
+
+
+def research_modules(root: Path = ROOT) -> dict[str, Path]:
+    """{dotted name: file} of the research part of the repository (research/, not installed)."""
+    modules = {}
+    for path in sorted((root / "research").rglob("*.py")):
+        parts = path.relative_to(root).with_suffix("").parts
+        modules[".".join(parts[:-1] if parts[-1] == "__init__" else parts)] = path
+    return modules
+
+
+def test_research_has_no_cycle_and_imports_the_package_and_itself_at_the_top():
+    """The research code follows the package's rule: a function imports only a heavy optional library."""
+    modules = research_modules()
+    imports = tuple(imp for name, path in modules.items() for imp in _imports_of(name, path))
+    lazy = [f"{imp.importer}:{imp.line} {imp.targets[0]}" for imp in imports
+            if imp.in_function and imp.top & {PACKAGE, "research"}]
+    assert not lazy, "imports of the package or research inside functions:\n" + "\n".join(lazy)
+    found = cycles(_graph(modules, imports))
+    assert not found, "import cycles in research:\n" + "\n".join(" <-> ".join(c) for c in found)
 
 
 def test_the_graph_sees_a_cycle_and_a_function_level_import(tmp_path):

@@ -5,7 +5,6 @@ The default states a central interval (80 % by default) around every predicted a
 Per method and horizon step: the share of the true angles inside their stated interval (coverage) and the
 interval's mean width (rad), every method scored on the same frames, on data the spread was not tuned on
 (its tuning set: `research/spread_tuning.py`, research/tuning.md):
-
 - the demonstrator's held-out repetitions and held-out person (`experiment compare`'s protocol, seed 0: 5
   online epochs over the training split, then each split frozen and still learning);
 - the real clips (`experiment real`): one pass from scratch each, and each climbing take learned after the
@@ -29,8 +28,9 @@ import numpy as np
 from gwr_predictor.evaluation.metrics import IntervalStats, future_windows, interval_stats
 from gwr_predictor.evaluation.online import compare_online, train_online
 from gwr_predictor.evaluation.output import ExperimentOutput, figure, markdown_table, save_figure
+from gwr_predictor.robot.closed_loop import run_closed_loop
 from research import registry
-from research.experiments import common
+from research.experiments import common, real, repeats
 from research.experiments.splits import make_splits
 from research.recording import Recorded
 
@@ -113,7 +113,6 @@ class _Replay:
 
 def _closed_loop(name: str, angles: np.ndarray, recorded: Recorded, config: Config) -> list[dict[str, Any]]:
     """Guarded at the true delay, without the option (0) and with each `shrinks`."""
-    from gwr_predictor.robot.closed_loop import run_closed_loop
 
     rows = []
     for delay in config.delays:
@@ -139,7 +138,6 @@ def _one_pass(name: str, angles: np.ndarray, methods: tuple[str, ...], params: A
 def real_clips(config: Config, methods: tuple[str, ...], params: Any, seed: int, progress: bool
                ) -> dict[str, Any]:
     """One pass from scratch per clip, and each climbing take learned after the others; pooled and per clip."""
-    from research.experiments import real
 
     clips = real.load_clips(real.Config(clips=config.real_clips, max_seconds=config.real_max_seconds))
     empty = {m: IntervalStats.empty(params.horizon, params.n_joints) for m in methods}
@@ -164,7 +162,6 @@ def real_clips(config: Config, methods: tuple[str, ...], params: Any, seed: int,
 
 def repeated(config: Config, methods: tuple[str, ...], params: Any, seed: int, progress: bool) -> dict[str, Any]:
     """`experiment repeats`' streams, one pass from scratch each: pooled, and per performance index."""
-    from research.experiments import repeats
 
     streams = repeats.streams_for(repeats.Config(synthetic=config.synthetic, seeds=config.seeds,
                                                  repetitions=config.performances), seed)

@@ -16,6 +16,7 @@ from typing import Any
 
 import numpy as np
 
+from gwr_predictor.data.datasets import demo_angle_sequences
 from gwr_predictor.learning.params import HierarchyParams
 from gwr_predictor.learning.protocol import Predictor
 from research import registry
@@ -78,7 +79,6 @@ def neuron_counts(model: Any) -> list[int] | None:
 
 def demo_data(patterns: Sequence[str] | None, subjects: int, repetitions: int, seed: int) -> tuple[Any, ...]:
     """The demonstrator's angle sequences (10 fps), pattern-major."""
-    from gwr_predictor.data.datasets import demo_angle_sequences
 
     return tuple(demo_angle_sequences(patterns=patterns, subjects=subjects, repetitions=repetitions, seed=seed))
 

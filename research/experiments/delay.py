@@ -28,7 +28,7 @@ from gwr_predictor.evaluation.online import train_online
 from gwr_predictor.evaluation.output import ExperimentOutput, figure, markdown_table, save_figure
 from gwr_predictor.learning.protocol import Predictor
 from gwr_predictor.robot.closed_loop import run_closed_loop
-from research.experiments import common
+from research.experiments import common, real
 from research.experiments.splits import make_splits
 
 NAME = "delay"
@@ -145,7 +145,6 @@ def one_run(angles: np.ndarray, model: Callable[[], Predictor], delay: float, ru
 
 def load_real_clips(config: Config) -> list[dict[str, Any]]:
     """The real clips at 10 fps (`experiment real`'s loader and cache)."""
-    from research.experiments import real
 
     return real.load_clips(real.Config(clips=config.real_clips, max_seconds=config.real_max_seconds))
 

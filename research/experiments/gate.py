@@ -21,12 +21,15 @@ from typing import Any
 
 import numpy as np
 
+from gwr_predictor.default_predictor.gate import GatedPredictor, GateParams
 from gwr_predictor.evaluation.metrics import HorizonStats
 from gwr_predictor.evaluation.online import compare_online, train_online
 from gwr_predictor.evaluation.output import ExperimentOutput, markdown_table
-from research.experiments import common
+from gwr_predictor.predictors.baselines import HoldLast
+from research.experiments import common, real
 from research.experiments.delay import person_sequence
 from research.experiments.splits import make_splits
+from research.registry import make_predictor
 
 NAME = "gate"
 
@@ -107,7 +110,6 @@ class _Replay:
 
 def _conditions(config: Config, seed: int) -> dict[str, tuple[list[Any], list[Any]]]:
     """name -> (sequences learned first, sequences scored)."""
-    from research.experiments import real
 
     out: dict[str, tuple[list[Any], list[Any]]] = {}
     if config.clips != ():
@@ -129,8 +131,6 @@ def _conditions(config: Config, seed: int) -> dict[str, tuple[list[Any], list[An
 
 
 def _score(model: Any, learned: list[Any], scored: list[Any], horizon: int) -> tuple[HorizonStats, HorizonStats]:
-    from gwr_predictor.predictors.baselines import HoldLast
-
     if learned:
         train_online(model, learned, progress=False)
     res = compare_online({"hold": HoldLast(), "m": model}, scored, horizon=horizon, progress=False)
@@ -140,8 +140,6 @@ def _score(model: Any, learned: list[Any], scored: list[Any], horizon: int) -> t
 def run(config: Config, out: Path, seed: int = 0, progress: bool = True) -> ExperimentOutput:
     from tqdm import tqdm
 
-    from gwr_predictor.default_predictor.gate import GatedPredictor, GateParams
-    from research.registry import make_predictor
 
     params = common.make_params()
     conds = _conditions(config, seed)

@@ -25,6 +25,7 @@ import numpy as np
 
 from gwr_predictor.evaluation.online import compare_online
 from gwr_predictor.evaluation.output import ExperimentOutput, figure, markdown_table, save_figure
+from research.blend import gwr_member
 from research.experiments import common
 
 NAME = "incremental"
@@ -55,8 +56,6 @@ FULL = Config()
 
 def one_order(config: Config, order: list[str], by_pattern: dict[str, list[Any]], seed: int,
               progress: bool) -> dict[str, Any]:
-    from research.blend import gwr_member
-
     params = common.make_params(config.overrides)
     model = common.make_model(config.method, params, seed)
     learner = gwr_member(model)  # the GWR learner keeping the P.E. bookkeeping

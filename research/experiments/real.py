@@ -19,11 +19,17 @@ from typing import Any
 
 import numpy as np
 
+from gwr_predictor.data.angles import clip_fractions
+from gwr_predictor.data.extraction import extract_angles
+from gwr_predictor.data.mocap import load_any_skeleton
+from gwr_predictor.data.real_motion import fetch_clips
 from gwr_predictor.evaluation.metrics import HorizonStats
 from gwr_predictor.evaluation.online import compare_online, train_online
 from gwr_predictor.evaluation.output import ExperimentOutput, figure, markdown_table, save_figure
+from gwr_predictor.robot.nao import clip_to_limits
 from research import registry
 from research.experiments import common
+from research.knn import KnnPredictor
 from research.recording import Recorded
 
 NAME = "real"
@@ -51,11 +57,6 @@ FULL = Config()
 
 def load_clips(config: Config) -> list[dict[str, Any]]:
     """Each clip as {name, group, description, angles (T, 8) at 10 fps, raw (unclipped), seconds, ...}."""
-    from gwr_predictor.data.angles import clip_fractions
-    from gwr_predictor.data.extraction import extract_angles
-    from gwr_predictor.data.mocap import load_any_skeleton
-    from gwr_predictor.data.real_motion import fetch_clips
-    from gwr_predictor.robot.nao import clip_to_limits
 
     clips = fetch_clips(config.clips)
     out = []
@@ -108,7 +109,6 @@ def one_pass(clips: list[dict[str, Any]], methods: tuple[str, ...], params: Any,
 def leave_one_out(clips: list[dict[str, Any]], methods: tuple[str, ...], params: Any, config: Config, seed: int,
                   progress: bool) -> tuple[dict[str, dict[str, Any]], dict[str, HorizonStats]]:
     """Per held-out take of a group: learn the others online, then go on learning on it; + k-NN."""
-    from research.knn import KnnPredictor
 
     per_take: dict[str, dict[str, Any]] = {}
     names = (*methods, KNN)

@@ -23,6 +23,7 @@ from gwr_predictor.evaluation.online import compare_online
 from gwr_predictor.evaluation.output import ExperimentOutput, figure, markdown_table, save_figure
 from research import registry
 from research.experiments import common
+from research.experiments.delay import one_run
 from research.recording import Recorded
 from research.repetitions import (
     PAUSE,
@@ -96,7 +97,6 @@ def score_stream(stream: RepetitionStream, methods: tuple[str, ...], params: Any
 
 def closed_loop(stream: RepetitionStream, config: Config, params: Any, seed: int) -> list[dict[str, Any]]:
     """`experiment delay`'s closed loop per predictor, delay and rule, the predictor learning from scratch."""
-    from research.experiments.delay import one_run
 
     return [{"stream": stream.name, "predictor": name, "delay_s": d, "rule": rule,
              **one_run(stream.angles, lambda n=name: common.make_model(n, params, seed), d, rule, config.skip_s)}

@@ -30,8 +30,11 @@ from typing import Any
 
 import numpy as np
 
+from gwr_predictor.default_predictor import make_gated_network
 from gwr_predictor.evaluation.online import compare_online
 from gwr_predictor.evaluation.output import ExperimentOutput, markdown_table
+from gwr_predictor.predictors.baselines import RLSAutoregressive, RLSParams
+from gwr_predictor.predictors.direct_linear import DirectLinear, DirectLinearParams
 from research.experiments import common
 from research.experiments.splits import make_splits
 
@@ -76,15 +79,10 @@ FULL = Config()
 
 
 def _gated(horizon: int, **settings: Any) -> Any:
-    from gwr_predictor.default_predictor import make_gated_network
-
     return make_gated_network(horizon, settings={f"network.{name}": value for name, value in settings.items()})
 
 
 def _candidates(config: Config, horizon: int) -> dict[str, list[tuple[dict[str, Any], Any]]]:
-    from gwr_predictor.predictors.baselines import RLSAutoregressive, RLSParams
-    from gwr_predictor.predictors.direct_linear import DirectLinear, DirectLinearParams
-
     llm = [{"rate": r, "insertion_scale": i, "neighbour_rate": n}
            for r, i, n in itertools.product(config.rates, config.insertion_scales, config.neighbour_rates)]
     rls = [{"order": o, "forgetting": f} for o, f in itertools.product(config.orders, config.forgettings)]
