@@ -13,7 +13,6 @@ from gwr_predictor.default_predictor import (
     TrajectoryMemory,
     make_default,
 )
-from gwr_predictor.default_predictor.default import default_specs
 from gwr_predictor.default_predictor.errors import DefaultPredictorError
 from gwr_predictor.default_predictor.memory import EXACT
 from gwr_predictor.default_predictor.recognition import RecognitionSwitch
@@ -21,6 +20,7 @@ from gwr_predictor.errors import GwrPredictorError
 from gwr_predictor.evaluation.online import compare_online
 from gwr_predictor.learning.params import MAX_HORIZON
 from gwr_predictor.predictors.baselines import HoldLast
+from gwr_predictor.registry import entry
 
 
 def _movement(speed: float, n: int = 40) -> np.ndarray:
@@ -427,7 +427,7 @@ def test_the_default_wins_on_a_repeated_movement_varied_in_speed():
 
 
 def test_the_default_takes_its_settings_by_flat_name():
-    specs = {s.name for s in default_specs()}
+    specs = {s.name for s in entry("gwr_experts").settings()}
     assert {"network.order", "network.gwr.eps_b", "memory.k", "experts.power", "expert_gate.decay",
             "gate.confidence", "recognition.radius"} <= specs
     model = make_default(settings={"memory.k": 5, "experts.power": 2.0, "network.order": 3,

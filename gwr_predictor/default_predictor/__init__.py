@@ -29,8 +29,6 @@ from gwr_predictor.default_predictor.default import (
     DefaultPredictor,
     GatedNetworkParams,
     LongMemoryParams,
-    default_specs,
-    gated_network_specs,
     make_default,
     make_gated_network,
 )
@@ -65,8 +63,6 @@ __all__ = [
     "TrajectoryMemory",
     "View",
     "WithSpread",
-    "default_specs",
-    "gated_network_specs",
     "inner_model",
     "make_default",
     "make_gated_network",

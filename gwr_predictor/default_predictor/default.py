@@ -168,7 +168,7 @@ class DefaultPredictor(RecognitionSwitch):
         header, arrays = read_checkpoint(path, (cls.kind, RecognitionSwitch.kind))
         if header["kind"] != cls.kind:
             raise LearningError(f"{path}: a default saved by an earlier build, without its settings tree; this build "
-                                  "does not read it (pretrain again, or let the node learn anew)", source=path)
+                                "does not read it (pretrain again, or let the node learn anew)", source=path)
         return cls.from_state(header, arrays, path)
 
     @classmethod
@@ -186,23 +186,12 @@ def make_default(horizon: int = 6, joints: int = 8, seed: int = 0,
                  settings: Mapping[str, Any] | None = None) -> DefaultPredictor:
     """The default predictor, fresh. `settings`: flat, dotted parameters of `DefaultParams` (e.g.
     `network.order`, `memory.k`, `expert_gate.decay`); the others keep their defaults."""
-    params = tree.replace(DefaultParams(horizon=horizon, n_joints=joints), settings or {}, DefaultPredictorError)
-    return DefaultPredictor(params, seed)
+    return DefaultPredictor(DefaultParams.from_flat({"horizon": horizon, "n_joints": joints, **(settings or {})}), seed)
 
 
 def make_gated_network(horizon: int = 6, joints: int = 8, seed: int = 0,
                        settings: Mapping[str, Any] | None = None) -> GatedPredictor:
     """The local-linear P-GWR with its global read-out behind one gate (`gated_llm_gwr`). `settings`: flat,
     dotted parameters of `GatedNetworkParams` (e.g. `network.order`, `network.gwr.eps_b`, `gate.decay`)."""
-    p = tree.replace(GatedNetworkParams(horizon=horizon, n_joints=joints), settings or {}, DefaultPredictorError)
+    p = GatedNetworkParams.from_flat({"horizon": horizon, "n_joints": joints, **(settings or {})})
     return GatedPredictor(LocalLinearPredictor(p.network, seed=seed), p.gate)
-
-
-def default_specs() -> tuple[ParamSpec, ...]:
-    """The default's own parameters, flat (without the data's shape, which is the node's)."""
-    return tuple(s for s in tree.parameter_specs(DefaultParams()) if s.name not in SHAPE_SPECS)
-
-
-def gated_network_specs() -> tuple[ParamSpec, ...]:
-    """`gated_llm_gwr`'s own parameters, flat (without the data's shape)."""
-    return tuple(s for s in tree.parameter_specs(GatedNetworkParams()) if s.name not in SHAPE_SPECS)

@@ -23,19 +23,20 @@ from dataclasses import dataclass
 from typing import Any
 
 from gwr_predictor.default_predictor import (
+    DefaultParams,
     DefaultPredictor,
+    GatedNetworkParams,
     GatedPredictor,
     SpreadParams,
     WithSpread,
-    default_specs,
-    gated_network_specs,
     make_default,
     make_gated_network,
 )
 from gwr_predictor.learning.errors import LearningError
 from gwr_predictor.learning.hierarchy import Hierarchy
-from gwr_predictor.learning.params import HierarchyParams, hierarchy_parameter_specs
+from gwr_predictor.learning.params import HierarchyParams
 from gwr_predictor.learning.protocol import Predictor
+from gwr_predictor.parameters import tree
 from gwr_predictor.parameters.spec import ParamSpec
 from gwr_predictor.predictors.baselines import make_baselines
 from gwr_predictor.predictors.direct_linear import DirectLinear, DirectLinearParams
@@ -47,10 +48,8 @@ from gwr_predictor.predictors.errors import PredictorError
 Factory = Callable[[Any, int], Predictor]
 #: checkpoint path -> the saved predictor (a LearningError with `kind_mismatch` if the file holds another).
 Loader = Callable[[str | os.PathLike[str]], Predictor]
-#: () -> the predictor's own parameters, flat.
-Settings = Callable[[], tuple[ParamSpec, ...]]
 #: Parameters that are the node's or the data's, not a predictor's own.
-DATA_PARAMETERS = ("horizon", "n_joints")
+DATA_PARAMETERS = tree.FROM_THE_DATA
 #: What the arm_predictor node, pretrain and demo.sh run unless told otherwise (`-p predictor:=...`);
 #: `evaluate` and `experiment real` always score it and name it.
 DEFAULT_PREDICTOR = "gwr_experts"
@@ -59,13 +58,19 @@ DEFAULT_PREDICTOR = "gwr_experts"
 @dataclass(frozen=True)
 class Entry:
     """One registered predictor: its factory, its label in tables, if it can be saved its loader, and
-    its own parameters (what the learner node declares when it runs it)."""
+    the class of its settings tree, whose parameters the learner node declares when it runs it."""
 
     name: str
     factory: Factory
     label: str
     loader: Loader | None = None
-    settings: Settings = tuple
+    params: type | None = None
+
+    def settings(self) -> tuple[ParamSpec, ...]:
+        """The predictor's own parameters, flat: its settings tree's, without the data's shape (the node's)."""
+        if self.params is None:
+            return ()
+        return tuple(s for s in tree.parameter_specs(self.params()) if s.name not in DATA_PARAMETERS)
 
 
 class Registry:
@@ -77,13 +82,13 @@ class Registry:
         self._own: dict[str, Entry] = {}
 
     def register(self, name: str, factory: Factory, label: str | None = None, loader: Loader | None = None,
-                 settings: Settings = tuple) -> None:
+                 params: type | None = None) -> None:
         """Make `name` available to whatever picks predictors from this registry; names are unique."""
         if not name.isidentifier():
             raise PredictorError(f"predictor name {name!r} must be an identifier (letters, digits, '_')")
         if name in self.names():
             raise PredictorError(f"predictor {name!r} is already registered")
-        self._own[name] = Entry(name, factory, label or name, loader, settings)
+        self._own[name] = Entry(name, factory, label or name, loader, params)
 
     def unregister(self, name: str) -> None:
         """Forget `name`, one this registry registered itself (a plugin's, a test's)."""
@@ -165,10 +170,6 @@ def _hierarchy(params: Any, seed: int) -> Predictor:
     return Hierarchy(hierarchy_params(params), seed=seed)
 
 
-def _hierarchy_settings() -> tuple[ParamSpec, ...]:
-    return tuple(s for s in hierarchy_parameter_specs() if s.name not in DATA_PARAMETERS)
-
-
 def _made_by(build: Callable[..., Predictor]) -> Factory:
     """A factory calling `build(horizon, joints, seed, settings)`."""
     def make(params: Any, seed: int) -> Predictor:
@@ -188,7 +189,7 @@ def gate_loader(wraps: str) -> Loader:
         gate = GatedPredictor.load(path)
         if gate.model.kind != wraps:
             raise LearningError(f"{path}: holds a gate around a {gate.model.kind!r}, expected a {wraps!r}",
-                                  source=path, found=gate.model.kind, expected=wraps)
+                                source=path, found=gate.model.kind, expected=wraps)
         return gate
 
     return load
@@ -199,11 +200,11 @@ PRODUCT.register("hold", _baseline("hold"), "hold last")
 PRODUCT.register("const_velocity", _baseline("const_velocity"), "constant velocity")
 PRODUCT.register("rls_ar", _baseline("rls_ar"), "RLS-AR")
 PRODUCT.register("linear", _linear, "direct linear (RLS)")
-PRODUCT.register("hierarchy", _hierarchy, "GWR hierarchy", Hierarchy.load, _hierarchy_settings)
+PRODUCT.register("hierarchy", _hierarchy, "GWR hierarchy", Hierarchy.load, HierarchyParams)
 PRODUCT.register("gated_llm_gwr", _made_by(make_gated_network), "gated local-linear P-GWR",
-                 gate_loader("LocalLinearPredictor"), gated_network_specs)
+                 gate_loader("LocalLinearPredictor"), GatedNetworkParams)
 PRODUCT.register(DEFAULT_PREDICTOR, _made_by(make_default), "GWR experts (default)", DefaultPredictor.load,
-                 default_specs)
+                 DefaultParams)
 
 # The product registry's operations under the names the package exports.
 entry = PRODUCT.entry
