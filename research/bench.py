@@ -51,7 +51,7 @@ from gwr_predictor.learning.hierarchy import Hierarchy
 from gwr_predictor.learning.params import GWRParams, HierarchyParams
 from research import day
 from research.memory_use import peak_rss_mb
-from research.registry import DEFAULT_PREDICTOR, make_predictor
+from research.registry import DEFAULT_PREDICTOR, RESEARCH
 from research.streams import random_walk_stream
 
 
@@ -125,7 +125,7 @@ def measure_default(reference: Hierarchy, stream: np.ndarray, frames: int,
     `reference`'s (`measure_against`), its neurons, after it learned the rest of `stream` first (it
     grows to the size the data asks for), and the seconds its spread took in the timed frames."""
 
-    model = make_predictor(DEFAULT_PREDICTOR)
+    model = RESEARCH.make_predictor(DEFAULT_PREDICTOR)
     for x in stream[frames:]:
         model.step(x)
     spread, spent = model.spread, [0.0]  # type: ignore[attr-defined]
@@ -147,7 +147,7 @@ def measure_default_full(reference: Hierarchy, learned: int, frames: int, chunk:
     `learned` frames of motion that never repeats (`random_walk_stream`)."""
 
     stream = random_walk_stream(learned + frames)
-    model = make_predictor(DEFAULT_PREDICTOR)
+    model = RESEARCH.make_predictor(DEFAULT_PREDICTOR)
     for x in tqdm(stream[:learned], desc="default, filling its memories", unit="frame", disable=not progress):
         model.step(x)
     fps, _, ratio = measure_against(reference, model, stream[learned:], chunk)

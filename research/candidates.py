@@ -39,10 +39,9 @@ from gwr_predictor.learning.protocol import Predictor
 from gwr_predictor.learning.rls import RecursiveLeastSquares, window_features
 from gwr_predictor.predictors.baselines import HoldLast, RLSAutoregressive, RLSParams
 from gwr_predictor.predictors.direct_linear import DirectLinear, DirectLinearParams
-from research import registry
 from research.blend import BlendedPredictor, BlendParams
 from research.predictors import gated, local_linear_params
-from research.registry import hierarchy_params
+from research.registry import RESEARCH, hierarchy_params
 
 #: frames the candidates' global read-out spans (RLS-AR's and the direct linear model's order)
 GLOBAL_FRAMES = 12
@@ -295,8 +294,8 @@ CANDIDATES = {
 def register_all() -> None:
     """Register every candidate once (importing this module does)."""
     for name, (factory, label) in CANDIDATES.items():
-        if name not in registry.names():
-            registry.register(name, factory, label)
+        if name not in RESEARCH.names():
+            RESEARCH.register(name, factory, label)
 
 
 register_all()

@@ -16,9 +16,8 @@ from gwr_predictor.default_predictor.gate import GatedPredictor, GateParams
 from gwr_predictor.learning.hierarchy import FlatPredictor, Hierarchy
 from gwr_predictor.learning.protocol import Predictor
 from gwr_predictor.predictors.direct_linear import DirectLinear, DirectLinearParams
-from research import registry
 from research.blend import load_blend, make_blend
-from research.registry import Factory, Loader, gate_loader, hierarchy_params
+from research.registry import RESEARCH, Factory, Loader, gate_loader, hierarchy_params
 from research.safety import ungated
 
 
@@ -85,19 +84,19 @@ def _experts_ungated(params: Any, seed: int) -> Predictor:
 
 def register_all() -> None:
     """Register every research predictor once (importing `research` does)."""
-    if "pgwr_flat" in registry.names():
+    if "pgwr_flat" in RESEARCH.names():
         return
-    registry.register("pgwr_flat", _flat, "P-GWR alone")
+    RESEARCH.register("pgwr_flat", _flat, "P-GWR alone")
     for name, label in (("blend_hierarchy_rls", "blend hierarchy + RLS-AR"),
                         ("blend_flat_rls", "blend P-GWR alone + RLS-AR")):
         make, load = _blend(name)
-        registry.register(name, make, label, load)
-    registry.register("llm_gwr", _llm, "local-linear P-GWR (ungated)", _load_llm)
-    registry.register("experts_ungated", _experts_ungated, "GWR experts (ungated)")
-    registry.register("gated_hierarchy", _gated_hierarchy, "gate around the GWR hierarchy", gate_loader("Hierarchy"))
-    registry.register("gated_vqtam", _gated_vqtam, "gated P-GWR, displacements, no local models")
-    registry.register("gated_llm_local", _gated_llm_local, "gated local-linear P-GWR, local read-outs only")
-    registry.register("gated_linear", _gated_linear, "gated global linear read-out alone")
+        RESEARCH.register(name, make, label, load)
+    RESEARCH.register("llm_gwr", _llm, "local-linear P-GWR (ungated)", _load_llm)
+    RESEARCH.register("experts_ungated", _experts_ungated, "GWR experts (ungated)")
+    RESEARCH.register("gated_hierarchy", _gated_hierarchy, "gate around the GWR hierarchy", gate_loader("Hierarchy"))
+    RESEARCH.register("gated_vqtam", _gated_vqtam, "gated P-GWR, displacements, no local models")
+    RESEARCH.register("gated_llm_local", _gated_llm_local, "gated local-linear P-GWR, local read-outs only")
+    RESEARCH.register("gated_linear", _gated_linear, "gated global linear read-out alone")
 
 
 register_all()

@@ -12,24 +12,8 @@ from gwr_predictor.registry import (
     Registry,
     gate_loader,
     hierarchy_params,
-    settings_from_parameters,
 )
 
 RESEARCH = Registry(parent=PRODUCT)
-register = RESEARCH.register
-entry = RESEARCH.entry
-names = RESEARCH.names
-label = RESEARCH.label
-make_predictor = RESEARCH.make
-load_predictor = RESEARCH.load
-learner_names = RESEARCH.learner_names
 
-
-def default_name() -> str:
-    """The product's default predictor, which every experiment scores."""
-    return DEFAULT_PREDICTOR
-
-
-__all__ = ["DEFAULT_PREDICTOR", "RESEARCH", "Factory", "Loader", "default_name", "entry", "gate_loader",
-           "hierarchy_params", "label", "learner_names", "load_predictor", "make_predictor", "names", "register",
-           "settings_from_parameters"]
+__all__ = ["DEFAULT_PREDICTOR", "RESEARCH", "Factory", "Loader", "gate_loader", "hierarchy_params"]

@@ -35,9 +35,9 @@ from gwr_predictor.default_predictor.spread import Spread, SpreadParams
 from gwr_predictor.evaluation.metrics import IntervalStats, future_windows, interval_stats
 from gwr_predictor.learning.pending import PendingPredictions
 from gwr_predictor.robot.closed_loop import run_closed_loop
-from research import registry
 from research.experiments import common
 from research.experiments.splits import make_splits
+from research.registry import RESEARCH
 from research.tuning import DEMO_SEED, tuning_streams
 
 METHODS = ("hold", "rls_ar", "gwr_experts")
@@ -83,7 +83,7 @@ def _feed(models: dict[str, Any], seq: np.ndarray, learn: bool, rep: np.ndarray 
 
 
 def _models() -> dict[str, Any]:
-    models = {m: registry.make_predictor(m) for m in METHODS}
+    models = {m: RESEARCH.make_predictor(m) for m in METHODS}
     return {m: getattr(model, "model", model) for m, model in models.items()}  # the baselines without a spread
 
 

@@ -25,10 +25,11 @@ from gwr_predictor.default_predictor import MemoryParams, TrajectoryMemory, make
 from gwr_predictor.evaluation.metrics import HorizonStats, future_windows, horizon_stats
 from gwr_predictor.evaluation.online import compare_online, train_online
 from research import candidates as cand
-from research import registry, safety
+from research import safety
 from research.experiments import common, dataloss
 from research.experiments.real import Config, left_out_takes, load_clips
 from research.recording import Recorded
+from research.registry import RESEARCH
 from research.repetitions import RepetitionStream, Segment, StreamSettings, load_segments, make_streams
 from research.safety import R3
 from research.safety import TUNED_NETWORK as TUNED
@@ -285,8 +286,8 @@ def _demo_heldout(methods: tuple[str, ...]) -> dict[str, float]:
 
     names = {m: re.sub(r"\W", "_", m) for m in methods}  # registry names are identifiers
     for m, n in names.items():
-        if n not in registry.names():
-            registry.register(n, lambda p, s, m=m: factory(m)(p, s), m)
+        if n not in RESEARCH.names():
+            RESEARCH.register(n, lambda p, s, m=m: factory(m)(p, s), m)
     cfg = dataloss.Config(losses=(0.0,), patterns=DEMO_PATTERNS, subjects=2, train_repetitions=3, epochs=5,
                           methods=tuple(names.values()))
     data = common.demo_data(cfg.patterns, cfg.subjects, cfg.train_repetitions + cfg.test_repetitions, DEMO_SEED)

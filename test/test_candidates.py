@@ -8,8 +8,9 @@ import pytest
 
 from gwr_predictor.evaluation.online import compare_online
 from gwr_predictor.predictors.baselines import HoldLast
-from research import candidates, registry
+from research import candidates
 from research.experiments import common
+from research.registry import RESEARCH
 
 NAMES = tuple(candidates.CANDIDATES)
 
@@ -20,7 +21,7 @@ def _periodic(n: int = 300) -> np.ndarray:
 
 
 def _run(name: str, x: np.ndarray) -> list[np.ndarray | None]:
-    model = registry.make_predictor(name, common.make_params(), 0)
+    model = RESEARCH.make_predictor(name, common.make_params(), 0)
     return [model.step(frame) for frame in x]
 
 
@@ -53,7 +54,7 @@ def test_long_readout_spans_its_own_frames() -> None:
 
 def test_experts_learn_a_repeating_motion() -> None:
     """On a sine learned from scratch the gated experts end far below hold-last."""
-    res = compare_online({"hold": HoldLast(), "cand": registry.make_predictor("cand_experts", common.make_params(), 0)},
+    res = compare_online({"hold": HoldLast(), "cand": RESEARCH.make_predictor("cand_experts", common.make_params(), 0)},
                          [_periodic(400)], progress=False)
     assert res["cand"].stats.mae[-1] < 0.3 * res["hold"].stats.mae[-1]
 

@@ -79,11 +79,11 @@ def _jumps(n: int = 800, seed: int = 0, chance: float = 0.05) -> np.ndarray:
 
 def _ratios_to_hold(x: np.ndarray, name: str) -> dict[str, np.ndarray]:
     """MAE / hold-last's MAE per step, one pass from scratch, of predictor `name` and of its ungated model."""
-    from research import registry  # the ungated models are research's
+    from research.registry import RESEARCH  # the ungated models are research's
 
     params = common.make_params()
     res = compare_online({"hold": HoldLast(), "gated": MAKERS[name](),
-                          "ungated": registry.make_predictor(UNGATED[name], params, 0)}, [x], progress=False)
+                          "ungated": RESEARCH.make_predictor(UNGATED[name], params, 0)}, [x], progress=False)
     hold = np.array(res["hold"].stats.mae)
     return {m: np.array(res[m].stats.mae) / hold for m in ("gated", "ungated")}
 

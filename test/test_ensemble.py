@@ -305,36 +305,36 @@ def test_make_predictor_names_the_hierarchy_and_both_blends():
     from gwr_predictor.learning.hierarchy import FlatPredictor, Hierarchy
     from gwr_predictor.predictors.errors import PredictorError
     from research.blend import gwr_member
-    from research.registry import make_predictor, names
+    from research.registry import RESEARCH
 
-    assert isinstance(make_predictor("hierarchy"), Hierarchy)
-    assert isinstance(gwr_member(make_predictor("blend_hierarchy_rls")), Hierarchy)
-    assert isinstance(gwr_member(make_predictor("blend_flat_rls")), FlatPredictor)
+    assert isinstance(RESEARCH.make_predictor("hierarchy"), Hierarchy)
+    assert isinstance(gwr_member(RESEARCH.make_predictor("blend_hierarchy_rls")), Hierarchy)
+    assert isinstance(gwr_member(RESEARCH.make_predictor("blend_flat_rls")), FlatPredictor)
     # research names are in research's registry, beside the product's; the product's, which the node and
     # pretrain offer, knows none of them
-    assert {"blend_flat_rls", "llm_gwr", "gated_hierarchy"} <= set(names())
-    assert set(product.names()) <= set(names()) and not {"blend_flat_rls", "llm_gwr"} & set(product.names())
+    assert {"blend_flat_rls", "llm_gwr", "gated_hierarchy"} <= set(RESEARCH.names())
+    assert set(product.names()) <= set(RESEARCH.names()) and not {"blend_flat_rls", "llm_gwr"} & set(product.names())
     assert set(product.learner_names()) == {"hierarchy", "gated_llm_gwr", "gwr_experts"}
     with pytest.raises(PredictorError, match="unknown predictor 'nope'"):
-        make_predictor("nope")
+        RESEARCH.make_predictor("nope")
     with pytest.raises(PredictorError, match="unknown predictor 'llm_gwr'"):
         product.make_predictor("llm_gwr")
 
 
 def test_load_predictor_refuses_a_blend_of_other_members(tmp_path):
     from gwr_predictor.learning.errors import LearningError
-    from research.registry import load_predictor, make_predictor
+    from research.registry import RESEARCH
 
     path = tmp_path / "flat.npz"
-    make_predictor("blend_flat_rls").save(path)
-    assert tuple(load_predictor("blend_flat_rls", path).names) == ("flat", "rls")
+    RESEARCH.make_predictor("blend_flat_rls").save(path)
+    assert tuple(RESEARCH.load_predictor("blend_flat_rls", path).names) == ("flat", "rls")
     with pytest.raises(LearningError, match=r"holds a blend of \['flat', 'rls'\], expected one of "
                                               r"\['hierarchy', 'rls'\]") as other:
-        load_predictor("blend_hierarchy_rls", path)
+        RESEARCH.load_predictor("blend_hierarchy_rls", path)
     assert other.value.kind_mismatch and other.value.expected == "blend_hierarchy_rls"
     assert tuple(other.value.found) == ("flat", "rls")
     with pytest.raises(LearningError, match="expected a 'Hierarchy'") as other:
-        load_predictor("hierarchy", path)
+        RESEARCH.load_predictor("hierarchy", path)
     assert other.value.kind_mismatch and (other.value.found, other.value.expected) == ("BlendedPredictor", "Hierarchy")
 
 

@@ -109,7 +109,7 @@ class Registry:
     def label(self, name: str) -> str:
         return self.entry(name).label
 
-    def make(self, name: str, params: Any = None, seed: int = 0) -> Predictor:
+    def make_predictor(self, name: str, params: Any = None, seed: int = 0) -> Predictor:
         """A fresh predictor `name`: `params` None (defaults), a flat mapping of its settings (with `horizon`
         and `n_joints`), or a `HierarchyParams` (the experiments' shared settings)."""
         return self.entry(name).factory(params, seed)
@@ -118,7 +118,7 @@ class Registry:
         """The predictors that can be saved and loaded."""
         return tuple(n for n in self.names() if self.entry(n).loader is not None)
 
-    def load(self, name: str, path: str | os.PathLike[str]) -> Predictor:
+    def load_predictor(self, name: str, path: str | os.PathLike[str]) -> Predictor:
         """The predictor `name` saved at `path`; a LearningError with `kind_mismatch` if the file holds
         another kind or blend."""
         e = self.entry(name)
@@ -211,8 +211,8 @@ entry = PRODUCT.entry
 register = PRODUCT.register
 names = predictor_names = PRODUCT.names
 label = PRODUCT.label
-make_predictor = PRODUCT.make
-load_predictor = PRODUCT.load
+make_predictor = PRODUCT.make_predictor
+load_predictor = PRODUCT.load_predictor
 learner_names = PRODUCT.learner_names
 
 

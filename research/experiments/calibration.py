@@ -29,10 +29,10 @@ from gwr_predictor.evaluation.metrics import IntervalStats, future_windows, inte
 from gwr_predictor.evaluation.online import compare_online, train_online
 from gwr_predictor.evaluation.output import ExperimentOutput, figure, markdown_table, save_figure
 from gwr_predictor.robot.closed_loop import run_closed_loop
-from research import registry
 from research.experiments import common, real, repeats
 from research.experiments.splits import make_splits
 from research.recording import Recorded
+from research.registry import DEFAULT_PREDICTOR
 
 NAME = "calibration"
 #: the target band around the stated share, in share points
@@ -146,7 +146,7 @@ def real_clips(config: Config, methods: tuple[str, ...], params: Any, seed: int,
         res, models, _, _ = _one_pass(clip["name"], clip["angles"], methods, params, seed, progress)
         per_clip[clip["name"]] = _stats(res)
         pooled = {m: pooled[m].merge(res[m].interval) for m in methods}
-        loop += _closed_loop(clip["name"], clip["angles"], models[registry.default_name()], config)
+        loop += _closed_loop(clip["name"], clip["angles"], models[DEFAULT_PREDICTOR], config)
     left, per_take = dict(empty), {}
     for held, others in real.left_out_takes(clips):
         trained = common.make_models(methods, params, seed)
@@ -177,7 +177,7 @@ def repeated(config: Config, methods: tuple[str, ...], params: Any, seed: int, p
             for k in range(config.performances):
                 sel = scored & (s.repetition == k)
                 per_rep[m][k] = per_rep[m][k].merge(interval_stats(bounds[0, sel], bounds[1, sel], future[sel]))
-        loop += _closed_loop(s.name, s.angles, models[registry.default_name()], config)
+        loop += _closed_loop(s.name, s.angles, models[DEFAULT_PREDICTOR], config)
     return {"pooled": {m: st.to_dict() for m, st in pooled.items()},
             "per_performance": {m: [st.to_dict() for st in per_rep[m]] for m in methods},
             "streams": [s.name for s in streams], "closed_loop": loop}
@@ -185,7 +185,7 @@ def repeated(config: Config, methods: tuple[str, ...], params: Any, seed: int, p
 
 def measure(config: Config, seed: int, progress: bool) -> dict[str, Any]:
     params = common.make_params(config.overrides)
-    default = registry.default_name()
+    default = DEFAULT_PREDICTOR
     methods = tuple(dict.fromkeys((*config.methods, default)))
     out: dict[str, Any] = {"params": params.to_flat(), "default_method": default, "methods": list(methods),
                            "band": BAND, "demonstrator": demonstrator(config, methods, params, seed, progress),

@@ -19,7 +19,7 @@ import numpy as np
 from gwr_predictor.data.datasets import demo_angle_sequences
 from gwr_predictor.learning.params import HierarchyParams
 from gwr_predictor.learning.protocol import Predictor
-from research import registry
+from research.registry import DEFAULT_PREDICTOR, RESEARCH
 
 HIERARCHY = "hierarchy"
 FLAT = "pgwr_flat"
@@ -31,7 +31,7 @@ LLM = "llm_gwr"
 GATED = "gated_llm_gwr"
 EXPERTS_UNGATED = "experts_ungated"
 #: The predictor the arm_predictor node, demo.sh, pretrain and evaluate's `default_method` run by default.
-DEFAULT = registry.DEFAULT_PREDICTOR
+DEFAULT = DEFAULT_PREDICTOR
 #: Ablation variants of the default (experiment ablation, not in `compare`): the gate around the
 #: paper's hierarchy, and the gate around the P-GWR with displacement targets but no local models ...
 GATED_HIERARCHY = "gated_hierarchy"
@@ -44,12 +44,12 @@ ABLATIONS = (GATED_HIERARCHY, GATED_VQTAM, GATED_LOCAL, GATED_LINEAR)
 
 def all_methods() -> tuple[str, ...]:
     """Every predictor the experiments and `evaluate` can run: the registry's names."""
-    return registry.names()
+    return RESEARCH.names()
 
 
 def label(name: str) -> str:
     """The predictor's row label in tables and plots."""
-    return registry.label(name)
+    return RESEARCH.label(name)
 
 
 def make_params(overrides: Iterable[tuple[str, object]] = (), **changes: Any) -> HierarchyParams:
@@ -60,7 +60,7 @@ def make_params(overrides: Iterable[tuple[str, object]] = (), **changes: Any) ->
 
 def make_model(name: str, params: HierarchyParams, seed: int) -> Predictor:
     """A fresh predictor called `name` (a registry name) for `params`."""
-    return registry.make_predictor(name, params, seed)
+    return RESEARCH.make_predictor(name, params, seed)
 
 
 def make_models(names: Sequence[str], params: HierarchyParams, seed: int) -> dict[str, Predictor]:

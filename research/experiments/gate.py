@@ -29,7 +29,7 @@ from gwr_predictor.predictors.baselines import HoldLast
 from research.experiments import common, real
 from research.experiments.delay import person_sequence
 from research.experiments.splits import make_splits
-from research.registry import make_predictor
+from research.registry import RESEARCH
 
 NAME = "gate"
 
@@ -146,7 +146,7 @@ def run(config: Config, out: Path, seed: int = 0, progress: bool = True) -> Expe
     ratios: dict[str, dict[str, dict[str, Any]]] = {v: {} for v in config.variants}
     with tqdm(total=len(conds) * (1 + len(config.variants)), desc=NAME, disable=not progress, leave=False) as bar:
         for name, (learned, scored) in conds.items():
-            recorder = _Recorder(make_predictor(common.GATED, params, seed).model)
+            recorder = _Recorder(RESEARCH.make_predictor(common.GATED, params, seed).model)
             _score(recorder, learned, scored, params.horizon)
             bar.update()
             for v in config.variants:

@@ -27,10 +27,10 @@ from gwr_predictor.evaluation.metrics import HorizonStats
 from gwr_predictor.evaluation.online import compare_online, train_online
 from gwr_predictor.evaluation.output import ExperimentOutput, figure, markdown_table, save_figure
 from gwr_predictor.robot.nao import clip_to_limits
-from research import registry
 from research.experiments import common
 from research.knn import KnnPredictor
 from research.recording import Recorded
+from research.registry import DEFAULT_PREDICTOR
 
 NAME = "real"
 KNN = "knn"
@@ -84,7 +84,7 @@ def _score_clip(models: dict[str, Any], clip: dict[str, Any], params: Any, progr
     """Run `models` online over one clip; its stats under its name, and merged into `pooled`. The node
     default's stats also say how often its prediction was exactly hold-last (`exactly_hold`: the gate
     shut, alpha 0 at every step, or no model prediction yet)."""
-    default = registry.default_name()
+    default = DEFAULT_PREDICTOR
     if default in models:
         models = {**models, default: Recorded(models[default])}
     res = compare_online(models, [clip["angles"]], horizon=params.horizon, progress=progress, desc=desc)
@@ -137,7 +137,7 @@ def left_out_takes(clips: list[dict[str, Any]]) -> list[tuple[dict[str, Any], li
 def run(config: Config, out: Path, seed: int = 0, progress: bool = True) -> ExperimentOutput:
     params = common.make_params(config.overrides)
     methods = tuple(config.methods)
-    default = registry.default_name()
+    default = DEFAULT_PREDICTOR
     if default not in methods:
         methods = (*methods, default)
     clips = load_clips(config)

@@ -21,10 +21,10 @@ import numpy as np
 from gwr_predictor.evaluation.metrics import HorizonStats, future_windows, horizon_stats
 from gwr_predictor.evaluation.online import compare_online
 from gwr_predictor.evaluation.output import ExperimentOutput, figure, markdown_table, save_figure
-from research import registry
 from research.experiments import common
 from research.experiments.delay import one_run
 from research.recording import Recorded
+from research.registry import DEFAULT_PREDICTOR
 from research.repetitions import (
     PAUSE,
     PERFORM,
@@ -110,7 +110,7 @@ def _ratio(stats: dict[str, Any], m: str, step: int = -1) -> float | None:
 
 def measure(config: Config, seed: int, progress: bool) -> dict[str, Any]:
     params = common.make_params(config.overrides)
-    default = registry.default_name()
+    default = DEFAULT_PREDICTOR
     methods = tuple(dict.fromkeys((*config.methods, default)))
     if "hold" not in methods:
         methods = ("hold", *methods)
