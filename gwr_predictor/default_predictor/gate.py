@@ -209,25 +209,8 @@ class GatedPredictor(Checkpointed):
         p = self.params
         if p.warmup:
             self._decays[0] = p.warmup_decay + (p.decay - p.warmup_decay) * min(1.0, self._scored[0] / p.warmup)
-        diff = due[1]  # (h, J)
-        resid = obs - due[0]  # y - newest pose at prediction time
-        new = self._new  # (4, h, J): the products, pooled over joints unless per_joint
-        if p.per_joint:
-            np.multiply(resid, diff, out=new[_XY])
-            np.multiply(diff, diff, out=new[_XX])
-            np.multiply(resid, resid, out=new[_YY])
-        else:  # one sum of products per step, the same in every joint's column
-            new[_XY] = np.vecdot(resid, diff)[:, None]
-            new[_XX] = np.vecdot(diff, diff)[:, None]
-            new[_YY] = np.vecdot(resid, resid)[:, None]
-        if ok.all():  # the common case: every step has a scored prediction
-            self._stats *= self._decays
-            self._stats += new
-            self._scored += 1
-            return
-        rows = ok.nonzero()[0]
-        self._stats[:, :, rows] = self._decays * self._stats[:, :, rows] + new[:, rows]
-        self._scored[rows] += 1
+        _products(obs - due[0], due[1], p.per_joint, self._new)  # y - newest pose at prediction time, model's step
+        _accumulate(self._stats, self._decays, self._scored, self._new, ok)
 
     def alpha(self) -> np.ndarray:
         """(horizon, joints) shrinkage factors in [0, 1] (0 = hold-last, 1 = the model as it is); a new array.
@@ -358,32 +341,41 @@ class GateBank:
             rows = any_ok.nonzero()[0]
             self.decays[0, rows, 0, 0, 0] = p.warmup_decay + (p.decay - p.warmup_decay) * np.minimum(
                 1.0, self.scored[rows, 0] / p.warmup)
-        diff = due[:, 1]
-        resid = obs - due[:, 0]
         new = self._new
-        if p.per_joint:
-            np.multiply(resid, diff, out=new[:, _XY])
-            np.multiply(diff, diff, out=new[:, _XX])
-            np.multiply(resid, resid, out=new[:, _YY])
-        else:
-            new[:, _XY] = np.vecdot(resid, diff)[..., None]
-            new[:, _XX] = np.vecdot(diff, diff)[..., None]
-            new[:, _YY] = np.vecdot(resid, resid)[..., None]
+        _products(obs - due[:, 0], due[:, 1], p.per_joint, new)
         if valid.all():  # the common case: every gate has a scored prediction at every step
-            self.stats *= self.decays
-            self.stats += new
-            self.scored += 1
+            _accumulate(self.stats, self.decays, self.scored, new, valid)
             return
         for i in any_ok.nonzero()[0].tolist():  # as each gate's `_score` does, on its views
-            g, ok = self.gates[i], valid[i]
-            if ok.all():
-                g._stats *= g._decays
-                g._stats += new[i]
-                g._scored += 1
-                continue
-            rows = ok.nonzero()[0]
-            g._stats[:, :, rows] = g._decays * g._stats[:, :, rows] + new[i][:, rows]
-            g._scored[rows] += 1
+            g = self.gates[i]
+            _accumulate(g._stats, g._decays, g._scored, new[i], valid[i])
+
+
+def _products(resid: np.ndarray, diff: np.ndarray, per_joint: bool, new: np.ndarray) -> None:
+    """The products a scored prediction adds to a gate's sums, into `new` (..., 4, horizon, joints): of the
+    residual against the newest pose then and the model's step, per joint or pooled over the joints (one
+    sum of products per step, the same in every joint's column); for one gate or several (`...`)."""
+    if per_joint:
+        np.multiply(resid, diff, out=new[..., _XY, :, :])
+        np.multiply(diff, diff, out=new[..., _XX, :, :])
+        np.multiply(resid, resid, out=new[..., _YY, :, :])
+    else:
+        new[..., _XY, :, :] = np.vecdot(resid, diff)[..., None]
+        new[..., _XX, :, :] = np.vecdot(diff, diff)[..., None]
+        new[..., _YY, :, :] = np.vecdot(resid, resid)[..., None]
+
+
+def _accumulate(stats: np.ndarray, decays: np.ndarray, scored: np.ndarray, new: np.ndarray, ok: np.ndarray) -> None:
+    """Forget and add `new` into running sums `stats` (memory, [gate,] 4, horizon, joints), in place, on the
+    steps `ok` (horizon,) holds, counting them in `scored`; every step at once in the common case."""
+    if ok.all():
+        stats *= decays
+        stats += new
+        scored += 1
+        return
+    rows = ok.nonzero()[0]
+    stats[:, :, rows] = decays * stats[:, :, rows] + new[:, rows]
+    scored[rows] += 1
 
 
 def shrinkage(s: np.ndarray, prior: float, z2: np.ndarray, bounded: int, fast_step: int) -> np.ndarray:
