@@ -155,8 +155,9 @@ class TrajectoryMemory(Checkpointed):
         self._key_weights = np.concatenate([np.ones(p.n_joints),
                                             np.full(len(self._lags) * p.n_joints, p.velocity_weight)])
         self._grid = np.arange(1, p.horizon + 1, dtype=float)
-        self._diag_k = np.arange(max(p.k, p.fit_k))  # the diagonal of a fit's neighbour-by-neighbour system
         self._future = p.stored_future  # the last stored step a read-out may reach
+        self._needed = max(p.k, p.fit_k)  # the most neighbours a read takes
+        self._few = 2 * self._needed + 16  # what a full memory's float32 pass hands on to be measured exactly
         # allocated once at capacity (the system maps the pages as snippets come): nothing grows while learning
         size = p.capacity
         self.keys = np.empty((size, len(self._key_weights)))  # pose, then its changes (unweighted)
@@ -216,18 +217,24 @@ class TrajectoryMemory(Checkpointed):
         now = window[-1]
         return np.concatenate([now, (now - window[-1 - self._lags]).reshape(-1)])
 
-    def _distances(self, key: np.ndarray, rows: slice | np.ndarray | None = None) -> np.ndarray:
+    def _distances(self, key: np.ndarray, rows: slice | np.ndarray | None = None,
+                   query: tuple[np.ndarray, float] | None = None) -> np.ndarray:
         """Weighted squared distances of the stored keys (all, or `rows`) to `key`, as |a|^2 - 2 a.b + |b|^2:
         one pass over the keys instead of three (the difference, its weighting, its norm), which is what a
         full memory's search costs. Rounding leaves ~1e-14 (rad^2) where the difference is 0: far below
-        `EXACT`, far below any two keys of a recording."""
+        `EXACT`, far below any two keys of a recording. `query`: the key's `_query`, if made already."""
         rows = slice(0, self.size) if rows is None else rows
-        query = key * self._key_weights
-        d2 = self._weighted[rows] @ query
+        b, bb = self._query(key) if query is None else query
+        d2 = self._weighted[rows] @ b
         d2 *= -2.0
         d2 += self._norms[rows]
-        d2 += query @ query
+        d2 += bb
         return np.maximum(d2, 0.0, out=d2)
+
+    def _query(self, key: np.ndarray) -> tuple[np.ndarray, float]:
+        """The key weighted, and its squared norm: the b and |b|^2 of every distance to it."""
+        b = key * self._key_weights
+        return b, float(b @ b)
 
     def _read_at(self, clock: int) -> tuple[int, np.ndarray, float, int] | None:
         """What the read at `clock` left (None: none read then, or too long ago)."""
@@ -303,17 +310,12 @@ class TrajectoryMemory(Checkpointed):
         exactly. The float32 pass halves what a full memory's search reads; its rounding error is bounded
         (`bound`), so the few are used only where they surely hold the nearest ones a read needs and every
         copy; otherwise (near-ties at the cut) every key is measured exactly, as below the threshold."""
-        p = self.params
-        everyone = np.arange(self.size)
         if self.size <= FLOAT32_ABOVE:
-            return everyone, self._distances(key)
-        needed = max(p.k, p.fit_k)
-        few = 2 * needed + 16
-        query = key * self._key_weights
-        qq = float(query @ query)
+            return np.arange(self.size), self._distances(key)
+        needed, few = self._needed, self._few
+        query, qq = searched = self._query(key)
         norms32 = self._norms32[:self.size]
-        d32 = self._weighted32[:self.size] @ query.astype(np.float32)
-        d32 *= -2.0
+        d32 = self._weighted32[:self.size] @ (query * -2.0).astype(np.float32)  # x -2 exactly: a power of two
         d32 += norms32
         d32 += np.float32(qq)
         slots = np.argpartition(d32, few - 1)[:few]
@@ -321,12 +323,12 @@ class TrajectoryMemory(Checkpointed):
         # |float32 - exact| of |a|^2 - 2 a.b + |b|^2 over d values: every rounding at most 2^-24 relative, of
         # terms at most |a|^2 + |b|^2 (2 |a.b| <= |a|^2 + |b|^2), over 2 d + 4 of them; doubled
         bound = (4 * len(key) + 8) * 2.0 ** -24 * (float(norms32.max()) * (1 + 2.0 ** -23) + qq)
-        d2 = self._distances(key, slots)
+        d2 = self._distances(key, slots, searched)
         others = d2[d2 > EXACT]
         if len(others) >= needed and float(np.partition(others, needed - 1)[needed - 1]) < cut - bound:
             order = np.argsort(slots)  # the order of the slots, whichever way they were found
             return slots[order], d2[order]
-        return everyone, self._distances(key)
+        return np.arange(self.size), self._distances(key, query=searched)
 
     def _read(self, key: np.ndarray) -> np.ndarray:
         """(horizon, J) displacements: the k nearest snippets' futures at the present speed, weighted, or
@@ -350,11 +352,13 @@ class TrajectoryMemory(Checkpointed):
         fit = p.fit_k > 0 and self.familiarity <= p.fit_radius
         k = min(max(p.k, p.fit_k), recallable) if fit else p.k  # a fit takes the snippets there are
         chosen = np.argpartition(d2, k - 1)[:k] if len(d2) > k else np.arange(len(d2))
-        if self.size > FLOAT32_ABOVE:  # the same order whichever way `_near` found them
-            chosen = chosen[np.argsort(slots[chosen])]
+        if self.size > FLOAT32_ABOVE:  # in the slots' order (`_near`'s are ascending), however `_near` found them
+            chosen.sort()
         nearest = slots[chosen]
         self.used[nearest] = self.clock
-        w = 1.0 / (d2[chosen] + 1e-6)
+        w = d2[chosen]
+        w += 1e-6
+        np.divide(1.0, w, out=w)  # inverse squared distance
         w /= w.sum()
         read = self._at_present_speed(nearest, key)
         if fit:
@@ -367,13 +371,15 @@ class TrajectoryMemory(Checkpointed):
         stored = self.keys[nearest, p.n_joints:]  # (k, lags * J) changes
         power = np.einsum("kd,kd->k", stored, stored)
         ratio = np.where(power > 1e-8, (stored @ key[p.n_joints:]) / np.maximum(power, 1e-8), 1.0)
-        np.clip(ratio, p.min_ratio, p.max_ratio, out=ratio)  # finite: no stored or present angle beyond 100 rad
+        # clipped (finite: no stored or present angle beyond 100 rad), as np.clip does, in two cheaper calls
+        np.minimum(np.maximum(ratio, p.min_ratio, out=ratio), p.max_ratio, out=ratio)
         at = np.minimum(ratio[:, None] * self._grid, self._future)  # (k, horizon) stored steps to read
         lo = at.astype(int)
-        hi = np.minimum(lo + 1, self._future)
         frac = (at - lo)[..., None]
-        rows = nearest[:, None]
-        return self.futures[rows, lo] * (1.0 - frac) + self.futures[rows, hi] * frac
+        lo += nearest[:, None] * (self._future + 1)  # rows of the futures as one (snippets x steps, J) table
+        hi = lo + (lo % (self._future + 1) < self._future)  # the next stored step, the last one's own
+        table = self.futures.reshape(-1, self.futures.shape[2])
+        return table.take(lo, axis=0) * (1.0 - frac) + table.take(hi, axis=0) * frac
 
     def _fit(self, w: np.ndarray, offsets: np.ndarray, read: np.ndarray) -> np.ndarray:
         """The neighbours' futures (k, horizon, J) as a linear function of their keys' (weighted) offsets
@@ -392,8 +398,7 @@ class TrajectoryMemory(Checkpointed):
         root = np.sqrt(w)
         xs = x * root[:, None]
         gram = xs @ xs.T  # W^1/2 X X' W^1/2; its trace is X'WX's
-        gram[self._diag_k[:len(w)], self._diag_k[:len(w)]] += (self.params.ridge * np.trace(gram) / x.shape[1]
-                                                                + 1e-12)
+        gram.flat[::len(w) + 1] += self.params.ridge * np.trace(gram) / x.shape[1] + 1e-12  # on the diagonal
         u = np.linalg.solve(gram, xs @ mean_x)
         u *= root
         futures = futures - mean_y
