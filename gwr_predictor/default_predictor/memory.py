@@ -217,17 +217,20 @@ class TrajectoryMemory(Checkpointed):
         now = window[-1]
         return np.concatenate([now, (now - window[-1 - self._lags]).reshape(-1)])
 
-    def _distances(self, key: np.ndarray, rows: slice | np.ndarray | None = None,
+    def _distances(self, key: np.ndarray, rows: np.ndarray | None = None,
                    query: tuple[np.ndarray, float] | None = None) -> np.ndarray:
         """Weighted squared distances of the stored keys (all, or `rows`) to `key`, as |a|^2 - 2 a.b + |b|^2:
         one pass over the keys instead of three (the difference, its weighting, its norm), which is what a
         full memory's search costs. Rounding leaves ~1e-14 (rad^2) where the difference is 0: far below
         `EXACT`, far below any two keys of a recording. `query`: the key's `_query`, if made already."""
-        rows = slice(0, self.size) if rows is None else rows
         b, bb = self._query(key) if query is None else query
-        d2 = self._weighted[rows] @ b
+        if rows is None:
+            weighted, norms = self._weighted[:self.size], self._norms[:self.size]
+        else:
+            weighted, norms = self._weighted.take(rows, axis=0), self._norms.take(rows)
+        d2 = weighted @ b
         d2 *= -2.0
-        d2 += self._norms[rows]
+        d2 += norms
         d2 += bb
         return np.maximum(d2, 0.0, out=d2)
 
@@ -319,6 +322,7 @@ class TrajectoryMemory(Checkpointed):
         d32 += norms32
         d32 += np.float32(qq)
         slots = np.argpartition(d32, few - 1)[:few]
+        slots.sort()  # in the slots' order, as the exact search of all returns them
         cut = float(d32[slots].max())
         # |float32 - exact| of |a|^2 - 2 a.b + |b|^2 over d values: every rounding at most 2^-24 relative, of
         # terms at most |a|^2 + |b|^2 (2 |a.b| <= |a|^2 + |b|^2), over 2 d + 4 of them; doubled
@@ -326,8 +330,7 @@ class TrajectoryMemory(Checkpointed):
         d2 = self._distances(key, slots, searched)
         others = d2[d2 > EXACT]
         if len(others) >= needed and float(np.partition(others, needed - 1)[needed - 1]) < cut - bound:
-            order = np.argsort(slots)  # the order of the slots, whichever way they were found
-            return slots[order], d2[order]
+            return slots, d2
         return np.arange(self.size), self._distances(key, query=searched)
 
     def _read(self, key: np.ndarray) -> np.ndarray:
