@@ -40,7 +40,7 @@ class RecursiveLeastSquares(Persistent):
         """One step towards the least-squares fit of the pair (phi, y)."""
         lam = self.forgetting
         p_phi = self.p @ phi
-        gain = p_phi / (lam + phi @ p_phi)
+        gain = p_phi / (lam + float(phi @ p_phi))  # a float: the sum without a numpy scalar's overhead
         err = y - phi @ self.weights
         self.weights += gain[:, None] * err
         self.p -= gain[:, None] * p_phi
@@ -49,7 +49,7 @@ class RecursiveLeastSquares(Persistent):
             self.p /= lam
             if not math.isfinite(self.p.sum()) or self.p.trace() > self.max_trace:
                 self._reset_p()
-        if not math.isfinite(err.sum()):
+        if not math.isfinite(np.add.reduce(err)):  # `err.sum()` without its Python wrapper
             self.weights[...] = 0.0
             self._reset_p()
 
