@@ -260,8 +260,8 @@ class LocalLinearPGWR(PredictiveGWR):
                     return self._recruit(x_in, y, b, block)
             else:  # a surprising pair is not what the neuron usually misses: only the others count
                 self._streak[b] = 0.0
-                known = self._mse[b]
-                self._mse[b] = e2[0] if math.isnan(known) else known + self.ERROR_RATE * (e2[0] - known)
+                known, e2_b = self._mse.item(b), e2.item(0)  # Python floats: the same arithmetic, cheaper
+                self._mse[b] = e2_b if math.isnan(known) else known + self.ERROR_RATE * (e2_b - known)
         if plasticity is not None:
             rates = rates * plasticity
         dd = np.vecdot(d, d)
@@ -270,8 +270,9 @@ class LocalLinearPGWR(PredictiveGWR):
         self._A[block] = a
         b = self.learn_unchecked(x_in, y, neighbours=Prepared(b, nb, slots, float(dd[0]), plasticity, block.size,
                                                               (wa, d, wo, y_wo)))
-        self._visits[b] += 1.0
-        self._most_visits = max(self._most_visits, float(self._visits[b]))
+        visits = self._visits.item(b) + 1.0
+        self._visits[b] = visits
+        self._most_visits = max(self._most_visits, visits)
         return b
 
     def predict_local(self, x_in: np.ndarray, k: int = 1) -> np.ndarray:
