@@ -224,9 +224,8 @@ class LocalLinearPGWR(PredictiveGWR):
         recruited for the pair instead (at the `recruit_after`-th surprise in a row; before it, the BMU
         is not moved), and the BMU's index is returned; a surprised consolidated neighbour is not
         moved by the pair (plasticity 0)."""
-        aff = self.search_keep(x_in)
-        b = int(aff.argmax())
-        nb, slots = self.neighbour_slots(b)
+        b = int(self.search_keep(x_in).argmax())
+        nb, slots = self._edges.neighbours(b)  # `neighbour_slots`, a call less
         if neighbour_rate > 0:
             block = self._block[:nb.size + 1]  # the GWR step's buffer, where it puts this very block too
             block[0] = b
@@ -236,7 +235,8 @@ class LocalLinearPGWR(PredictiveGWR):
             rates = self._nlms_rates[:block.size]
         else:
             block, rates = np.array([b]), np.array([self.rate])
-        plasticity = self._block_plasticity(block)
+        # `_block_plasticity` is None until some neuron has consolidated: checked here first, a call less
+        plasticity = self._block_plasticity(block) if 0 < self.consolidate_after < self._most_visits else None
         # the block's rows gathered once (`take`: cheaper than fancy indexing), handed on to the GWR step
         wa = self._wa.take(block, axis=0)
         d = x_in - wa[:, :self.match_dim]  # (k, in)

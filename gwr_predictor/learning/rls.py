@@ -42,8 +42,9 @@ class RecursiveLeastSquares(Persistent):
         p_phi = self.p @ phi
         gain = p_phi / (lam + float(phi @ p_phi))  # a float: the sum without a numpy scalar's overhead
         err = y - phi @ self.weights
-        self.weights += gain[:, None] * err
-        self.p -= gain[:, None] * p_phi
+        column = gain[:, None]
+        self.weights += column * err
+        self.p -= column * p_phi
         self.updates += 1
         if lam < 1.0:  # without forgetting P only shrinks: no wind-up to watch for
             self.p /= lam
