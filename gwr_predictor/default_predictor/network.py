@@ -205,6 +205,16 @@ class LocalLinearPGWR(PredictiveGWR):
         return b
 
     # --- learning and prediction -----------------------------------------------------------------
+    #: (rate, neighbour rate) of `_nlms_rates`, the per-row NLMS rates of the longest block [b, neighbours...]
+    _nlms_key: tuple[float, float] | None = None
+    _nlms_rates: np.ndarray
+
+    def _set_nlms_rates(self, neighbour_rate: float) -> None:
+        """[rate, neighbour_rate, ...] for the longest block, kept while the rates stay (not built every step)."""
+        rates = np.full(self._block.size, neighbour_rate)
+        rates[0] = self.rate
+        self._nlms_key, self._nlms_rates = (self.rate, neighbour_rate), rates
+
     def learn_local(self, x_in: np.ndarray, y: np.ndarray, neighbour_rate: float = 0.0) -> int:
         """One step on a trusted (x_in, y) pair: the BMU's local model by NLMS (and, with
         `neighbour_rate`, its topological neighbours' at that rate, one gathered block; each scaled by
@@ -214,22 +224,27 @@ class LocalLinearPGWR(PredictiveGWR):
         recruited for the pair instead (at the `recruit_after`-th surprise in a row; before it, the BMU
         is not moved), and the BMU's index is returned; a surprised consolidated neighbour is not
         moved by the pair (plasticity 0)."""
-        aff = self.search_keep(x_in)
-        b = int(aff.argmax())
-        nb, slots = self.neighbour_slots(b)
+        b = int(self.search_keep(x_in).argmax())
+        nb, slots = self._edges.neighbours(b)  # `neighbour_slots`, a call less
         if neighbour_rate > 0:
-            block: np.ndarray = np.empty(nb.size + 1, dtype=nb.dtype)
+            block = self._block[:nb.size + 1]  # the GWR step's buffer, where it puts this very block too
             block[0] = b
             block[1:] = nb
-            rates: np.ndarray = np.full(block.size, neighbour_rate)
-            rates[0] = self.rate
+            if self._nlms_key != (self.rate, neighbour_rate):
+                self._set_nlms_rates(neighbour_rate)
+            rates = self._nlms_rates[:block.size]
         else:
             block, rates = np.array([b]), np.array([self.rate])
-        plasticity = self._block_plasticity(block)
-        d = x_in - self._w[block]  # (k, in)
-        a = self._A[block]
+        # `_block_plasticity` is None until some neuron has consolidated: checked here first, a call less
+        plasticity = self._block_plasticity(block) if 0 < self.consolidate_after < self._most_visits else None
+        # the block's rows gathered once (`take`: cheaper than fancy indexing), handed on to the GWR step
+        wa = self._wa.take(block, axis=0)
+        d = x_in - wa[:, :self.match_dim]  # (k, in)
+        a = self._A.take(block, axis=0)
         d_a = np.matmul(d[:, None, :], a)[:, 0]
-        err = y - self._wo[block] - d_a
+        wo = self._wo.take(block, axis=0)
+        y_wo = y - wo
+        err = y_wo - d_a
         if self.recruit_surprise > 0:
             e2 = np.vecdot(err, err) / err.shape[1]
             bmu_surprised = False
@@ -245,17 +260,19 @@ class LocalLinearPGWR(PredictiveGWR):
                     return self._recruit(x_in, y, b, block)
             else:  # a surprising pair is not what the neuron usually misses: only the others count
                 self._streak[b] = 0.0
-                known = self._mse[b]
-                self._mse[b] = e2[0] if math.isnan(known) else known + self.ERROR_RATE * (e2[0] - known)
+                known, e2_b = self._mse.item(b), e2.item(0)  # Python floats: the same arithmetic, cheaper
+                self._mse[b] = e2_b if math.isnan(known) else known + self.ERROR_RATE * (e2_b - known)
         if plasticity is not None:
             rates = rates * plasticity
         dd = np.vecdot(d, d)
         gain = rates / (dd + self.delta)
         a += np.einsum("ki,ko->kio", gain[:, None] * d, err)  # rank-1 NLMS step per neuron
         self._A[block] = a
-        b = self.learn_unchecked(x_in, y, neighbours=Prepared(b, nb, slots, float(dd[0]), plasticity, block.size))
-        self._visits[b] += 1.0
-        self._most_visits = max(self._most_visits, float(self._visits[b]))
+        b = self.learn_unchecked(x_in, y, neighbours=Prepared(b, nb, slots, float(dd[0]), plasticity, block.size,
+                                                              (wa, d, wo, y_wo)))
+        visits = self._visits.item(b) + 1.0
+        self._visits[b] = visits
+        self._most_visits = max(self._most_visits, visits)
         return b
 
     def predict_local(self, x_in: np.ndarray, k: int = 1) -> np.ndarray:
@@ -264,17 +281,21 @@ class LocalLinearPGWR(PredictiveGWR):
         if k == 1 or self._n < 2:
             b = self.match_unchecked(x_in)
             return self._wo[b] + (x_in - self._w[b]) @ self._A[b]
-        aff = self._search.affinity(x_in, self._n)
-        k = min(k, self._n)
-        idx = np.argpartition(aff, self._n - k)[self._n - k:]
-        d = x_in - self._w[idx]  # (k, in)
-        ys = self._wo[idx] + np.matmul(d[:, None, :], self._A[idx])[:, 0]
+        n = self._n
+        k = min(k, n)
+        idx = self._search.affinity(x_in, n).argpartition(n - k)[n - k:]
+        # gathered by `take` (cheaper than fancy indexing); ys = v + A^T d, as one sum per row
+        d = x_in - self._wa.take(idx, axis=0)[:, :self.match_dim]  # (k, in)
+        ys = self._wo.take(idx, axis=0)
+        ys += np.matmul(d[:, None, :], self._A.take(idx, axis=0))[:, 0]
         dist = np.sqrt(np.vecdot(d, d))
-        self.last_distance = nearest = float(dist.min())
+        distances = dist.tolist()  # k floats: their min and its first index cost less in Python
+        self.last_distance = nearest = min(distances)
         if nearest <= 1e-12:
-            return ys[int(dist.argmin())]
+            return ys[distances.index(nearest)]
         wts = 1.0 / dist
-        return (wts / wts.sum()) @ ys
+        wts /= np.add.reduce(wts)  # `wts.sum()` without its Python wrapper
+        return wts @ ys
 
     # --- persistence -------------------------------------------------------------------------------
     def _capture(self) -> tuple[dict[str, Any], dict[str, np.ndarray]]:

@@ -162,7 +162,7 @@ class LocalLinearPredictor(OnlineLoop, Checkpointed):
     def _forecast(self, reg: np.ndarray, record: bool = False) -> np.ndarray:
         """The prediction for regressor `reg`; `record` files both read-outs to be scored later."""
         p = self.params
-        local = self.pgwr.predict_local(reg, p.readout_k).reshape(p.horizon, p.n_joints)
+        local = self.pgwr.predict_local(reg, p.readout_k).reshape(p.horizon, p.n_joints)  # a new array
         if self.linear is not None:
             phi = self._global_features(reg)
             outs = np.empty((2, p.horizon, p.n_joints))
@@ -170,8 +170,9 @@ class LocalLinearPredictor(OnlineLoop, Checkpointed):
             outs[1] = self.linear.predict(phi).reshape(p.horizon, p.n_joints)
             if record:
                 self._outs.append((outs, phi))
-            local = outs[0] * self._mix[:, :1]
-            local += outs[1] * self._mix[:, 1:]
+            mix = self._mix
+            local *= mix[:, :1]  # outs[0] * the local weights, in the local read-out's own array
+            local += outs[1] * mix[:, 1:]
         local += reg[:p.n_joints]
         return local
 

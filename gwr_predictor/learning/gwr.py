@@ -123,6 +123,9 @@ class Prepared(NamedTuple):
     dist2: float
     rate_scale: np.ndarray | None = None
     scaled: int = 0
+    #: for the block [b, neighbours...]: its gathered rows of [w | ||w||^2], x - w, its gathered carried
+    #: weights and x_carried - w_carried (None: not gathered), which the step updates in place
+    gathered: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None = None
 
 class GWR(Persistent):
     """A GWR network over `dim`-dimensional vectors; see the module docstring for the step."""
@@ -395,17 +398,23 @@ class GWR(Persistent):
             victim = self._victim(block, s)
             insert = victim >= 0
         if not insert:  # Eq. 4 on b and its neighbours at once
-            rate = self._step_rates(block, h, neighbours if known else None)
-            wa = self._wa.take(block, axis=0)
+            rate = self._step_rates(block, h, known)
+            given = known.gathered if known is not None else None
+            if given is not None and given[0].shape[0] != k:
+                given = None  # gathered for another block
+            wa = self._wa.take(block, axis=0) if given is None else given[0]
             w = wa[:, :m]
             if m < self.dim:  # the carried part (Eq. 9), the same rates
-                wo = self._wo.take(block, axis=0)
-                step = xc - wo
-                step *= rate
-                wo += step
+                if given is None:
+                    wo = self._wo.take(block, axis=0)
+                    carried_step = xc - wo
+                else:
+                    wo, carried_step = given[2], given[3]
+                carried_step *= rate
+                wo += carried_step
                 self._wo[block] = wo
-            step = xm - w  # w += rate * (x - w), with one temporary fewer (same products)
-            step *= rate
+            step = xm - w if given is None else given[1]
+            step *= rate  # w += rate * (x - w), with one temporary fewer (same products)
             w += step
             wa[:, m] = np.vecdot(w, w)
             self._wa[block] = wa

@@ -40,16 +40,17 @@ class RecursiveLeastSquares(Persistent):
         """One step towards the least-squares fit of the pair (phi, y)."""
         lam = self.forgetting
         p_phi = self.p @ phi
-        gain = p_phi / (lam + phi @ p_phi)
+        gain = p_phi / (lam + float(phi @ p_phi))  # a float: the sum without a numpy scalar's overhead
         err = y - phi @ self.weights
-        self.weights += gain[:, None] * err
-        self.p -= gain[:, None] * p_phi
+        column = gain[:, None]
+        self.weights += column * err
+        self.p -= column * p_phi
         self.updates += 1
         if lam < 1.0:  # without forgetting P only shrinks: no wind-up to watch for
             self.p /= lam
             if not math.isfinite(self.p.sum()) or self.p.trace() > self.max_trace:
                 self._reset_p()
-        if not math.isfinite(err.sum()):
+        if not math.isfinite(np.add.reduce(err)):  # `err.sum()` without its Python wrapper
             self.weights[...] = 0.0
             self._reset_p()
 

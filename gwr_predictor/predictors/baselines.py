@@ -191,7 +191,7 @@ class RLSAutoregressive(Checkpointed):
         out = np.empty((self.horizon, self.joints))
         j = self.joints
         for k in range(self.horizon):
-            out[k] = reg @ self.weights_
+            np.matmul(reg, self.weights_, out=out[k])  # `out[k] = reg @ W` without the temporary
             reg[j:-1] = reg[:-j - 1]  # numpy copies overlapping slices as if through a buffer
             reg[:j] = out[k]
         return out
@@ -199,9 +199,10 @@ class RLSAutoregressive(Checkpointed):
     def _update(self, phi: np.ndarray, target: np.ndarray) -> None:
         lam = self.params.forgetting
         p_phi = self.p_ @ phi
-        gain = p_phi / (lam + phi @ p_phi)
-        self.weights_ += np.outer(gain, target - phi @ self.weights_)
-        p = self.p_ - np.outer(gain, p_phi)
+        gain = p_phi / (lam + float(phi @ p_phi))  # a float: the sum without a numpy scalar's overhead
+        column = gain[:, None]  # outer products by broadcasting: np.outer's products, without its wrapper
+        self.weights_ += column * (target - phi @ self.weights_)
+        p = self.p_ - column * p_phi
         if lam != 1.0:  # x / 1 is x: no pass over P without forgetting
             p /= lam
         self.p_ = 0.5 * (p + p.T)
