@@ -125,23 +125,37 @@ class Experts(Checkpointed):
         self._outputs.fill(np.nan)
 
     def step(self, x: np.ndarray | None, learn: bool = True) -> np.ndarray | None:
-        obs = observation(x, self.params.n_joints)
+        return self.advance(observation(x, self.params.n_joints), learn)
+
+    def advance(self, obs: np.ndarray | None, learn: bool = True,
+                given: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray | None:
+        """`step` on an observation already checked (`observation`). `given`: the members' predictions this
+        step, (members, horizon, joints), and which members made one, computed by an owner for members that
+        are views of them (not stepped then): the same weighting without a Python call per member."""
         due, valid = self._pending.take(self._t)
         if obs is not None:
             self._score(obs, due, valid)
-        if self._bank is not None:
-            predictions, predicting = self._bank.step(obs, learn)
+        if given is None and self._bank is not None:
+            given = self._bank.step(obs, learn)
+        if given is not None:
+            predictions, predicting = given
             np.copyto(self._outputs, predictions)
             self._outputs[~predicting] = np.nan
         else:
             self._collect([m.step(obs, learn=learn) for m in self.members.values()])
-        self._pending.file(self._t, self._outputs, np.isfinite(self._outputs).all(axis=-1))
+        avail = np.isfinite(self._outputs).all(axis=-1)  # (members, horizon)
+        self._pending.file(self._t, self._outputs, avail)
         self.record_weight[self._t % self.params.horizon] = 1.0  # until an owner weighs them
         self._t += 1
-        out = self._combine(self._outputs)
+        out = self._combine(self._outputs, avail)
         if out is None and obs is not None:  # no member predicts yet (windows refilling): the newest pose
             return np.repeat(obs[None, :], self.params.horizon, axis=0)
         return out
+
+    def ungated(self) -> tuple[np.ndarray, np.ndarray] | None:
+        """Right after `step`: the members' own predictions before their gates, as `advance` takes them
+        `given`, where the members were stepped as one bank of gates (else None)."""
+        return None if self._bank is None else self._bank.ungated()
 
     def _score(self, obs: np.ndarray, due: np.ndarray, valid: np.ndarray) -> None:
         err = ((due - obs) ** 2).sum(axis=2) / self.params.n_joints  # (members, horizon); NaN: no prediction
@@ -200,8 +214,9 @@ class Experts(Checkpointed):
         inv = np.where(avail, (best / mse) ** p.power, 0.0)
         return inv / inv.sum(axis=0, keepdims=True)
 
-    def _combine(self, preds: np.ndarray) -> np.ndarray | None:
-        avail = np.isfinite(preds).all(axis=2)  # (members, horizon)
+    def _combine(self, preds: np.ndarray, avail: np.ndarray) -> np.ndarray | None:
+        """The weighted mean of `preds` (members, horizon, joints) over the `avail` (members, horizon)
+        finite ones; None where no member predicts."""
         if avail.all():
             return np.einsum("mh,mhj->hj", self.weights(avail), preds)
         if not avail.any():

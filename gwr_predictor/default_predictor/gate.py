@@ -153,8 +153,13 @@ class GatedPredictor(Checkpointed):
         self._clear_sequence()
 
     def step(self, x: np.ndarray | None, learn: bool = True) -> np.ndarray | None:
-        p = self.params
-        obs = observation(x, p.joints)
+        self.advance(observation(x, self.params.joints), learn)
+        return self._gated(self._out_diff)
+
+    def advance(self, obs: np.ndarray | None, learn: bool = True) -> None:
+        """`step` on an observation already checked (`observation`), without making the gated prediction:
+        for an owner that checks the frame once for all its parts and may not return this gate's output
+        (`predict` makes it)."""
         due, valid = self._pending.take(self._t)
         if obs is not None:
             self._score(obs, due, valid)
@@ -172,7 +177,6 @@ class GatedPredictor(Checkpointed):
             self._pending.file(self._t, filed)
         self._t += 1
         self._out_diff = diff
-        return self._gated(diff)
 
     def _checked(self, out: Any) -> np.ndarray:
         """The model's prediction, its first `horizon` steps (DefaultPredictorError if its shape is wrong)."""
@@ -280,6 +284,8 @@ class GateBank:
         self._new = np.ones((len(self.gates), 4, self.params.horizon, self.params.joints))
         self._z2 = first._z2[:, None]
         self._slots, self._k = first._pending._slots, first._pending._k
+        # the last bank step's model steps, predicting gates and newest pose (None: not stepped as a bank)
+        self._ungated: tuple[np.ndarray, np.ndarray, np.ndarray | None] | None = None
 
     @staticmethod
     def takes(members: Sequence[Any]) -> bool:
@@ -293,6 +299,7 @@ class GateBank:
         gates predict (the rows of the others are undefined)."""
         gates, p = self.gates, self.params
         if any(g.borrow is not None or g._t != gates[0]._t for g in gates):  # not a bank this step
+            self._ungated = None
             outs = [g.step(obs, learn) for g in gates]
             ok = np.array([o is not None for o in outs])
             return np.array([o if o is not None else np.zeros((p.horizon, p.joints)) for o in outs]), ok
@@ -326,10 +333,20 @@ class GateBank:
                 filed[0] = gates[i]._last
                 filed[1] = diff[i]
                 gates[i]._pending.file(t, filed)
+        self._ungated = diff, ok, gates[0]._last
         out = shrinkage(self.stats, gates[0]._prior, self._z2, gates[0]._bounded, p.fast_step)
         out *= diff
         out += gates[0]._last if gates[0]._last is not None else 0.0
         return out, ok
+
+    def ungated(self) -> tuple[np.ndarray, np.ndarray] | None:
+        """Right after `step`: every gate's `ungated` prediction, (gate, horizon, joints), and which gates
+        made one (the rows of the others are undefined), in one call; None if the gates were stepped one
+        by one."""
+        if self._ungated is None:
+            return None
+        diff, ok, last = self._ungated
+        return (diff if last is None else last + diff), ok
 
     def _score(self, obs: np.ndarray, due: np.ndarray, valid: np.ndarray) -> None:
         """Every gate's `_score`: the products of the predictions due now, into each gate's sums."""

@@ -146,8 +146,11 @@ class Spread(Checkpointed):
     def step(self, x: np.ndarray | None, prediction: np.ndarray | None, group: int = 0) -> None:
         """Score what targets this frame `x` (None: lost), then state the interval of `prediction` ((horizon,
         joints) made at this frame; None: none), counted in `group`."""
+        self.advance(observation(x, self.params.joints), prediction, group)
+
+    def advance(self, obs: np.ndarray | None, prediction: np.ndarray | None, group: int = 0) -> None:
+        """`step` on an observation already checked (`observation`), for an owner that checks it once."""
         p = self.params
-        obs = observation(x, p.joints)
         due, valid = self._pending.take(self._t)
         self._t += 1
         if obs is not None:
