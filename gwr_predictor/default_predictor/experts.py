@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import copy
 import dataclasses
+import math
 from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any, ClassVar
@@ -33,7 +34,7 @@ from gwr_predictor.default_predictor.gate import GateBank, inner_model
 from gwr_predictor.default_predictor.memory import TrajectoryMemory
 from gwr_predictor.learning.errors import LearningError
 from gwr_predictor.learning.params import DEFAULT_HORIZON, MAX_HORIZON
-from gwr_predictor.learning.pending import PendingPredictions
+from gwr_predictor.learning.pending import PendingPredictions, every, some
 from gwr_predictor.learning.persistence import Checkpointed, Persist, fresh_of_kind, kind_to_save, params_from_json, sub
 from gwr_predictor.parameters.spec import ParamSpec, check_fields
 from gwr_predictor.predictors.baselines import observation
@@ -97,7 +98,8 @@ class Experts(Checkpointed):
         #: the weight in the record of the predictions made at each of the last `horizon` steps (by step
         #: % horizon; 1 unless an owner weighs them)
         self.record_weight = np.ones(p.horizon)
-        self._made_ago = np.arange(1, p.horizon + 1)  # step k's prediction was made k steps before its score
+        # per t % horizon, where in `record_weight` the predictions scored at t were weighed (k steps before)
+        self._made_at = [(t - np.arange(1, p.horizon + 1)) % p.horizon for t in range(p.horizon)]
         members_list = list(self.members.values())
         #: the members' gates stepped as one, where they are alike (None: each member steps itself)
         self._bank = GateBank(members_list) if GateBank.takes(members_list) else None
@@ -143,7 +145,8 @@ class Experts(Checkpointed):
             self._outputs[~predicting] = np.nan
         else:
             self._collect([m.step(obs, learn=learn) for m in self.members.values()])
-        avail = np.isfinite(self._outputs).all(axis=-1)  # (members, horizon)
+        # (members, horizon) which predict; True: all (the usual frame: a finite sum has no NaN or inf in it)
+        avail = True if math.isfinite(self._outputs.sum()) else np.isfinite(self._outputs).all(axis=-1)
         self._pending.file(self._t, self._outputs, avail)
         self.record_weight[self._t % self.params.horizon] = 1.0  # until an owner weighs them
         self._t += 1
@@ -159,9 +162,10 @@ class Experts(Checkpointed):
 
     def _score(self, obs: np.ndarray, due: np.ndarray, valid: np.ndarray) -> None:
         err = ((due - obs) ** 2).sum(axis=2) / self.params.n_joints  # (members, horizon); NaN: no prediction
-        scored = valid & np.isfinite(err)
-        made = self.record_weight[(self._t - self._made_ago) % self.params.horizon]
-        if scored.all():  # the usual frame: every member scored at every step (the same sums, fewer calls)
+        made = self.record_weight[self._made_at[self._t % self.params.horizon]]
+        # the usual frame: every member scored at every step (the same sums, fewer calls; a finite sum of
+        # squares has no NaN or inf in it)
+        if every(valid) and math.isfinite(err.sum()):
             err *= made
             self.sse *= self.params.decay
             self.sse += err
@@ -169,6 +173,7 @@ class Experts(Checkpointed):
             self.weight += made
             self.scored += 1
             return
+        scored = valid & np.isfinite(err)
         decay = np.where(scored, self.params.decay, 1.0)
         self.sse *= decay
         self.sse += np.where(scored, err * made, 0.0)
@@ -196,7 +201,7 @@ class Experts(Checkpointed):
     def weights(self, available: np.ndarray | None = None) -> np.ndarray:
         """(members, horizon) weights summing to 1 per step over the `available` members (default all)."""
         p = self.params
-        if (available is None or available.all()) and self.weight.all():  # the usual frame, in fewer calls
+        if (available is None or every(available)) and every(self.weight):  # the usual frame, in fewer calls
             mse = self.sse / self.weight
             np.maximum(mse, p.floor, out=mse)
             inv = mse.min(axis=0, keepdims=True) / mse
@@ -214,12 +219,12 @@ class Experts(Checkpointed):
         inv = np.where(avail, (best / mse) ** p.power, 0.0)
         return inv / inv.sum(axis=0, keepdims=True)
 
-    def _combine(self, preds: np.ndarray, avail: np.ndarray) -> np.ndarray | None:
+    def _combine(self, preds: np.ndarray, avail: np.ndarray | bool) -> np.ndarray | None:
         """The weighted mean of `preds` (members, horizon, joints) over the `avail` (members, horizon)
-        finite ones; None where no member predicts."""
-        if avail.all():
-            return np.einsum("mh,mhj->hj", self.weights(avail), preds)
-        if not avail.any():
+        finite ones (True: all); None where no member predicts."""
+        if avail is True or every(avail):
+            return np.einsum("mh,mhj->hj", self.weights(), preds)
+        if not some(avail):
             return None
         w = self.weights(avail)
         return np.einsum("mh,mhj->hj", w, np.where(avail[:, :, None], preds, 0.0))

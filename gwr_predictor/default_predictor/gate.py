@@ -46,7 +46,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from gwr_predictor.default_predictor.errors import DefaultPredictorError
-from gwr_predictor.learning.pending import PendingPredictions
+from gwr_predictor.learning.pending import PendingPredictions, every, some
 from gwr_predictor.learning.persistence import Checkpointed, Persist, fresh_of_kind, kind_to_save, params_from_json
 from gwr_predictor.parameters.spec import ParamSpec, check_fields
 from gwr_predictor.pipeline.conventions import DEFAULT_HORIZON
@@ -208,7 +208,7 @@ class GatedPredictor(Checkpointed):
     def _score(self, obs: np.ndarray, due: np.ndarray, valid: np.ndarray) -> None:
         """Score the pending predictions that target this observed frame (row k made k + 1 steps ago)."""
         ok = valid[0]
-        if not ok.any():
+        if not some(ok):
             return
         p = self.params
         if p.warmup:
@@ -323,7 +323,7 @@ class GateBank:
         for i, g in enumerate(gates):
             g._out_diff = diff[i] if ok[i] else None
             g._t = t + 1
-        if ok.all():  # file every prediction (a prediction implies a newest pose)
+        if every(ok):  # file every prediction (a prediction implies a newest pose)
             self.pending[:, 0, self._slots[t % p.horizon], self._k, :] = gates[0]._last
             self.pending[:, 1, self._slots[t % p.horizon], self._k, :] = diff
             self.valid[:, :, self._slots[t % p.horizon], self._k] = True
@@ -352,7 +352,7 @@ class GateBank:
         """Every gate's `_score`: the products of the predictions due now, into each gate's sums."""
         p = self.params
         any_ok = np.asarray(valid.any(axis=1))
-        if not any_ok.any():
+        if not some(any_ok):
             return
         if p.warmup:
             rows = any_ok.nonzero()[0]
@@ -360,7 +360,7 @@ class GateBank:
                 1.0, self.scored[rows, 0] / p.warmup)
         new = self._new
         _products(obs - due[:, 0], due[:, 1], p.per_joint, new)
-        if valid.all():  # the common case: every gate has a scored prediction at every step
+        if every(valid):  # the common case: every gate has a scored prediction at every step
             _accumulate(self.stats, self.decays, self.scored, new, valid)
             return
         for i in any_ok.nonzero()[0].tolist():  # as each gate's `_score` does, on its views
@@ -385,7 +385,7 @@ def _products(resid: np.ndarray, diff: np.ndarray, per_joint: bool, new: np.ndar
 def _accumulate(stats: np.ndarray, decays: np.ndarray, scored: np.ndarray, new: np.ndarray, ok: np.ndarray) -> None:
     """Forget and add `new` into running sums `stats` (memory, [gate,] 4, horizon, joints), in place, on the
     steps `ok` (horizon,) holds, counting them in `scored`; every step at once in the common case."""
-    if ok.all():
+    if every(ok):
         stats *= decays
         stats += new
         scored += 1
