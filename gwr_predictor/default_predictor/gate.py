@@ -284,6 +284,9 @@ class GateBank:
         self._new = np.ones((len(self.gates), 4, self.params.horizon, self.params.joints))
         self._z2 = first._z2[:, None]
         self._slots, self._k = first._pending._slots, first._pending._k
+        # whether every gate's long memory forgets at its end value `_end_decay` (its warmup over)
+        self._settled = False
+        self._end_decay = self.params.warmup_decay + (self.params.decay - self.params.warmup_decay) * 1.0
         # the last bank step's model steps, predicting gates and newest pose (None: not stepped as a bank)
         self._ungated: tuple[np.ndarray, np.ndarray, np.ndarray | None] | None = None
 
@@ -298,35 +301,38 @@ class GateBank:
         """Every gate's `step` on the checked observation: (gate, horizon, joints) predictions and which
         gates predict (the rows of the others are undefined)."""
         gates, p = self.gates, self.params
-        if any(g.borrow is not None or g._t != gates[0]._t for g in gates):  # not a bank this step
+        t = gates[0]._t
+        if any(g.borrow is not None or g._t != t for g in gates):  # not a bank this step
             self._ungated = None
             outs = [g.step(obs, learn) for g in gates]
             ok = np.array([o is not None for o in outs])
             return np.array([o if o is not None else np.zeros((p.horizon, p.joints)) for o in outs]), ok
-        t = gates[0]._t
         s = t % p.horizon
         valid = self.valid[:, 0, s, :].copy()  # (gate, horizon): row k made k + 1 steps ago
         self.valid[:, :, s, :] = False
-        due = self.pending[:, :, s]  # (gate, 2, horizon, joints)
         if obs is not None:
-            self._score(obs, due, valid)
+            self._score(obs, self.pending[:, :, s], valid)  # due: (gate, 2, horizon, joints)
             last = obs.copy()
             for g in gates:
                 g._last = last
         outs = [g.model.step(obs, learn=learn) for g in gates]
-        ok = np.array([o is not None and g._last is not None for o, g in zip(outs, gates, strict=True)])
+        predicted = [o is not None and g._last is not None for o, g in zip(outs, gates, strict=True)]
         diff = np.zeros((len(gates), p.horizon, p.joints))
-        for i in ok.nonzero()[0].tolist():
-            diff[i] = gates[i]._checked(outs[i])
+        for i, o in enumerate(outs):
+            if predicted[i]:
+                diff[i] = gates[i]._checked(o)
         diff -= gates[0]._last if gates[0]._last is not None else 0.0
-        ok &= np.isfinite(diff.reshape(len(gates), -1).sum(axis=1))
-        for i, g in enumerate(gates):
-            g._out_diff = diff[i] if ok[i] else None
+        ok = np.isfinite(diff.reshape(len(gates), -1).sum(axis=1))
+        if not all(predicted):
+            ok &= predicted
+        for g, d, k in zip(gates, diff, ok.tolist(), strict=True):
+            g._out_diff = d if k else None
             g._t = t + 1
         if every(ok):  # file every prediction (a prediction implies a newest pose)
-            self.pending[:, 0, self._slots[t % p.horizon], self._k, :] = gates[0]._last
-            self.pending[:, 1, self._slots[t % p.horizon], self._k, :] = diff
-            self.valid[:, :, self._slots[t % p.horizon], self._k] = True
+            slots = self._slots[s]
+            self.pending[:, 0, slots, self._k, :] = gates[0]._last
+            self.pending[:, 1, slots, self._k, :] = diff
+            self.valid[:, :, slots, self._k] = True
         else:
             for i in ok.nonzero()[0].tolist():
                 filed = gates[i]._filed
@@ -351,21 +357,31 @@ class GateBank:
     def _score(self, obs: np.ndarray, due: np.ndarray, valid: np.ndarray) -> None:
         """Every gate's `_score`: the products of the predictions due now, into each gate's sums."""
         p = self.params
-        any_ok = np.asarray(valid.any(axis=1))
+        if every(valid):  # the common case: every gate has a scored prediction at every step
+            if p.warmup and not self._settled:
+                self._lengthen(slice(None))
+            _products(obs - due[:, 0], due[:, 1], p.per_joint, self._new)
+            _accumulate(self.stats, self.decays, self.scored, self._new, valid)
+            return
+        any_ok = valid.any(axis=1)
         if not some(any_ok):
             return
-        if p.warmup:
-            rows = any_ok.nonzero()[0]
-            self.decays[0, rows, 0, 0, 0] = p.warmup_decay + (p.decay - p.warmup_decay) * np.minimum(
-                1.0, self.scored[rows, 0] / p.warmup)
+        rows = any_ok.nonzero()[0]
+        if p.warmup and not self._settled:
+            self._lengthen(rows)
         new = self._new
         _products(obs - due[:, 0], due[:, 1], p.per_joint, new)
-        if every(valid):  # the common case: every gate has a scored prediction at every step
-            _accumulate(self.stats, self.decays, self.scored, new, valid)
-            return
-        for i in any_ok.nonzero()[0].tolist():  # as each gate's `_score` does, on its views
+        for i in rows.tolist():  # as each gate's `_score` does, on its views
             g = self.gates[i]
             _accumulate(g._stats, g._decays, g._scored, new[i], valid[i])
+
+    def _lengthen(self, rows: np.ndarray | slice) -> None:
+        """The long memory's forgetting of the gates `rows` that score now, as `GatedPredictor._score` sets
+        it over the warmup; once every gate's is at its end value, which it keeps, this is no longer called."""
+        p = self.params
+        self.decays[0, rows, 0, 0, 0] = p.warmup_decay + (p.decay - p.warmup_decay) * np.minimum(
+            1.0, self.scored[rows, 0] / p.warmup)
+        self._settled = every(self.scored[:, 0] >= p.warmup) and every(self.decays[0] == self._end_decay)
 
 
 def _products(resid: np.ndarray, diff: np.ndarray, per_joint: bool, new: np.ndarray) -> None:
@@ -419,9 +435,10 @@ def shrinkage(s: np.ndarray, prior: float, z2: np.ndarray, bounded: int, fast_st
         np.sqrt(se, out=se)
         se *= z2[:b]
         cap[:b] -= se
-    if fast_step and len(cap) > 1:  # the short memory: every step capped by one step's record
-        cap[1] = cap[1, ..., fast_step - 1, None, :]
-    out = np.minimum(cap[0], cap[1]) if len(cap) == 2 else cap.min(axis=0)
+    if len(cap) == 2:  # the short memory caps every step by one step's record (`fast_step`) or each its own
+        out = np.minimum(cap[0], cap[1, ..., fast_step - 1, None, :] if fast_step else cap[1])
+    else:
+        out = cap.min(axis=0)
     np.minimum(out, a[0], out=out)
     np.minimum(out, 1.0, out=out)
     np.maximum(out, 0.0, out=out)
