@@ -137,21 +137,33 @@ class Experts(Checkpointed):
         due, valid = self._pending.take(self._t)
         if obs is not None:
             self._score(obs, due, valid)
+        self._predict(obs, learn, given)
+        return self._returned(obs, self._combine(self._outputs, self._file()))
+
+    def _predict(self, obs: np.ndarray | None, learn: bool, given: tuple[np.ndarray, np.ndarray] | None) -> None:
+        """The members' predictions this step into `_outputs` (NaN: a member that predicts nothing)."""
         if given is None and self._bank is not None:
             given = self._bank.step(obs, learn)
         if given is not None:
             predictions, predicting = given
             np.copyto(self._outputs, predictions)
-            self._outputs[~predicting] = np.nan
+            if not every(predicting):
+                self._outputs[~predicting] = np.nan
         else:
             self._collect([m.step(obs, learn=learn) for m in self.members.values()])
-        # (members, horizon) which predict; True: all (the usual frame: a finite sum has no NaN or inf in it)
+
+    def _file(self) -> np.ndarray | bool:
+        """File this step's predictions to be scored, and end the step: (members, horizon) which predict
+        (True: all, the usual frame, told by one finite sum: it has no NaN or inf in it)."""
         avail = True if math.isfinite(self._outputs.sum()) else np.isfinite(self._outputs).all(axis=-1)
         self._pending.file(self._t, self._outputs, avail)
         self.record_weight[self._t % self.params.horizon] = 1.0  # until an owner weighs them
         self._t += 1
-        out = self._combine(self._outputs, avail)
-        if out is None and obs is not None:  # no member predicts yet (windows refilling): the newest pose
+        return avail
+
+    def _returned(self, obs: np.ndarray | None, out: np.ndarray | None) -> np.ndarray | None:
+        """The weighted prediction, or where no member predicts yet (windows refilling) the newest pose."""
+        if out is None and obs is not None:
             return np.repeat(obs[None, :], self.params.horizon, axis=0)
         return out
 
@@ -161,7 +173,12 @@ class Experts(Checkpointed):
         return None if self._bank is None else self._bank.ungated()
 
     def _score(self, obs: np.ndarray, due: np.ndarray, valid: np.ndarray) -> None:
-        err = ((due - obs) ** 2).sum(axis=2) / self.params.n_joints  # (members, horizon); NaN: no prediction
+        """Score the predictions `due` (members, horizon, joints) that target `obs` where `valid`."""
+        self._add(((due - obs) ** 2).sum(axis=2) / self.params.n_joints, valid)
+
+    def _add(self, err: np.ndarray, valid: np.ndarray) -> None:
+        """The squared errors `err` (members, horizon; NaN: no prediction) of the `valid` predictions scored
+        now into the running errors (`err` is overwritten)."""
         made = self.record_weight[self._made_at[self._t % self.params.horizon]]
         # the usual frame: every member scored at every step (the same sums, fewer calls; a finite sum of
         # squares has no NaN or inf in it)
@@ -222,7 +239,7 @@ class Experts(Checkpointed):
     def _combine(self, preds: np.ndarray, avail: np.ndarray | bool) -> np.ndarray | None:
         """The weighted mean of `preds` (members, horizon, joints) over the `avail` (members, horizon)
         finite ones (True: all); None where no member predicts."""
-        if avail is True or every(avail):
+        if not isinstance(avail, np.ndarray) or every(avail):  # True: every member predicts
             return np.einsum("mh,mhj->hj", self.weights(), preds)
         if not some(avail):
             return None
@@ -300,3 +317,93 @@ class Experts(Checkpointed):
             saved = header["members"][name]
             self.members[name] = member._restored(saved, sub(arrays, f"member.{name}"), f"members.{name}.")
 
+
+
+class ExpertsPair:
+    """Two weightings of one set of members on one clock (`RecognitionSwitch`'s gated weighting and the
+    ungated one over views of its members), stepped as one: each one's running errors, counts, record
+    weights, pending predictions and outputs are rows of arrays the pair holds and the weighting views (as
+    `GateBank` does for gates), so each stays a whole `Experts` (its weights, errors, checkpoint) while a
+    frame scores, files and weighs both in one set of numpy calls instead of one each (the same numbers:
+    every operation is the weighting's own, done row by row). `ExpertsPair.takes` says which pairs qualify."""
+
+    def __init__(self, first: Experts, second: Experts) -> None:
+        self.pair = (first, second)
+        self.sse = np.stack([first.sse, second.sse])  # (weighting, member, horizon)
+        self.weight = np.stack([first.weight, second.weight])
+        self.scored = np.stack([first.scored, second.scored])
+        self.record_weight = np.stack([first.record_weight, second.record_weight])  # (weighting, horizon)
+        self.outputs = np.stack([first._outputs, second._outputs])  # (weighting, member, horizon, joints)
+        self.pending = np.stack([first._pending.pending, second._pending.pending])
+        self.valid = np.stack([first._pending.valid, second._pending.valid])
+        for i, e in enumerate(self.pair):  # each weighting's state is now a view of its row
+            e.sse, e.weight, e.scored = self.sse[i], self.weight[i], self.scored[i]
+            e.record_weight = self.record_weight[i]
+            e._outputs, e._pending.pending, e._pending.valid = self.outputs[i], self.pending[i], self.valid[i]
+        self.params = p = first.params
+        self._decay = np.array([first.params.decay, second.params.decay])[:, None, None]
+        self._power = np.array([first.params.power, second.params.power])[:, None, None]
+        self._made_at, self._slots, self._k = first._made_at, first._pending._slots, first._pending._k
+        self._horizon, self._joints = p.horizon, p.n_joints
+
+    @staticmethod
+    def takes(first: Experts, second: Experts) -> bool:
+        """Whether two weightings can be stepped as one: as many members, alike but for their forgetting
+        and power, on one clock."""
+        unlike = {"decay": 0.5, "power": 1.0}
+        return (type(first) is Experts and type(second) is Experts and len(first.names) == len(second.names)
+                and first.params.replace(**unlike) == second.params.replace(**unlike) and first._t == second._t)
+
+    def advance(self, obs: np.ndarray | None, learn: bool) -> tuple[np.ndarray | None, np.ndarray | None]:
+        """Both weightings' `advance` on the checked observation, the second on the first's members'
+        predictions before their gates (`Experts.ungated`): their weighted predictions."""
+        first, second = self.pair
+        t = first._t
+        if second._t != t:  # not a pair this step
+            out = first.advance(obs, learn)
+            return out, second.advance(obs, learn, first.ungated())
+        s = t % self._horizon
+        valid = self.valid[:, :, s, :].copy()  # (weighting, member, horizon): row k made k + 1 steps ago
+        self.valid[:, :, s, :] = False
+        if obs is not None:
+            self._score(obs, self.pending[:, :, s], valid, s)
+        first._predict(obs, learn, None)
+        second._predict(obs, learn, first.ungated())
+        if not math.isfinite(self.outputs.sum()):  # a member predicts nothing: each on its own
+            return first._returned(obs, first._combine(first._outputs, first._file())), \
+                second._returned(obs, second._combine(second._outputs, second._file()))
+        slots = self._slots[s]  # every prediction made: `Experts._file` of both
+        self.pending[:, :, slots, self._k, :] = self.outputs
+        self.valid[:, :, slots, self._k] = True
+        self.record_weight[:, s] = 1.0
+        first._t = second._t = t + 1
+        w = self._weights()
+        if w is None:
+            return first._returned(obs, first._combine(first._outputs, True)), \
+                second._returned(obs, second._combine(second._outputs, True))
+        return np.einsum("mh,mhj->hj", w[0], self.outputs[0]), np.einsum("mh,mhj->hj", w[1], self.outputs[1])
+
+    def _score(self, obs: np.ndarray, due: np.ndarray, valid: np.ndarray, s: int) -> None:
+        """Both weightings' `_score` of the predictions `due` (weighting, member, horizon, joints)."""
+        err = ((due - obs) ** 2).sum(axis=3) / self._joints  # (weighting, member, horizon)
+        if not (every(valid) and math.isfinite(err.sum())):  # not every member scored at every step
+            for e, e_err, e_valid in zip(self.pair, err, valid, strict=True):
+                e._add(e_err, e_valid)
+            return
+        made = self.record_weight[:, None, self._made_at[s]]  # (weighting, 1, horizon)
+        err *= made
+        self.sse *= self._decay
+        self.sse += err
+        self.weight *= self._decay
+        self.weight += made
+        self.scored += 1
+
+    def _weights(self) -> np.ndarray | None:
+        """Both weightings' `Experts.weights` where every member is known at every step (else None)."""
+        if not every(self.weight):
+            return None
+        mse = self.sse / self.weight
+        np.maximum(mse, self.params.floor, out=mse)
+        inv = mse.min(axis=1, keepdims=True) / mse
+        inv **= self._power
+        return inv / inv.sum(axis=1, keepdims=True)

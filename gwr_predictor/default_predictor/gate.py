@@ -363,7 +363,7 @@ class GateBank:
             _products(obs - due[:, 0], due[:, 1], p.per_joint, self._new)
             _accumulate(self.stats, self.decays, self.scored, self._new, valid)
             return
-        any_ok = valid.any(axis=1)
+        any_ok = np.asarray(valid.any(axis=1))
         if not some(any_ok):
             return
         rows = any_ok.nonzero()[0]

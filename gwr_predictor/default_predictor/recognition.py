@@ -36,6 +36,7 @@ tuning set, research/tuning.md; 0 lends nothing).
 
 from __future__ import annotations
 
+import copy
 import dataclasses
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
@@ -44,7 +45,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from gwr_predictor.default_predictor.errors import DefaultPredictorError
-from gwr_predictor.default_predictor.experts import Experts
+from gwr_predictor.default_predictor.experts import Experts, ExpertsPair
 from gwr_predictor.default_predictor.gate import GatedPredictor, GateParams
 from gwr_predictor.default_predictor.spread import Spread, SpreadParams
 from gwr_predictor.learning.errors import LearningError
@@ -147,6 +148,8 @@ class RecognitionSwitch(Checkpointed):
         self.params = p = params or RecognitionParams()
         self.ungated = Experts({n: View(m.ungated) for n, m in experts.members.items()},
                                experts.params.replace(decay=p.decay, power=p.power or experts.params.power))
+        #: both weightings stepped as one, where they are alike (None: each steps itself)
+        self._pair = ExpertsPair(experts, self.ungated) if ExpertsPair.takes(experts, self.ungated) else None
         self.recognised = 0  # frames on which the ungated prediction was returned
         self.onset = 0  # frames of the present recognised movement (with `onset_trust`)
         self._outputs: tuple[np.ndarray | None, np.ndarray | None] = (None, None)  # this step's weightings
@@ -164,6 +167,14 @@ class RecognitionSwitch(Checkpointed):
         self._borrows = [(onset <= steps) * p.onset_trust for onset in range(gate.horizon + 1)]
         #: the interval of every prediction, beside it (its groups: the motion new, the motion recognised)
         self.spread = Spread(spread or SpreadParams(horizon=gate.horizon, joints=gate.joints))
+
+    def __deepcopy__(self, memo: dict[int, Any]) -> RecognitionSwitch:
+        """A copy whose pair of weightings is rebuilt over the copied ones (a deep copy of a view is no view)."""
+        new = copy.copy(self)
+        memo[id(self)] = new
+        new.__dict__.update({k: copy.deepcopy(v, memo) for k, v in self.__dict__.items() if k != "_pair"})
+        new._pair = None if self._pair is None else ExpertsPair(new.experts, new.ungated)
+        return new
 
     def _gated_output(self) -> np.ndarray | None:
         return None if self._recognises else self._outputs[0]
@@ -189,8 +200,11 @@ class RecognitionSwitch(Checkpointed):
 
     def step(self, x: np.ndarray | None, learn: bool = True) -> np.ndarray | None:
         obs = observation(x, self.experts.params.n_joints)  # checked once for every part
-        gated = self.experts.advance(obs, learn)
-        ungated = self.ungated.advance(obs, learn, self.experts.ungated())  # its views, in one call if it can
+        if self._pair is not None:
+            gated, ungated = self._pair.advance(obs, learn)
+        else:
+            gated = self.experts.advance(obs, learn)
+            ungated = self.ungated.advance(obs, learn, self.experts.ungated())  # its views, in one call if it can
         self._outputs = (gated, ungated)
         self._recognises = gated is not None and ungated is not None and self.recognises()
         self.recognised += self._recognises
