@@ -125,7 +125,8 @@ class GatedPredictor(Checkpointed):
             raise DefaultPredictorError(f"the gate's horizon {p.horizon} exceeds the model's {horizon}")
         # per memory: [S_xy, S_xx, S_yy, n], each (horizon, joints) (pooled: equal across joints)
         self._stats: np.ndarray = np.zeros((len(p.memories), 4, p.horizon, p.joints))
-        self._new = np.ones((4, p.horizon, p.joints))  # scratch of `_score` (row _N stays 1)
+        # scratch of `_score` (row _N stays 1); pooled, one column, which the sums take in every joint's
+        self._new = np.ones((4, p.horizon, p.joints if p.per_joint else 1))
         self._shape = (p.horizon, p.joints)  # of a prediction gated
         self._filed = np.empty((2, p.horizon, p.joints))  # scratch of `step`: newest pose, model's step
         self._decays = np.array([d for d, _ in p.memories])[:, None, None, None]  # per memory, over `_stats`
@@ -284,7 +285,7 @@ class GateBank:
         for i, g in enumerate(self.gates):  # each gate's state is now a view of its row
             g._stats, g._decays, g._scored = self.stats[:, i], self.decays[:, i], self.scored[i]
             g._pending.pending, g._pending.valid = self.pending[i], self.valid[i]
-        self._new = np.ones((len(self.gates), 4, self.params.horizon, self.params.joints))
+        self._new = np.ones((len(self.gates), *first._new.shape))
         self._z2 = first._z2[:, None]
         self._slots, self._k = first._pending._slots, first._pending._k
         # whether every gate's long memory forgets at its end value `_end_decay` (its warmup over)
@@ -390,15 +391,15 @@ class GateBank:
 def _products(resid: np.ndarray, diff: np.ndarray, per_joint: bool, new: np.ndarray) -> None:
     """The products a scored prediction adds to a gate's sums, into `new` (..., 4, horizon, joints): of the
     residual against the newest pose then and the model's step, per joint or pooled over the joints (one
-    sum of products per step, the same in every joint's column); for one gate or several (`...`)."""
+    sum of products per step, in `new`'s one column, added to every joint's); for one gate or several (`...`)."""
     if per_joint:
         np.multiply(resid, diff, out=new[..., _XY, :, :])
         np.multiply(diff, diff, out=new[..., _XX, :, :])
         np.multiply(resid, resid, out=new[..., _YY, :, :])
     else:
-        new[..., _XY, :, :] = np.vecdot(resid, diff)[..., None]
-        new[..., _XX, :, :] = np.vecdot(diff, diff)[..., None]
-        new[..., _YY, :, :] = np.vecdot(resid, resid)[..., None]
+        np.vecdot(resid, diff, out=new[..., _XY, :, 0])
+        np.vecdot(diff, diff, out=new[..., _XX, :, 0])
+        np.vecdot(resid, resid, out=new[..., _YY, :, 0])
 
 
 def _accumulate(stats: np.ndarray, decays: np.ndarray, scored: np.ndarray, new: np.ndarray, ok: np.ndarray) -> None:
