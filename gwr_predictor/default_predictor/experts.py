@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import copy
 import dataclasses
+import math
 from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any, ClassVar
@@ -33,7 +34,7 @@ from gwr_predictor.default_predictor.gate import GateBank, inner_model
 from gwr_predictor.default_predictor.memory import TrajectoryMemory
 from gwr_predictor.learning.errors import LearningError
 from gwr_predictor.learning.params import DEFAULT_HORIZON, MAX_HORIZON
-from gwr_predictor.learning.pending import PendingPredictions
+from gwr_predictor.learning.pending import PendingPredictions, every, some
 from gwr_predictor.learning.persistence import Checkpointed, Persist, fresh_of_kind, kind_to_save, params_from_json, sub
 from gwr_predictor.parameters.spec import ParamSpec, check_fields
 from gwr_predictor.predictors.baselines import observation
@@ -97,7 +98,8 @@ class Experts(Checkpointed):
         #: the weight in the record of the predictions made at each of the last `horizon` steps (by step
         #: % horizon; 1 unless an owner weighs them)
         self.record_weight = np.ones(p.horizon)
-        self._made_ago = np.arange(1, p.horizon + 1)  # step k's prediction was made k steps before its score
+        # per t % horizon, where in `record_weight` the predictions scored at t were weighed (k steps before)
+        self._made_at = [(t - np.arange(1, p.horizon + 1)) % p.horizon for t in range(p.horizon)]
         members_list = list(self.members.values())
         #: the members' gates stepped as one, where they are alike (None: each member steps itself)
         self._bank = GateBank(members_list) if GateBank.takes(members_list) else None
@@ -125,29 +127,62 @@ class Experts(Checkpointed):
         self._outputs.fill(np.nan)
 
     def step(self, x: np.ndarray | None, learn: bool = True) -> np.ndarray | None:
-        obs = observation(x, self.params.n_joints)
+        return self.advance(observation(x, self.params.n_joints), learn)
+
+    def advance(self, obs: np.ndarray | None, learn: bool = True,
+                given: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray | None:
+        """`step` on an observation already checked (`observation`). `given`: the members' predictions this
+        step, (members, horizon, joints), and which members made one, computed by an owner for members that
+        are views of them (not stepped then): the same weighting without a Python call per member."""
         due, valid = self._pending.take(self._t)
         if obs is not None:
             self._score(obs, due, valid)
-        if self._bank is not None:
-            predictions, predicting = self._bank.step(obs, learn)
+        self._predict(obs, learn, given)
+        return self._returned(obs, self._combine(self._outputs, self._file()))
+
+    def _predict(self, obs: np.ndarray | None, learn: bool, given: tuple[np.ndarray, np.ndarray] | None) -> None:
+        """The members' predictions this step into `_outputs` (NaN: a member that predicts nothing)."""
+        if given is None and self._bank is not None:
+            given = self._bank.step(obs, learn)
+        if given is not None:
+            predictions, predicting = given
             np.copyto(self._outputs, predictions)
-            self._outputs[~predicting] = np.nan
+            if not every(predicting):
+                self._outputs[~predicting] = np.nan
         else:
             self._collect([m.step(obs, learn=learn) for m in self.members.values()])
-        self._pending.file(self._t, self._outputs, np.isfinite(self._outputs).all(axis=-1))
+
+    def _file(self) -> np.ndarray | bool:
+        """File this step's predictions to be scored, and end the step: (members, horizon) which predict
+        (True: all, the usual frame, told by one finite sum: it has no NaN or inf in it)."""
+        avail = True if math.isfinite(self._outputs.sum()) else np.isfinite(self._outputs).all(axis=-1)
+        self._pending.file(self._t, self._outputs, avail)
         self.record_weight[self._t % self.params.horizon] = 1.0  # until an owner weighs them
         self._t += 1
-        out = self._combine(self._outputs)
-        if out is None and obs is not None:  # no member predicts yet (windows refilling): the newest pose
+        return avail
+
+    def _returned(self, obs: np.ndarray | None, out: np.ndarray | None) -> np.ndarray | None:
+        """The weighted prediction, or where no member predicts yet (windows refilling) the newest pose."""
+        if out is None and obs is not None:
             return np.repeat(obs[None, :], self.params.horizon, axis=0)
         return out
 
+    def ungated(self) -> tuple[np.ndarray, np.ndarray] | None:
+        """Right after `step`: the members' own predictions before their gates, as `advance` takes them
+        `given`, where the members were stepped as one bank of gates (else None)."""
+        return None if self._bank is None else self._bank.ungated()
+
     def _score(self, obs: np.ndarray, due: np.ndarray, valid: np.ndarray) -> None:
-        err = ((due - obs) ** 2).sum(axis=2) / self.params.n_joints  # (members, horizon); NaN: no prediction
-        scored = valid & np.isfinite(err)
-        made = self.record_weight[(self._t - self._made_ago) % self.params.horizon]
-        if scored.all():  # the usual frame: every member scored at every step (the same sums, fewer calls)
+        """Score the predictions `due` (members, horizon, joints) that target `obs` where `valid`."""
+        self._add(((due - obs) ** 2).sum(axis=2) / self.params.n_joints, valid)
+
+    def _add(self, err: np.ndarray, valid: np.ndarray) -> None:
+        """The squared errors `err` (members, horizon; NaN: no prediction) of the `valid` predictions scored
+        now into the running errors (`err` is overwritten)."""
+        made = self.record_weight[self._made_at[self._t % self.params.horizon]]
+        # the usual frame: every member scored at every step (the same sums, fewer calls; a finite sum of
+        # squares has no NaN or inf in it)
+        if every(valid) and math.isfinite(err.sum()):
             err *= made
             self.sse *= self.params.decay
             self.sse += err
@@ -155,6 +190,7 @@ class Experts(Checkpointed):
             self.weight += made
             self.scored += 1
             return
+        scored = valid & np.isfinite(err)
         decay = np.where(scored, self.params.decay, 1.0)
         self.sse *= decay
         self.sse += np.where(scored, err * made, 0.0)
@@ -182,7 +218,7 @@ class Experts(Checkpointed):
     def weights(self, available: np.ndarray | None = None) -> np.ndarray:
         """(members, horizon) weights summing to 1 per step over the `available` members (default all)."""
         p = self.params
-        if (available is None or available.all()) and self.weight.all():  # the usual frame, in fewer calls
+        if (available is None or every(available)) and every(self.weight):  # the usual frame, in fewer calls
             mse = self.sse / self.weight
             np.maximum(mse, p.floor, out=mse)
             inv = mse.min(axis=0, keepdims=True) / mse
@@ -200,11 +236,12 @@ class Experts(Checkpointed):
         inv = np.where(avail, (best / mse) ** p.power, 0.0)
         return inv / inv.sum(axis=0, keepdims=True)
 
-    def _combine(self, preds: np.ndarray) -> np.ndarray | None:
-        avail = np.isfinite(preds).all(axis=2)  # (members, horizon)
-        if avail.all():
-            return np.einsum("mh,mhj->hj", self.weights(avail), preds)
-        if not avail.any():
+    def _combine(self, preds: np.ndarray, avail: np.ndarray | bool) -> np.ndarray | None:
+        """The weighted mean of `preds` (members, horizon, joints) over the `avail` (members, horizon)
+        finite ones (True: all); None where no member predicts."""
+        if not isinstance(avail, np.ndarray) or every(avail):  # True: every member predicts
+            return np.einsum("mh,mhj->hj", self.weights(), preds)
+        if not some(avail):
             return None
         w = self.weights(avail)
         return np.einsum("mh,mhj->hj", w, np.where(avail[:, :, None], preds, 0.0))
@@ -280,3 +317,93 @@ class Experts(Checkpointed):
             saved = header["members"][name]
             self.members[name] = member._restored(saved, sub(arrays, f"member.{name}"), f"members.{name}.")
 
+
+
+class ExpertsPair:
+    """Two weightings of one set of members on one clock (`RecognitionSwitch`'s gated weighting and the
+    ungated one over views of its members), stepped as one: each one's running errors, counts, record
+    weights, pending predictions and outputs are rows of arrays the pair holds and the weighting views (as
+    `GateBank` does for gates), so each stays a whole `Experts` (its weights, errors, checkpoint) while a
+    frame scores, files and weighs both in one set of numpy calls instead of one each (the same numbers:
+    every operation is the weighting's own, done row by row). `ExpertsPair.takes` says which pairs qualify."""
+
+    def __init__(self, first: Experts, second: Experts) -> None:
+        self.pair = (first, second)
+        self.sse = np.stack([first.sse, second.sse])  # (weighting, member, horizon)
+        self.weight = np.stack([first.weight, second.weight])
+        self.scored = np.stack([first.scored, second.scored])
+        self.record_weight = np.stack([first.record_weight, second.record_weight])  # (weighting, horizon)
+        self.outputs = np.stack([first._outputs, second._outputs])  # (weighting, member, horizon, joints)
+        self.pending = np.stack([first._pending.pending, second._pending.pending])
+        self.valid = np.stack([first._pending.valid, second._pending.valid])
+        for i, e in enumerate(self.pair):  # each weighting's state is now a view of its row
+            e.sse, e.weight, e.scored = self.sse[i], self.weight[i], self.scored[i]
+            e.record_weight = self.record_weight[i]
+            e._outputs, e._pending.pending, e._pending.valid = self.outputs[i], self.pending[i], self.valid[i]
+        self.params = p = first.params
+        self._decay = np.array([first.params.decay, second.params.decay])[:, None, None]
+        self._power = np.array([first.params.power, second.params.power])[:, None, None]
+        self._made_at, self._slots, self._k = first._made_at, first._pending._slots, first._pending._k
+        self._horizon, self._joints = p.horizon, p.n_joints
+
+    @staticmethod
+    def takes(first: Experts, second: Experts) -> bool:
+        """Whether two weightings can be stepped as one: as many members, alike but for their forgetting
+        and power, on one clock."""
+        unlike = {"decay": 0.5, "power": 1.0}
+        return (type(first) is Experts and type(second) is Experts and len(first.names) == len(second.names)
+                and first.params.replace(**unlike) == second.params.replace(**unlike) and first._t == second._t)
+
+    def advance(self, obs: np.ndarray | None, learn: bool) -> tuple[np.ndarray | None, np.ndarray | None]:
+        """Both weightings' `advance` on the checked observation, the second on the first's members'
+        predictions before their gates (`Experts.ungated`): their weighted predictions."""
+        first, second = self.pair
+        t = first._t
+        if second._t != t:  # not a pair this step
+            out = first.advance(obs, learn)
+            return out, second.advance(obs, learn, first.ungated())
+        s = t % self._horizon
+        valid = self.valid[:, :, s, :].copy()  # (weighting, member, horizon): row k made k + 1 steps ago
+        self.valid[:, :, s, :] = False
+        if obs is not None:
+            self._score(obs, self.pending[:, :, s], valid, s)
+        first._predict(obs, learn, None)
+        second._predict(obs, learn, first.ungated())
+        if not math.isfinite(self.outputs.sum()):  # a member predicts nothing: each on its own
+            return first._returned(obs, first._combine(first._outputs, first._file())), \
+                second._returned(obs, second._combine(second._outputs, second._file()))
+        slots = self._slots[s]  # every prediction made: `Experts._file` of both
+        self.pending[:, :, slots, self._k, :] = self.outputs
+        self.valid[:, :, slots, self._k] = True
+        self.record_weight[:, s] = 1.0
+        first._t = second._t = t + 1
+        w = self._weights()
+        if w is None:
+            return first._returned(obs, first._combine(first._outputs, True)), \
+                second._returned(obs, second._combine(second._outputs, True))
+        return np.einsum("mh,mhj->hj", w[0], self.outputs[0]), np.einsum("mh,mhj->hj", w[1], self.outputs[1])
+
+    def _score(self, obs: np.ndarray, due: np.ndarray, valid: np.ndarray, s: int) -> None:
+        """Both weightings' `_score` of the predictions `due` (weighting, member, horizon, joints)."""
+        err = ((due - obs) ** 2).sum(axis=3) / self._joints  # (weighting, member, horizon)
+        if not (every(valid) and math.isfinite(err.sum())):  # not every member scored at every step
+            for e, e_err, e_valid in zip(self.pair, err, valid, strict=True):
+                e._add(e_err, e_valid)
+            return
+        made = self.record_weight[:, None, self._made_at[s]]  # (weighting, 1, horizon)
+        err *= made
+        self.sse *= self._decay
+        self.sse += err
+        self.weight *= self._decay
+        self.weight += made
+        self.scored += 1
+
+    def _weights(self) -> np.ndarray | None:
+        """Both weightings' `Experts.weights` where every member is known at every step (else None)."""
+        if not every(self.weight):
+            return None
+        mse = self.sse / self.weight
+        np.maximum(mse, self.params.floor, out=mse)
+        inv = mse.min(axis=1, keepdims=True) / mse
+        inv **= self._power
+        return inv / inv.sum(axis=1, keepdims=True)

@@ -46,7 +46,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from gwr_predictor.default_predictor.errors import DefaultPredictorError
-from gwr_predictor.learning.pending import PendingPredictions
+from gwr_predictor.learning.pending import PendingPredictions, every, some
 from gwr_predictor.learning.persistence import Checkpointed, Persist, fresh_of_kind, kind_to_save, params_from_json
 from gwr_predictor.parameters.spec import ParamSpec, check_fields
 from gwr_predictor.pipeline.conventions import DEFAULT_HORIZON
@@ -125,7 +125,9 @@ class GatedPredictor(Checkpointed):
             raise DefaultPredictorError(f"the gate's horizon {p.horizon} exceeds the model's {horizon}")
         # per memory: [S_xy, S_xx, S_yy, n], each (horizon, joints) (pooled: equal across joints)
         self._stats: np.ndarray = np.zeros((len(p.memories), 4, p.horizon, p.joints))
-        self._new = np.ones((4, p.horizon, p.joints))  # scratch of `_score` (row _N stays 1)
+        # scratch of `_score` (row _N stays 1); pooled, one column, which the sums take in every joint's
+        self._new = np.ones((4, p.horizon, p.joints if p.per_joint else 1))
+        self._shape = (p.horizon, p.joints)  # of a prediction gated
         self._filed = np.empty((2, p.horizon, p.joints))  # scratch of `step`: newest pose, model's step
         self._decays = np.array([d for d, _ in p.memories])[:, None, None, None]  # per memory, over `_stats`
         self._z = np.array([z for _, z in p.memories])[:, None, None]
@@ -153,8 +155,13 @@ class GatedPredictor(Checkpointed):
         self._clear_sequence()
 
     def step(self, x: np.ndarray | None, learn: bool = True) -> np.ndarray | None:
-        p = self.params
-        obs = observation(x, p.joints)
+        self.advance(observation(x, self.params.joints), learn)
+        return self._gated(self._out_diff)
+
+    def advance(self, obs: np.ndarray | None, learn: bool = True) -> None:
+        """`step` on an observation already checked (`observation`), without making the gated prediction:
+        for an owner that checks the frame once for all its parts and may not return this gate's output
+        (`predict` makes it)."""
         due, valid = self._pending.take(self._t)
         if obs is not None:
             self._score(obs, due, valid)
@@ -172,10 +179,11 @@ class GatedPredictor(Checkpointed):
             self._pending.file(self._t, filed)
         self._t += 1
         self._out_diff = diff
-        return self._gated(diff)
 
     def _checked(self, out: Any) -> np.ndarray:
         """The model's prediction, its first `horizon` steps (DefaultPredictorError if its shape is wrong)."""
+        if type(out) is np.ndarray and out.shape == self._shape and out.dtype == np.float64:
+            return out  # the usual prediction, as it is (in a fraction of the checks' time)
         p = self.params
         out = np.asarray(out, dtype=float)
         if out.ndim != 2 or out.shape[0] < p.horizon or out.shape[1] != p.joints:
@@ -204,7 +212,7 @@ class GatedPredictor(Checkpointed):
     def _score(self, obs: np.ndarray, due: np.ndarray, valid: np.ndarray) -> None:
         """Score the pending predictions that target this observed frame (row k made k + 1 steps ago)."""
         ok = valid[0]
-        if not ok.any():
+        if not some(ok):
             return
         p = self.params
         if p.warmup:
@@ -277,9 +285,14 @@ class GateBank:
         for i, g in enumerate(self.gates):  # each gate's state is now a view of its row
             g._stats, g._decays, g._scored = self.stats[:, i], self.decays[:, i], self.scored[i]
             g._pending.pending, g._pending.valid = self.pending[i], self.valid[i]
-        self._new = np.ones((len(self.gates), 4, self.params.horizon, self.params.joints))
+        self._new = np.ones((len(self.gates), *first._new.shape))
         self._z2 = first._z2[:, None]
         self._slots, self._k = first._pending._slots, first._pending._k
+        # whether every gate's long memory forgets at its end value `_end_decay` (its warmup over)
+        self._settled = False
+        self._end_decay = self.params.warmup_decay + (self.params.decay - self.params.warmup_decay) * 1.0
+        # the last bank step's model steps, predicting gates and newest pose (None: not stepped as a bank)
+        self._ungated: tuple[np.ndarray, np.ndarray, np.ndarray | None] | None = None
 
     @staticmethod
     def takes(members: Sequence[Any]) -> bool:
@@ -292,83 +305,107 @@ class GateBank:
         """Every gate's `step` on the checked observation: (gate, horizon, joints) predictions and which
         gates predict (the rows of the others are undefined)."""
         gates, p = self.gates, self.params
-        if any(g.borrow is not None or g._t != gates[0]._t for g in gates):  # not a bank this step
+        t = gates[0]._t
+        if any(g.borrow is not None or g._t != t for g in gates):  # not a bank this step
+            self._ungated = None
             outs = [g.step(obs, learn) for g in gates]
             ok = np.array([o is not None for o in outs])
             return np.array([o if o is not None else np.zeros((p.horizon, p.joints)) for o in outs]), ok
-        t = gates[0]._t
         s = t % p.horizon
         valid = self.valid[:, 0, s, :].copy()  # (gate, horizon): row k made k + 1 steps ago
         self.valid[:, :, s, :] = False
-        due = self.pending[:, :, s]  # (gate, 2, horizon, joints)
         if obs is not None:
-            self._score(obs, due, valid)
+            self._score(obs, self.pending[:, :, s], valid)  # due: (gate, 2, horizon, joints)
             last = obs.copy()
             for g in gates:
                 g._last = last
         outs = [g.model.step(obs, learn=learn) for g in gates]
-        ok = np.array([o is not None and g._last is not None for o, g in zip(outs, gates, strict=True)])
+        predicted = [o is not None and g._last is not None for o, g in zip(outs, gates, strict=True)]
         diff = np.zeros((len(gates), p.horizon, p.joints))
-        for i in ok.nonzero()[0].tolist():
-            diff[i] = gates[i]._checked(outs[i])
+        for i, o in enumerate(outs):
+            if predicted[i]:
+                diff[i] = gates[i]._checked(o)
         diff -= gates[0]._last if gates[0]._last is not None else 0.0
-        ok &= np.isfinite(diff.reshape(len(gates), -1).sum(axis=1))
-        for i, g in enumerate(gates):
-            g._out_diff = diff[i] if ok[i] else None
+        ok = np.isfinite(diff.reshape(len(gates), -1).sum(axis=1))
+        if not all(predicted):
+            ok &= predicted
+        for g, d, k in zip(gates, diff, ok.tolist(), strict=True):
+            g._out_diff = d if k else None
             g._t = t + 1
-        if ok.all():  # file every prediction (a prediction implies a newest pose)
-            self.pending[:, 0, self._slots[t % p.horizon], self._k, :] = gates[0]._last
-            self.pending[:, 1, self._slots[t % p.horizon], self._k, :] = diff
-            self.valid[:, :, self._slots[t % p.horizon], self._k] = True
+        if every(ok):  # file every prediction (a prediction implies a newest pose)
+            slots = self._slots[s]
+            self.pending[:, 0, slots, self._k, :] = gates[0]._last
+            self.pending[:, 1, slots, self._k, :] = diff
+            self.valid[:, :, slots, self._k] = True
         else:
             for i in ok.nonzero()[0].tolist():
                 filed = gates[i]._filed
                 filed[0] = gates[i]._last
                 filed[1] = diff[i]
                 gates[i]._pending.file(t, filed)
+        self._ungated = diff, ok, gates[0]._last
         out = shrinkage(self.stats, gates[0]._prior, self._z2, gates[0]._bounded, p.fast_step)
         out *= diff
         out += gates[0]._last if gates[0]._last is not None else 0.0
         return out, ok
 
+    def ungated(self) -> tuple[np.ndarray, np.ndarray] | None:
+        """Right after `step`: every gate's `ungated` prediction, (gate, horizon, joints), and which gates
+        made one (the rows of the others are undefined), in one call; None if the gates were stepped one
+        by one."""
+        if self._ungated is None:
+            return None
+        diff, ok, last = self._ungated
+        return (diff if last is None else last + diff), ok
+
     def _score(self, obs: np.ndarray, due: np.ndarray, valid: np.ndarray) -> None:
         """Every gate's `_score`: the products of the predictions due now, into each gate's sums."""
         p = self.params
-        any_ok = np.asarray(valid.any(axis=1))
-        if not any_ok.any():
+        if every(valid):  # the common case: every gate has a scored prediction at every step
+            if p.warmup and not self._settled:
+                self._lengthen(slice(None))
+            _products(obs - due[:, 0], due[:, 1], p.per_joint, self._new)
+            _accumulate(self.stats, self.decays, self.scored, self._new, valid)
             return
-        if p.warmup:
-            rows = any_ok.nonzero()[0]
-            self.decays[0, rows, 0, 0, 0] = p.warmup_decay + (p.decay - p.warmup_decay) * np.minimum(
-                1.0, self.scored[rows, 0] / p.warmup)
+        any_ok = np.asarray(valid.any(axis=1))
+        if not some(any_ok):
+            return
+        rows = any_ok.nonzero()[0]
+        if p.warmup and not self._settled:
+            self._lengthen(rows)
         new = self._new
         _products(obs - due[:, 0], due[:, 1], p.per_joint, new)
-        if valid.all():  # the common case: every gate has a scored prediction at every step
-            _accumulate(self.stats, self.decays, self.scored, new, valid)
-            return
-        for i in any_ok.nonzero()[0].tolist():  # as each gate's `_score` does, on its views
+        for i in rows.tolist():  # as each gate's `_score` does, on its views
             g = self.gates[i]
             _accumulate(g._stats, g._decays, g._scored, new[i], valid[i])
+
+    def _lengthen(self, rows: np.ndarray | slice) -> None:
+        """The long memory's forgetting of the gates `rows` that score now, as `GatedPredictor._score` sets
+        it over the warmup; once every gate's is at its end value, which it keeps, this is no longer called."""
+        p = self.params
+        self.decays[0, rows, 0, 0, 0] = p.warmup_decay + (p.decay - p.warmup_decay) * np.minimum(
+            1.0, self.scored[rows, 0] / p.warmup)
+        self._settled = every(self.scored[:, 0] >= p.warmup) and every(self.decays[0] == self._end_decay)
 
 
 def _products(resid: np.ndarray, diff: np.ndarray, per_joint: bool, new: np.ndarray) -> None:
     """The products a scored prediction adds to a gate's sums, into `new` (..., 4, horizon, joints): of the
     residual against the newest pose then and the model's step, per joint or pooled over the joints (one
-    sum of products per step, the same in every joint's column); for one gate or several (`...`)."""
+    sum of products per step, in `new`'s one column, added to every joint's); for one gate or several (`...`)."""
     if per_joint:
         np.multiply(resid, diff, out=new[..., _XY, :, :])
         np.multiply(diff, diff, out=new[..., _XX, :, :])
         np.multiply(resid, resid, out=new[..., _YY, :, :])
     else:
-        new[..., _XY, :, :] = np.vecdot(resid, diff)[..., None]
-        new[..., _XX, :, :] = np.vecdot(diff, diff)[..., None]
-        new[..., _YY, :, :] = np.vecdot(resid, resid)[..., None]
+        np.vecdot(resid, diff, out=new[..., _XY, :, 0])
+        np.vecdot(diff, diff, out=new[..., _XX, :, 0])
+        np.vecdot(resid, resid, out=new[..., _YY, :, 0])
 
 
 def _accumulate(stats: np.ndarray, decays: np.ndarray, scored: np.ndarray, new: np.ndarray, ok: np.ndarray) -> None:
     """Forget and add `new` into running sums `stats` (memory, [gate,] 4, horizon, joints), in place, on the
     steps `ok` (horizon,) holds, counting them in `scored`; every step at once in the common case."""
-    if ok.all():
+    if every(ok):
         stats *= decays
         stats += new
         scored += 1
@@ -402,9 +439,10 @@ def shrinkage(s: np.ndarray, prior: float, z2: np.ndarray, bounded: int, fast_st
         np.sqrt(se, out=se)
         se *= z2[:b]
         cap[:b] -= se
-    if fast_step and len(cap) > 1:  # the short memory: every step capped by one step's record
-        cap[1] = cap[1, ..., fast_step - 1, None, :]
-    out = np.minimum(cap[0], cap[1]) if len(cap) == 2 else cap.min(axis=0)
+    if len(cap) == 2:  # the short memory caps every step by one step's record (`fast_step`) or each its own
+        out = np.minimum(cap[0], cap[1, ..., fast_step - 1, None, :] if fast_step else cap[1])
+    else:
+        out = cap.min(axis=0)
     np.minimum(out, a[0], out=out)
     np.minimum(out, 1.0, out=out)
     np.maximum(out, 0.0, out=out)

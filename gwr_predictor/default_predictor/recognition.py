@@ -36,6 +36,7 @@ tuning set, research/tuning.md; 0 lends nothing).
 
 from __future__ import annotations
 
+import copy
 import dataclasses
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
@@ -44,12 +45,13 @@ from typing import Any, ClassVar
 import numpy as np
 
 from gwr_predictor.default_predictor.errors import DefaultPredictorError
-from gwr_predictor.default_predictor.experts import Experts
+from gwr_predictor.default_predictor.experts import Experts, ExpertsPair
 from gwr_predictor.default_predictor.gate import GatedPredictor, GateParams
 from gwr_predictor.default_predictor.spread import Spread, SpreadParams
 from gwr_predictor.learning.errors import LearningError
 from gwr_predictor.learning.persistence import Checkpointed, Persist, params_from_json
 from gwr_predictor.parameters.spec import ParamSpec, check_fields
+from gwr_predictor.predictors.baselines import observation
 
 #: The member whose memory judges recognition.
 MEMORY = "memory"
@@ -146,6 +148,8 @@ class RecognitionSwitch(Checkpointed):
         self.params = p = params or RecognitionParams()
         self.ungated = Experts({n: View(m.ungated) for n, m in experts.members.items()},
                                experts.params.replace(decay=p.decay, power=p.power or experts.params.power))
+        #: both weightings stepped as one, where they are alike (None: each steps itself)
+        self._pair = ExpertsPair(experts, self.ungated) if ExpertsPair.takes(experts, self.ungated) else None
         self.recognised = 0  # frames on which the ungated prediction was returned
         self.onset = 0  # frames of the present recognised movement (with `onset_trust`)
         self._outputs: tuple[np.ndarray | None, np.ndarray | None] = (None, None)  # this step's weightings
@@ -158,8 +162,19 @@ class RecognitionSwitch(Checkpointed):
         else:
             self.gate = GatedPredictor(View(self._returned_output), gate)
             self.ungated_gate = None
+        # per onset up to the horizon, the share of step 1's trust each step borrows (from then on: none)
+        steps = np.arange(1, gate.horizon + 1)
+        self._borrows = [(onset <= steps) * p.onset_trust for onset in range(gate.horizon + 1)]
         #: the interval of every prediction, beside it (its groups: the motion new, the motion recognised)
         self.spread = Spread(spread or SpreadParams(horizon=gate.horizon, joints=gate.joints))
+
+    def __deepcopy__(self, memo: dict[int, Any]) -> RecognitionSwitch:
+        """A copy whose pair of weightings is rebuilt over the copied ones (a deep copy of a view is no view)."""
+        new = copy.copy(self)
+        memo[id(self)] = new
+        new.__dict__.update({k: copy.deepcopy(v, memo) for k, v in self.__dict__.items() if k != "_pair"})
+        new._pair = None if self._pair is None else ExpertsPair(new.experts, new.ungated)
+        return new
 
     def _gated_output(self) -> np.ndarray | None:
         return None if self._recognises else self._outputs[0]
@@ -184,8 +199,12 @@ class RecognitionSwitch(Checkpointed):
         return (self.gate,) if self.ungated_gate is None else (self.gate, self.ungated_gate)
 
     def step(self, x: np.ndarray | None, learn: bool = True) -> np.ndarray | None:
-        gated = self.experts.step(x, learn)
-        ungated = self.ungated.step(x, learn)
+        obs = observation(x, self.experts.params.n_joints)  # checked once for every part
+        if self._pair is not None:
+            gated, ungated = self._pair.advance(obs, learn)
+        else:
+            gated = self.experts.advance(obs, learn)
+            ungated = self.ungated.advance(obs, learn, self.experts.ungated())  # its views, in one call if it can
         self._outputs = (gated, ungated)
         self._recognises = gated is not None and ungated is not None and self.recognises()
         self.recognised += self._recognises
@@ -195,9 +214,11 @@ class RecognitionSwitch(Checkpointed):
             self.ungated.weigh_last(1.0 if moving else p.outside_weight)
         if p.onset_trust and self.ungated_gate is not None:
             self._borrow(self.ungated_gate, moving)
-        outs = [gate.step(x, learn) for gate in self.gates]  # every gate scores what it is owed
-        out = outs[-1] if self._recognises else outs[0]
-        self.spread.step(x, out, min(int(self._recognises), self.spread.params.groups - 1))
+        gates = self.gates
+        for gate in gates:  # every gate scores what it is owed
+            gate.advance(obs, learn)
+        out = (gates[-1] if self._recognises else gates[0]).predict()  # only the returned gate's prediction
+        self.spread.advance(obs, out, min(int(self._recognises), self.spread.params.groups - 1))
         return out
 
     @property
@@ -219,8 +240,7 @@ class RecognitionSwitch(Checkpointed):
         none of whose predictions made in it has been scored yet (every step, outside a movement) borrow
         step 1's trust."""
         self.onset = self.onset + 1 if moving else 0
-        young = self.onset <= np.arange(1, gate.params.horizon + 1)
-        gate.borrow = young * self.params.onset_trust if young.any() else None
+        gate.borrow = self._borrows[self.onset] if self.onset < len(self._borrows) else None
 
     def recognises(self) -> bool:
         """Whether the memory knew the motion at the last step."""

@@ -41,7 +41,7 @@ import numpy as np
 
 from gwr_predictor.default_predictor.errors import DefaultPredictorError
 from gwr_predictor.learning.params import DEFAULT_HORIZON, MAX_HORIZON
-from gwr_predictor.learning.pending import PendingPredictions
+from gwr_predictor.learning.pending import PendingPredictions, every, some
 from gwr_predictor.learning.persistence import Checkpointed, Persist, fresh_of_kind, kind_to_save, params_from_json
 from gwr_predictor.parameters.spec import ParamSpec, check_fields
 from gwr_predictor.predictors.baselines import observation
@@ -146,12 +146,15 @@ class Spread(Checkpointed):
     def step(self, x: np.ndarray | None, prediction: np.ndarray | None, group: int = 0) -> None:
         """Score what targets this frame `x` (None: lost), then state the interval of `prediction` ((horizon,
         joints) made at this frame; None: none), counted in `group`."""
+        self.advance(observation(x, self.params.joints), prediction, group)
+
+    def advance(self, obs: np.ndarray | None, prediction: np.ndarray | None, group: int = 0) -> None:
+        """`step` on an observation already checked (`observation`), for an owner that checks it once."""
         p = self.params
-        obs = observation(x, p.joints)
         due, valid = self._pending.take(self._t)
         self._t += 1
         if obs is not None:
-            if valid[_PRED].any():
+            if some(valid[_PRED]):
                 self._score(obs, due, valid[_PRED])
             if self._last is not None and p.motion_weight:
                 self.speed *= p.speed_decay
@@ -188,7 +191,7 @@ class Spread(Checkpointed):
         step = np.where(resid > due[_HALF], self._up, self._down)
         resid *= resid
         member = self._group_ids == due[_GROUP, :, 0]  # (groups, horizon): which group each row was stated in
-        if valid.all():  # the common case
+        if every(valid):  # the common case
             self.err_sum *= p.error_decay
             self.err_weight *= p.error_decay
         else:  # a prediction a gap left unscored: no step, no error, no forgetting
