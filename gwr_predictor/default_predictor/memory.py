@@ -363,15 +363,18 @@ class TrajectoryMemory(Checkpointed):
         w += 1e-6
         np.divide(1.0, w, out=w)  # inverse squared distance
         w /= w.sum()
-        read = self._at_present_speed(nearest, key)
+        keys = self.keys.take(nearest, axis=0)  # gathered once for the read-out and the fit
+        read = self._at_present_speed(nearest, keys, key)
         if fit:
-            return self._fit(w, (self.keys[nearest] - key) * self._key_weights, read)
+            keys -= key
+            keys *= self._key_weights
+            return self._fit(w, keys, read)
         return np.einsum("k,khj->hj", w, read)
 
-    def _at_present_speed(self, nearest: np.ndarray, key: np.ndarray) -> np.ndarray:
-        """(k, horizon, J): each snippet's future read at the present speed against its own."""
+    def _at_present_speed(self, nearest: np.ndarray, keys: np.ndarray, key: np.ndarray) -> np.ndarray:
+        """(k, horizon, J): each snippet's future read at the present speed against its own (`keys`, theirs)."""
         p = self.params
-        stored = self.keys[nearest, p.n_joints:]  # (k, lags * J) changes
+        stored = keys[:, p.n_joints:]  # (k, lags * J) changes
         power = np.einsum("kd,kd->k", stored, stored)
         ratio = np.where(power > 1e-8, (stored @ key[p.n_joints:]) / np.maximum(power, 1e-8), 1.0)
         # clipped (finite: no stored or present angle beyond 100 rad), as np.clip does, in two cheaper calls
@@ -401,7 +404,8 @@ class TrajectoryMemory(Checkpointed):
         root = np.sqrt(w)
         xs = x * root[:, None]
         gram = xs @ xs.T  # W^1/2 X X' W^1/2; its trace is X'WX's
-        gram.flat[::len(w) + 1] += self.params.ridge * np.trace(gram) / x.shape[1] + 1e-12  # on the diagonal
+        diagonal = gram.reshape(-1)[::len(w) + 1]  # a view
+        diagonal += self.params.ridge * gram.trace() / x.shape[1] + 1e-12
         u = np.linalg.solve(gram, xs @ mean_x)
         u *= root
         futures = futures - mean_y
