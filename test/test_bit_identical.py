@@ -4,7 +4,9 @@ Three fixed streams of 8 Nao arm angles at 10 fps run through every predictor th
 - `repeated`: a movement performed five times with variation, pauses, tracker noise, lost frames and a
   sequence reset, so that the default's memory recognises it and both of its weightings are returned;
 - `demonstrator`: two patterns of the built-in demonstrator, two repetitions each, one sequence each;
-- `real`: the arm angles of a real person climbing (`data/climb_2_arm_angles.npy`, see data/README.md).
+- `real`: the arm angles of a real person climbing (`data/climb_2_arm_angles.npy`, see data/README.md);
+and through the default a fourth, `long`: 3,400 frames of motion that keeps being new, so that its gates
+end their warm-up and its memories pass `FLOAT32_ABOVE` snippets (their float32 search runs).
 
 `data/bit_identical.npz` holds, per predictor, stream and frame, the first 64 bits of the SHA-256 of the
 prediction as the code made it when the file was written, and two float64 checksums of it. Where the
@@ -28,6 +30,8 @@ FIXTURE = DATA / "bit_identical.npz"
 REAL = DATA / "climb_2_arm_angles.npy"
 PREDICTORS = ("gwr_experts", "gated_llm_gwr", "hierarchy", "rls_ar", "linear")
 STREAMS = ("repeated", "demonstrator", "real")
+#: (predictor, stream) pairs the fixture holds: every predictor on every stream, and the default on `long`
+CASES = (*((p, s) for p in PREDICTORS for s in STREAMS), ("gwr_experts", "long"))
 #: Weights of the second checksum: a change that only permutes values moves it.
 _WEIGHTS = 1.0 + np.arange(6 * 8).reshape(6, 8) / 48.0
 
@@ -64,8 +68,21 @@ def real() -> list[np.ndarray]:
     return [np.load(REAL)]
 
 
+def long() -> list[np.ndarray]:
+    """3,400 frames of smooth motion that keeps being new (each joint's velocity a damped random walk about
+    a resting pose), with three lost frames: nearly every frame is a new snippet."""
+    rng = np.random.default_rng(46)
+    pose, velocity, out = np.zeros(8), np.zeros(8), np.empty((3400, 8))
+    for t in range(len(out)):
+        velocity = 0.95 * velocity + 0.004 * rng.normal(size=8)
+        pose = 0.995 * pose + velocity
+        out[t] = pose
+    out[[700, 701, 1900]] = np.nan
+    return [out]
+
+
 def stream(name: str) -> list[np.ndarray]:
-    return {"repeated": repeated, "demonstrator": demonstrator, "real": real}[name]()
+    return {"repeated": repeated, "demonstrator": demonstrator, "real": real, "long": long}[name]()
 
 
 def frames(model: object, sequences: list[np.ndarray]) -> Iterator[np.ndarray | None]:
@@ -110,8 +127,7 @@ def saved() -> dict[str, np.ndarray]:
         return dict(f)
 
 
-@pytest.mark.parametrize("predictor", PREDICTORS)
-@pytest.mark.parametrize("name", STREAMS)
+@pytest.mark.parametrize(("predictor", "name"), CASES)
 def test_predictions_are_those_the_fixture_holds(saved, predictor, name):
     hashes, sums = fingerprints(run(predictor, name))
     want_hashes, want_sums = saved[f"{predictor}/{name}/hash"], saved[f"{predictor}/{name}/sums"]
@@ -122,6 +138,18 @@ def test_predictions_are_those_the_fixture_holds(saved, predictor, name):
         assert not differ.size, f"{differ.size} of {len(hashes)} predictions changed, the first at frame {differ[0]}"
     else:
         np.testing.assert_allclose(sums, want_sums, rtol=1e-9, atol=1e-9, equal_nan=True)
+
+
+def test_the_long_stream_takes_the_default_past_its_warm_up_and_into_the_float32_search():
+    from gwr_predictor.default_predictor.memory import FLOAT32_ABOVE
+    from gwr_predictor.registry import make_predictor
+
+    model = make_predictor("gwr_experts")
+    list(frames(model, long()))
+    memories = [m.model for n, m in model.experts.members.items() if n in ("memory", "long_memory")]
+    assert min(m.size for m in memories) > FLOAT32_ABOVE + 200
+    warmup = model.experts.members["memory"].params.warmup
+    assert 0 < warmup < int(model.experts.members["memory"]._scored.min())
 
 
 def test_the_default_recognises_the_repeated_stream():
@@ -150,11 +178,10 @@ def test_a_checkpoint_midway_continues_bit_for_bit(tmp_path, predictor):
 
 def write() -> None:
     out: dict[str, np.ndarray] = {"blas": np.array(blas_kernel())}
-    for predictor in PREDICTORS:
-        for name in STREAMS:
-            out[f"{predictor}/{name}/hash"], out[f"{predictor}/{name}/sums"] = fingerprints(run(predictor, name))
+    for predictor, name in CASES:
+        out[f"{predictor}/{name}/hash"], out[f"{predictor}/{name}/sums"] = fingerprints(run(predictor, name))
     np.savez_compressed(FIXTURE, **out)
-    print(f"{FIXTURE}: {len(PREDICTORS)} predictors x {len(STREAMS)} streams, BLAS {out['blas']}")
+    print(f"{FIXTURE}: {len(CASES)} predictor x stream cases, BLAS {out['blas']}")
 
 
 if __name__ == "__main__":
