@@ -216,7 +216,7 @@ class GatedPredictor(Checkpointed):
             return
         p = self.params
         if p.warmup:
-            self._decays[0] = p.warmup_decay + (p.decay - p.warmup_decay) * min(1.0, self._scored[0] / p.warmup)
+            self._decays[0] = forgetting_after(p, self._scored[0])
         _products(obs - due[0], due[1], p.per_joint, self._new)  # y - newest pose at prediction time, model's step
         _accumulate(self._stats, self._decays, self._scored, self._new, ok)
 
@@ -290,7 +290,7 @@ class GateBank:
         self._slots, self._k = first._pending._slots, first._pending._k
         # whether every gate's long memory forgets at its end value `_end_decay` (its warmup over)
         self._settled = False
-        self._end_decay = self.params.warmup_decay + (self.params.decay - self.params.warmup_decay) * 1.0
+        self._end_decay = forgetting_after(self.params, self.params.warmup)
         # the last bank step's model steps, predicting gates and newest pose (None: not stepped as a bank)
         self._ungated: tuple[np.ndarray, np.ndarray, np.ndarray | None] | None = None
 
@@ -383,9 +383,14 @@ class GateBank:
         """The long memory's forgetting of the gates `rows` that score now, as `GatedPredictor._score` sets
         it over the warmup; once every gate's is at its end value, which it keeps, this is no longer called."""
         p = self.params
-        self.decays[0, rows, 0, 0, 0] = p.warmup_decay + (p.decay - p.warmup_decay) * np.minimum(
-            1.0, self.scored[rows, 0] / p.warmup)
+        self.decays[0, rows, 0, 0, 0] = forgetting_after(p, self.scored[rows, 0])
         self._settled = every(self.scored[:, 0] >= p.warmup) and every(self.decays[0] == self._end_decay)
+
+
+def forgetting_after(p: GateParams, scored: int | np.ndarray) -> float | np.ndarray:
+    """The long memory's forgetting after `scored` scored frames (of one gate, or of several): from
+    `warmup_decay` to `decay` over the first `warmup`, then `decay`'s value as this sum rounds it."""
+    return p.warmup_decay + (p.decay - p.warmup_decay) * np.minimum(1.0, scored / p.warmup)
 
 
 def _products(resid: np.ndarray, diff: np.ndarray, per_joint: bool, new: np.ndarray) -> None:
