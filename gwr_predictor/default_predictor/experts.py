@@ -183,12 +183,7 @@ class Experts(Checkpointed):
         # the usual frame: every member scored at every step (the same sums, fewer calls; a finite sum of
         # squares has no NaN or inf in it)
         if every(valid) and math.isfinite(err.sum()):
-            err *= made
-            self.sse *= self.params.decay
-            self.sse += err
-            self.weight *= self.params.decay
-            self.weight += made
-            self.scored += 1
+            _forget_and_add(self.sse, self.weight, self.scored, err, made, self.params.decay)
             return
         scored = valid & np.isfinite(err)
         decay = np.where(scored, self.params.decay, 1.0)
@@ -219,11 +214,7 @@ class Experts(Checkpointed):
         """(members, horizon) weights summing to 1 per step over the `available` members (default all)."""
         p = self.params
         if (available is None or every(available)) and every(self.weight):  # the usual frame, in fewer calls
-            mse = self.sse / self.weight
-            np.maximum(mse, p.floor, out=mse)
-            inv = mse.min(axis=0, keepdims=True) / mse
-            inv **= p.power
-            return inv / inv.sum(axis=0, keepdims=True)
+            return _inverse_mse_weights(self.sse, self.weight, p.floor, p.power)
         avail = np.ones(self.sse.shape, dtype=bool) if available is None else available
         mse = np.where(avail, self.running_mse(), np.nan)
         known = np.isfinite(mse)
@@ -391,19 +382,32 @@ class ExpertsPair:
                 e._add(e_err, e_valid)
             return
         made = self.record_weight[:, None, self._made_at[s]]  # (weighting, 1, horizon)
-        err *= made
-        self.sse *= self._decay
-        self.sse += err
-        self.weight *= self._decay
-        self.weight += made
-        self.scored += 1
+        _forget_and_add(self.sse, self.weight, self.scored, err, made, self._decay)
 
     def _weights(self) -> np.ndarray | None:
         """Both weightings' `Experts.weights` where every member is known at every step (else None)."""
         if not every(self.weight):
             return None
-        mse = self.sse / self.weight
-        np.maximum(mse, self.params.floor, out=mse)
-        inv = mse.min(axis=1, keepdims=True) / mse
-        inv **= self._power
-        return inv / inv.sum(axis=1, keepdims=True)
+        return _inverse_mse_weights(self.sse, self.weight, self.params.floor, self._power)
+
+
+def _forget_and_add(sse: np.ndarray, weight: np.ndarray, scored: np.ndarray, err: np.ndarray, made: np.ndarray,
+                    decay: float | np.ndarray) -> None:
+    """The usual frame's scoring, in place, for one weighting or several (leading axes): every member scored
+    at every step, its squared error `err` weighed by `made` (overwritten), after forgetting by `decay`."""
+    err *= made
+    sse *= decay
+    sse += err
+    weight *= decay
+    weight += made
+    scored += 1
+
+
+def _inverse_mse_weights(sse: np.ndarray, weight: np.ndarray, floor: float, power: float | np.ndarray) -> np.ndarray:
+    """The usual frame's weights, every member known at every step: 1 / MSE^power over the members (axis -2),
+    relative to the best (no overflow at any power), summing to 1 per step; for one weighting or several."""
+    mse = sse / weight
+    np.maximum(mse, floor, out=mse)
+    inv = mse.min(axis=-2, keepdims=True) / mse
+    inv **= power
+    return inv / inv.sum(axis=-2, keepdims=True)
