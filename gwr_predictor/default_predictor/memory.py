@@ -217,13 +217,12 @@ class TrajectoryMemory(Checkpointed):
         now = window[-1]
         return np.concatenate([now, (now - window[-1 - self._lags]).reshape(-1)])
 
-    def _distances(self, key: np.ndarray, rows: np.ndarray | None = None,
-                   query: tuple[np.ndarray, float] | None = None) -> np.ndarray:
+    def _distances(self, query: tuple[np.ndarray, float], rows: np.ndarray | None = None) -> np.ndarray:
         """Weighted squared distances of the stored keys (all, or `rows`) to `key`, as |a|^2 - 2 a.b + |b|^2:
         one pass over the keys instead of three (the difference, its weighting, its norm), which is what a
         full memory's search costs. Rounding leaves ~1e-14 (rad^2) where the difference is 0: far below
-        `EXACT`, far below any two keys of a recording. `query`: the key's `_query`, if made already."""
-        b, bb = self._query(key) if query is None else query
+        `EXACT`, far below any two keys of a recording. `query`: the key's `_query`."""
+        b, bb = query
         if rows is None:
             weighted, norms = self._weighted[:self.size], self._norms[:self.size]
         else:
@@ -286,16 +285,17 @@ class TrajectoryMemory(Checkpointed):
         diff = self.keys[:self.size, :p.n_joints] - key[:p.n_joints]
         d2 = np.einsum("nj,nj->n", diff, diff)
         return float(d2[held].min()) <= (p.still_radius * max(self.motion_rms, p.noise_floor)) ** 2
+
     def _nearest_stored(self, key: np.ndarray, read: tuple[int, np.ndarray, float, int] | None) -> float:
         """The squared distance of the nearest stored key to the key being stored, which the `read` of the
         same key `future` frames ago searched for already: its nearest then, unless that snippet was
         replaced since, against the few stored since (one search of a full memory per frame, not two)."""
         if read is None:
-            return float(self._distances(key).min())
+            return float(self._distances(self._query(key)).min())
         since = [slot for clock, slot in self._stores if clock > read[0]]
         if read[3] in since:  # the nearest then is gone
-            return float(self._distances(key).min())
-        return min(read[2], float(self._distances(key, np.asarray(since)).min())) if since else read[2]
+            return float(self._distances(self._query(key)).min())
+        return min(read[2], float(self._distances(self._query(key), np.asarray(since)).min())) if since else read[2]
 
     def _weigh(self, rows: slice) -> None:
         """The weighted keys and their squared norms of stored `rows` (the same call stored or loaded, so a
@@ -314,7 +314,7 @@ class TrajectoryMemory(Checkpointed):
         (`bound`), so the few are used only where they surely hold the nearest ones a read needs and every
         copy; otherwise (near-ties at the cut) every key is measured exactly, as below the threshold."""
         if self.size <= FLOAT32_ABOVE:
-            return np.arange(self.size), self._distances(key)
+            return np.arange(self.size), self._distances(self._query(key))
         needed, few = self._needed, self._few
         query, qq = searched = self._query(key)
         norms32 = self._norms32[:self.size]
@@ -327,11 +327,11 @@ class TrajectoryMemory(Checkpointed):
         # |float32 - exact| of |a|^2 - 2 a.b + |b|^2 over d values: every rounding at most 2^-24 relative, of
         # terms at most |a|^2 + |b|^2 (2 |a.b| <= |a|^2 + |b|^2), over 2 d + 4 of them; doubled
         bound = (4 * len(key) + 8) * 2.0 ** -24 * (float(norms32.max()) * (1 + 2.0 ** -23) + qq)
-        d2 = self._distances(key, slots, searched)
+        d2 = self._distances(searched, slots)
         others = d2[d2 > EXACT]
         if len(others) >= needed and float(np.partition(others, needed - 1)[needed - 1]) < cut - bound:
             return slots, d2
-        return np.arange(self.size), self._distances(key, query=searched)
+        return np.arange(self.size), self._distances(searched)
 
     def _read(self, key: np.ndarray) -> np.ndarray:
         """(horizon, J) displacements: the k nearest snippets' futures at the present speed, weighted, or
@@ -353,7 +353,7 @@ class TrajectoryMemory(Checkpointed):
         change = key[-p.n_joints:]  # the key's change over the longest lag
         self.travel = math.sqrt(float(change.dot(change))) / scale
         fit = p.fit_k > 0 and self.familiarity <= p.fit_radius
-        k = min(max(p.k, p.fit_k), recallable) if fit else p.k  # a fit takes the snippets there are
+        k = min(self._needed, recallable) if fit else p.k  # a fit takes the snippets there are
         chosen = np.argpartition(d2, k - 1)[:k] if len(d2) > k else np.arange(len(d2))
         if self.size > FLOAT32_ABOVE:  # in the slots' order (`_near`'s are ascending), however `_near` found them
             chosen.sort()
